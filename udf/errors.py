@@ -1,0 +1,30 @@
+"""One exception for everything that can be wrong with a UDF file or a UDF path."""
+from __future__ import annotations
+
+
+class UDFError(Exception):
+    """A problem in a UDF file (with file, line and column) or with a UDF path.
+
+    str(err) is a single line meant for the user, e.g.
+    ``input.udf:12:5: expected a number for mesh.NPX, found "five"``.
+    """
+
+    def __init__(self, message: str, file: str | None = None, line: int | None = None,
+                 column: int | None = None, path: str | None = None):
+        self.message = message
+        self.file = file
+        self.line = line
+        self.column = column
+        self.path = path
+        super().__init__(self.format())
+
+    def format(self) -> str:
+        where = ""
+        if self.file:
+            where = str(self.file)
+            if self.line is not None:
+                where += f":{self.line}"
+                if self.column is not None:
+                    where += f":{self.column}"
+            where += ": "
+        return where + self.message

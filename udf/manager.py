@@ -1,0 +1,485 @@
+"""``UDFManager``: the API users' OCTA scripts call, on top of our reader and writer.
+
+    u = UDFManager("output.udf")
+    u.get("mesh.NPX")                       # common (global_def) data, from any record
+    u.jump(u.totalRecord() - 1)             # select a record
+    u.get("Particles[].R")                  # list over particles of [x, y, z]
+    u.get("Particles[].R.x", [3])           # '[]' filled from the indices list -> one value
+    u.getArray("Particles[].R")             # the same as a numpy array
+    u.put(0.5, "t"); u.newRecord("step 10"); u.write("out.udf")
+
+Paths: ``name[i].member[].leaf``; ``[]`` means "every element" unless an index list is given,
+in which case the indices fill the ``[]`` in order.  ``jump(-1)`` selects the common part.
+"""
+from __future__ import annotations
+
+import os
+import re
+import tempfile
+
+import numpy as np
+
+from .errors import UDFError
+from .parser import build_schema, load_sections
+from .schema import Primitive, Schema, Struct, leaf_count, leaf_slice
+from .values import bind, default, from_python, nest
+from .writer import item_pieces, write_pieces
+
+_PART = re.compile(r"^([A-Za-z_][A-Za-z0-9_]*)((?:\[\s*-?\d*\s*\])*)$")
+_BRACKET = re.compile(r"\[\s*(-?\d*)\s*\]")
+ALL = object()
+
+
+class Record:
+    __slots__ = ("comment", "values")
+
+    def __init__(self, comment: str = "", values: dict | None = None):
+        self.comment = comment
+        self.values = values if values is not None else {}
+
+
+def atomic_write_text(path: str, text) -> None:
+    """Write ``text`` (a str, or a list of writer pieces) to ``path`` through a temporary
+    file in the same directory and a rename: readers never see a half-written file."""
+    d = os.path.dirname(os.path.abspath(path))
+    fd, tmp = tempfile.mkstemp(prefix="." + os.path.basename(path) + ".", dir=d)
+    try:
+        with os.fdopen(fd, "wb") as fh:
+            if isinstance(text, str):
+                fh.write(text.encode("utf-8"))
+            else:
+                write_pieces(fh, text)
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+
+
+class UDFManager:
+    """A UDF document: schema, common data and records."""
+
+    def __init__(self, path: str | None = None, *, schema_from: str | None = None):
+        """Open ``path``; or, with ``schema_from``, start an empty document whose schema is
+        that define file's (the way KAPSEL creates output.udf and restart.udf)."""
+        self.path = path
+        self.schema = Schema()
+        self.schema_texts: list[str] = []   # def/global_def/unit source, for writing
+        self.header_text = ""
+        self.common: dict = {}
+        self.common_where: dict = {}
+        self.records: list[Record] = []
+        self.current = -1
+        # OCTA stores `float` as single precision; output files may do the same (restart
+        # files must not: they continue runs bit for bit).
+        self.single_precision_records = False
+        source = schema_from or path
+        if source is None:
+            return
+        sections = load_sections(source)
+        self.schema = build_schema(sections)
+        for sec in sections:
+            if sec.kind == "header" and not self.header_text:
+                self.header_text = sec.text
+            elif sec.kind in ("def", "global_def", "unit"):
+                self.schema_texts.append(sec.text)
+        if schema_from is not None:
+            return
+        for sec in sections:
+            if sec.kind == "data":
+                for name, ndim, g, line, col in sec.items:
+                    m = self._member(name, sec.file, line, col, want_global=True)
+                    self.common[name] = bind(m.type, m.ndim, g, name, sec.file)
+                    self.common_where[name] = (sec.file, line, col)
+            elif sec.kind == "record":
+                rec = Record(sec.comment or "")
+                for name, ndim, g, line, col in sec.items:
+                    m = self._member(name, sec.file, line, col, want_global=False)
+                    rec.values[name] = bind(m.type, m.ndim, g, name, sec.file)
+                self.records.append(rec)
+        self.current = 0 if self.records else -1
+
+    def _member(self, name, file, line, col, want_global):
+        m, is_global = self.schema.item(name)
+        if m is None:
+            raise UDFError(f"{name!r} is not defined in the schema", file, line, col, path=name)
+        if is_global != want_global:
+            where = "common data" if want_global else "a record"
+            raise UDFError(f"{name!r} does not belong in {where}", file, line, col, path=name)
+        return m
+
+    # ------------------------------------------------------------------ records
+    def totalRecord(self) -> int:
+        return len(self.records)
+
+    def jump(self, n: int) -> int:
+        if n < -1 or n >= len(self.records):
+            raise UDFError(f"no record {n}: the file has {len(self.records)} records")
+        self.current = n
+        return n
+
+    def currentRecord(self) -> int:
+        return self.current
+
+    def newRecord(self, comment: str = "") -> int:
+        self.records.append(Record(comment))
+        self.current = len(self.records) - 1
+        return self.current
+
+    def eraseRecord(self, pos: int, num: int = 1) -> None:
+        del self.records[pos:pos + num]
+        self.current = min(self.current, len(self.records) - 1)
+
+    # ------------------------------------------------------------------ paths
+    def _parse(self, path: str, indices):
+        ops = []
+        fill = list(indices) if indices is not None else None
+        parts = path.strip().split(".")
+        for part in parts:
+            m = _PART.match(part.strip())
+            if not m:
+                raise UDFError(f"malformed path {path!r} (at {part!r})", path=path)
+            ops.append(("member", m.group(1)))
+            for b in _BRACKET.findall(m.group(2)):
+                if b == "":
+                    if fill:
+                        ops.append(("idx", int(fill.pop(0))))
+                    else:
+                        ops.append(("all",))
+                else:
+                    ops.append(("idx", int(b)))
+        return ops
+
+    def _root(self, name, path, create=False):
+        m, is_global = self.schema.item(name)
+        if m is None:
+            raise UDFError(f"no such item {name!r} in the schema (path {path!r})", path=path)
+        if is_global:
+            store = self.common
+        else:
+            if self.current < 0:
+                raise UDFError(f"{path!r} is record data: jump to a record first "
+                               f"({len(self.records)} records)", path=path)
+            store = self.records[self.current].values
+        if name not in store:
+            if not create:
+                store[name] = default(m.type, m.ndim)
+            else:
+                store[name] = default(m.type, m.ndim)
+        return store, m
+
+    def _walk(self, path, indices):
+        """Yield (value, type, ndim) at the end of the path, mapping over '[]'."""
+        ops = self._parse(path, indices)
+        store, m = self._root(ops[0][1], path)
+        return self._apply(store[ops[0][1]], m.type, m.ndim, ops[1:], path)
+
+    def _apply(self, v, t, ndim, ops, path):
+        if isinstance(v, np.ndarray):
+            return self._apply_array(v, t, ndim, ops, path)
+        for k, op in enumerate(ops):
+            if op[0] == "idx":
+                if not ndim:
+                    raise UDFError(f"{path!r}: not an array here", path=path)
+                i = op[1]
+                if not -len(v) <= i < len(v):
+                    raise UDFError(f"{path!r}: index {i} out of range (size {len(v)})", path=path)
+                v, ndim = v[i], ndim - 1
+            elif op[0] == "all":
+                if not ndim:
+                    raise UDFError(f"{path!r}: not an array here", path=path)
+                return ("map", [self._apply(x, t, ndim - 1, ops[k + 1:], path) for x in v])
+            else:
+                if ndim:
+                    raise UDFError(f"{path!r}: {op[1]!r} is reached through an array; "
+                                   f"give an index or []", path=path)
+                if not isinstance(t, Struct) or t.index(op[1]) is None:
+                    raise UDFError(f"{path!r}: no member {op[1]!r} here", path=path)
+                i = t.index(op[1])
+                mem = t.members[i]
+                if isinstance(v, np.ndarray):
+                    return self._apply_array(v, t, 0, ops[k:], path)
+                v, t, ndim = v[i], mem.type, mem.ndim
+            if isinstance(v, np.ndarray):
+                return self._apply_array(v, t, ndim, ops[k + 1:], path)
+        return ("leaf", v, t, ndim)
+
+    def _apply_array(self, arr, t, ndim, ops, path):
+        index = []
+        mapped = 0
+        k = 0
+        while k < len(ops) and ops[k][0] in ("idx", "all"):
+            if len(index) >= ndim:
+                raise UDFError(f"{path!r}: too many indices", path=path)
+            if ops[k][0] == "idx":
+                n = arr.shape[len(index)]
+                if not -n <= ops[k][1] < n:
+                    raise UDFError(f"{path!r}: index {ops[k][1]} out of range (size {n})",
+                                   path=path)
+                index.append(ops[k][1])
+            else:
+                index.append(slice(None))
+                mapped += 1
+            k += 1
+        names = [op[1] for op in ops[k:]]
+        if any(op[0] != "member" for op in ops[k:]):
+            raise UDFError(f"{path!r}: arrays inside numeric elements are not supported",
+                           path=path)
+        remaining = ndim - len(index)
+        if names and remaining:
+            raise UDFError(f"{path!r}: {names[0]!r} is reached through an array; give an "
+                           f"index or []", path=path)
+        try:
+            off, cnt, sub = leaf_slice(t, names)
+        except KeyError as e:
+            raise UDFError(f"{path!r}: no member {e.args[0]!r} here", path=path) from None
+        index += [slice(None)] * remaining
+        if not isinstance(t, Primitive):
+            index.append(off if isinstance(sub, Primitive) else slice(off, off + cnt))
+        return ("array", arr, tuple(index), sub, remaining, mapped)
+
+    # ------------------------------------------------------------------ get / put
+    def get(self, path: str, *args):
+        """get(path[, indices][, unit]) -> Python value (lists for structs and arrays)."""
+        indices, unit = _split_args(args)
+        res = self._walk(path, indices)
+        value, t = _to_python(res)
+        if unit is not None:
+            from .units import convert
+            src = self._unit_of(path)
+            value = convert(value, src, unit, self)
+        return value
+
+    def getArray(self, path: str, indices=None) -> np.ndarray:
+        res = self._walk(path, indices)
+        if res[0] == "array":
+            _, arr, index, sub, remaining, mapped = res
+            return np.array(arr[index])
+        return np.array(_to_python(res)[0])
+
+    def size(self, path: str, indices=None) -> int:
+        """Length of the array at ``path`` (``name`` or ``name[]`` both work)."""
+        res = self._walk(path, indices)
+        if res[0] == "array":
+            _, arr, index, sub, remaining, mapped = res
+            part = arr[index]
+            if not (remaining or mapped) or part.ndim == 0:
+                raise UDFError(f"{path!r} is not an array", path=path)
+            return int(part.shape[0])
+        if res[0] == "map":
+            return len(res[1])
+        _, v, t, ndim = res
+        if not ndim:
+            raise UDFError(f"{path!r} is not an array", path=path)
+        return len(v)
+
+    def put(self, value, path: str, indices=None) -> None:
+        """put(value, path[, indices]): set a value; putting at index == size appends."""
+        ops = self._parse(path, indices)
+        if any(op[0] == "all" for op in ops):
+            # put of a whole array at the end of the path: "Particles[]" -> the array
+            if ops[-1][0] == "all" and not any(op[0] == "all" for op in ops[:-1]):
+                ops = ops[:-1]
+            else:
+                raise UDFError(f"put({path!r}): give indices for every []", path=path)
+        name = ops[0][1]
+        store, m = self._root(name, path)
+        if len(ops) == 1:
+            store[name] = from_python(m.type, m.ndim, value, path)
+            return
+        store[name] = self._put(store[name], m.type, m.ndim, ops[1:], value, path)
+
+    def _put(self, v, t, ndim, ops, value, path):
+        op = ops[0]
+        if op[0] == "idx":
+            if not ndim:
+                raise UDFError(f"{path!r}: not an array here", path=path)
+            i = op[1]
+            n = len(v)
+            if i == n or (i > n):  # extend
+                grow = i + 1 - n
+                if isinstance(v, np.ndarray):
+                    pad = np.zeros((grow,) + v.shape[1:], dtype=v.dtype)
+                    if v.ndim > 1 and v.shape[1:] == (0,) * (v.ndim - 1):
+                        pad = None
+                    v = np.concatenate([v, pad]) if pad is not None else v
+                    if pad is None:
+                        leaves = leaf_count(t)
+                        shape = (grow,) + ((leaves,) if not isinstance(t, Primitive) else ())
+                        if ndim > 1:
+                            raise UDFError(f"{path!r}: cannot grow a multi-dimensional array "
+                                           f"element by element; put the whole array", path=path)
+                        v = np.zeros(shape, dtype=v.dtype)
+                else:
+                    v = v + [default(t, ndim - 1) for _ in range(grow)]
+            elif i < -n:
+                raise UDFError(f"{path!r}: index {i} out of range", path=path)
+            if isinstance(v, np.ndarray):
+                sub = v[i]
+                rest = ops[1:]
+                if not rest:
+                    v[i] = _leaves_of(value, t, ndim - 1, path, sub.shape)
+                    return v
+                res = self._apply_array(v, t, ndim, ops, path)
+                _, arr, index, subt, remaining, mapped = res
+                arr[index] = _leaves_of(value, subt, remaining, path, arr[index].shape)
+                return v
+            if len(ops) == 1:
+                v[i] = from_python(t, ndim - 1, value, path)
+            else:
+                v[i] = self._put(v[i], t, ndim - 1, ops[1:], value, path)
+            return v
+        # member
+        if ndim:
+            raise UDFError(f"{path!r}: {op[1]!r} is reached through an array; give an index",
+                           path=path)
+        if not isinstance(t, Struct) or t.index(op[1]) is None:
+            raise UDFError(f"{path!r}: no member {op[1]!r} here", path=path)
+        i = t.index(op[1])
+        mem = t.members[i]
+        if len(ops) == 1:
+            v[i] = from_python(mem.type, mem.ndim, value, path)
+        else:
+            v[i] = self._put(v[i], mem.type, mem.ndim, ops[1:], value, path)
+        return v
+
+    # ------------------------------------------------------------------ units
+    def _unit_of(self, path: str) -> str | None:
+        ops = self._parse(path, None)
+        m, _ = self.schema.item(ops[0][1])
+        unit = m.unit
+        t = m.type
+        for op in ops[1:]:
+            if op[0] == "member" and isinstance(t, Struct):
+                mem = t.members[t.index(op[1])]
+                unit = mem.unit or (mem.type.unit if isinstance(mem.type, Struct) else None) \
+                    or unit
+                t = mem.type
+        return unit
+
+    def where(self, name: str) -> str:
+        """'file:line:col' where the common item ``name`` was read, for messages."""
+        if name in self.common_where:
+            f, line, col = self.common_where[name]
+            return f"{f}:{line}:{col}"
+        return self.path or ""
+
+    # ------------------------------------------------------------------ writing
+    def pieces(self, record=None) -> list:
+        parts = []
+        if self.header_text:
+            parts.append(self.header_text + "\n")
+        parts.extend(t + "\n" for t in self.schema_texts)
+        if self.common:
+            order = [n for n in self.schema.global_items if n in self.common]
+            parts.append("\\begin{data}\n")
+            parts.extend(item_pieces([(n, self.common[n]) for n in order],
+                                     self.schema.global_items))
+            parts.append("\\end{data}\n")
+        recs = self.records if record is None else [self.records[record]]
+        for rec in recs:
+            parts.extend(self.record_pieces(rec))
+        return parts
+
+    def text(self, record=None) -> str:
+        return "".join(map(str, self.pieces(record)))
+
+    def record_pieces(self, rec: Record) -> list:
+        order = [n for n in self.schema.record_items if n in rec.values]
+        comment = rec.comment.replace('"', "'")
+        return (["\\begin{record}{\"%s\"}\n\\begin{data}\n" % comment]
+                + item_pieces([(n, rec.values[n]) for n in order], self.schema.record_items,
+                              self.single_precision_records)
+                + ["\\end{data}\n\\end{record}\n"])
+
+    def record_text(self, rec: Record) -> str:
+        return "".join(map(str, self.record_pieces(rec)))
+
+    def write(self, file: str | None = None, record=None, mode=None) -> None:
+        """Write the document (atomically: temporary file, then rename)."""
+        target = file or self.path
+        if not target:
+            raise UDFError("write(): no file name given")
+        try:
+            pieces = self.pieces(record)
+        except ValueError as e:
+            raise UDFError(f"cannot write {target}: {e}") from None
+        atomic_write_text(target, pieces)
+        if file:
+            self.path = file
+
+
+def _split_args(args):
+    indices = unit = None
+    for a in args:
+        if isinstance(a, str):
+            unit = a
+        elif a is not None:
+            indices = list(a) if not isinstance(a, int) else [a]
+    return indices, unit
+
+
+def _to_python(res):
+    kind = res[0]
+    if kind == "map":
+        vals = [_to_python(x)[0] for x in res[1]]
+        return vals, None
+    if kind == "leaf":
+        _, v, t, ndim = res
+        if isinstance(v, list):
+            return _deep_copy(v), t
+        return v, t
+    _, arr, index, sub, remaining, mapped = res
+    part = arr[index]
+    if isinstance(sub, Primitive):
+        out = part.tolist()
+        if sub.name == "int":
+            out = _ints(out)
+        return out, sub
+    lc = leaf_count(sub)
+    flat = part.reshape(-1, lc)
+    rows = [nest(r, sub) for r in flat.tolist()]
+    shape = part.shape[:-1]
+    return _reshape(rows, shape), sub
+
+
+def _ints(x):
+    if isinstance(x, list):
+        return [_ints(y) for y in x]
+    return int(x)
+
+
+def _reshape(rows, shape):
+    if not shape:
+        return rows[0]
+    if len(shape) == 1:
+        return rows
+    step = int(np.prod(shape[1:]))
+    return [_reshape(rows[i * step:(i + 1) * step], shape[1:]) for i in range(shape[0])]
+
+
+def _deep_copy(v):
+    if isinstance(v, list):
+        return [_deep_copy(x) for x in v]
+    if isinstance(v, np.ndarray):
+        return v.copy()
+    return v
+
+
+def _leaves_of(value, t, ndim, path, shape):
+    """Flatten a user value for assignment into a numeric array slot of ``shape``."""
+    if isinstance(value, np.ndarray):
+        arr = value
+    else:
+        from .values import flatten_leaves
+        if isinstance(value, (list, tuple)):
+            arr = np.array(flatten_leaves(list(value)), dtype=float)
+        else:
+            if isinstance(value, str):
+                raise UDFError(f"{path!r}: expected a number, got {value!r}", path=path)
+            arr = np.array(value, dtype=float)
+    try:
+        return np.asarray(arr, dtype=float).reshape(shape)
+    except ValueError:
+        raise UDFError(f"{path!r}: value has {np.size(arr)} numbers, expected "
+                       f"{int(np.prod(shape))}", path=path) from None

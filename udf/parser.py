@@ -1,0 +1,381 @@
+"""UDF text -> sections: schema definitions and generic (untyped) data values.
+
+Parsing is done by the Lark grammar in ``grammar.lark``.  Before Lark sees the text, every
+long purely numeric bracketed array (``[[[{0.1}{0.2}...]...]...]``) is cut out, parsed by
+numpy in one call, and replaced by a ``@k@`` placeholder padded with blanks so that every
+line and column of the rest of the file stays where it was.
+"""
+from __future__ import annotations
+
+import multiprocessing as mp
+import os
+import re
+import warnings
+from dataclasses import dataclass, field
+from functools import lru_cache
+
+import lark
+import numpy as np
+
+from .errors import UDFError
+from .schema import Member, Primitive, Schema, Select, Struct
+
+BULK_MIN_CHARS = 256
+_BULK_RUN = re.compile(rb"\[[\s0-9.eE+\-,{}\[\]]{%d,}" % BULK_MIN_CHARS)
+_NUMBER_B = re.compile(rb"[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?")
+_DELIMS = bytes.maketrans(b"{}[],", b"     ")
+_DIGIT_B = re.compile(rb"\d")
+
+
+@lru_cache(maxsize=1)
+def grammar() -> lark.Lark:
+    path = os.path.join(os.path.dirname(__file__), "grammar.lark")
+    with open(path, encoding="utf-8") as fh:
+        return lark.Lark(fh.read(), parser="lalr", propagate_positions=True,
+                         maybe_placeholders=False)
+
+
+# ---------------------------------------------------------------------------------------
+# generic values
+@dataclass
+class Group:
+    """A ``{...}`` (kind '{') or ``[...]`` (kind '[') group of generic values."""
+    kind: str
+    items: list
+    line: int
+    column: int
+
+
+@dataclass
+class Bulk:
+    """A numeric array lifted out of the text: flat numbers and bracket-level counts."""
+    numbers: np.ndarray
+    level_counts: np.ndarray  # level_counts[k] = number of '[' at nesting level k (1 = outer)
+    integral: bool  # no '.', 'e' or 'E' appeared
+    line: int
+    column: int
+
+
+@dataclass
+class Section:
+    kind: str  # 'header' | 'def' | 'global_def' | 'data' | 'record' | 'unit'
+    file: str
+    text: str = ""          # raw source text (definitions and units)
+    members: list = field(default_factory=list)   # definitions
+    classes: list = field(default_factory=list)   # (name, Struct)
+    items: list = field(default_factory=list)     # data: (name, ndim, value, line, col)
+    comment: str | None = None
+    header_members: list = field(default_factory=list)
+    header_items: list = field(default_factory=list)
+
+
+def _unquote(tok) -> str:
+    return str(tok)[1:-1]
+
+
+# ---------------------------------------------------------------------------------------
+def extract_bulk(data: bytes, file: str):
+    """Cut long numeric arrays out of the file's bytes.
+
+    Returns (reduced text, list of Bulk).  Each array becomes ``@k@`` followed by as many
+    newlines as it spanned, so line numbers of everything after it are unchanged.
+    """
+    spans = []      # (g0, g1) byte offsets of each bulk group
+    pieces = []
+    pos = 0
+    search_from = 0
+    while True:
+        m = _BULK_RUN.search(data, search_from)
+        if m is None:
+            break
+        start, run_end = m.start(), m.end()
+        b = np.frombuffer(data, dtype=np.uint8, count=run_end - start, offset=start)
+        step = (b == 91).view(np.int8) - (b == 93).view(np.int8)
+        depth = np.cumsum(step, dtype=np.int8)
+        # every top-level bracket group inside this run of numeric characters
+        closes = np.flatnonzero(depth <= 0)
+        search_from = run_end
+        g_start = 0
+        for c in closes.tolist():
+            if depth[c] < 0:          # a ']' closing something opened before the run
+                search_from = start + c + 1
+                break
+            if b[g_start] != 91:      # the next group starts at the next '['
+                nxt = data.find(b"[", start + g_start, start + c + 1)
+                if nxt < 0:
+                    continue
+                g_start = nxt - start
+            if c + 1 - g_start >= BULK_MIN_CHARS:
+                levels = depth[g_start:c + 1][b[g_start:c + 1] == 91]
+                if g_start:
+                    levels = levels - depth[g_start - 1]
+                g0, g1 = start + g_start, start + c + 1
+                spans.append((g0, g1, np.bincount(levels.astype(np.int64))))
+                pieces.append(data[pos:g0])
+                pieces.append(b"@%d@" % (len(spans) - 1) + b"\n" * data.count(b"\n", g0, g1))
+                pos = g1
+            g_start = c + 1
+            if g_start >= len(b):
+                break
+    if not spans:
+        return data.decode("utf-8", errors="replace"), []
+    pieces.append(data[pos:])
+    numbers = _parse_numbers([data[g0:g1] for g0, g1, _ in spans])
+    bulks = []
+    line, lpos = 1, 0
+    for k, ((g0, g1, counts), nums) in enumerate(zip(spans, numbers)):
+        line += data.count(b"\n", lpos, g0)
+        lpos = g0
+        column = g0 - (data.rfind(b"\n", 0, g0) + 1) + 1
+        if nums is None:
+            raise _bad_number(data[g0:g1], file, line, column)
+        integral = not any(ch in data[g0:g1] for ch in (b".", b"e", b"E"))
+        bulks.append(Bulk(nums, counts, integral, line, column))
+    return b"".join(pieces).decode("utf-8", errors="replace"), bulks
+
+
+def _parse_one(span: bytes):
+    """The numbers of one bracket group, or None if a token is not a number."""
+    flat = span.translate(_DELIMS)
+    if not _DIGIT_B.search(flat):
+        return np.zeros(0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        try:
+            return np.fromstring(flat, dtype=np.float64, sep=" ")
+        except (DeprecationWarning, ValueError):
+            return None
+
+
+PARALLEL_BYTES = 64 << 20
+
+
+def _parse_numbers(spans: list) -> list:
+    """Parse every span; large inputs are split over two processes (numpy's text parser is
+    the floor: about 0.1 us per number)."""
+    total = sum(len(s) for s in spans)
+    if total < PARALLEL_BYTES or len(spans) < 2 or (os.cpu_count() or 1) < 2 \
+            or "fork" not in mp.get_all_start_methods():
+        return [_parse_one(s) for s in spans]
+    global _FORKED_SPANS
+    half = len(spans) // 2
+    _FORKED_SPANS = spans  # the forked child sees them without pickling
+    try:
+        with mp.get_context("fork").Pool(1) as pool:
+            other = pool.map_async(_parse_range, [(half, len(spans))])
+            mine = _parse_range((0, half))
+            return mine + other.get()[0]
+    finally:
+        _FORKED_SPANS = None
+
+
+_FORKED_SPANS = None
+
+
+def _parse_range(bounds):
+    return [_parse_one(s) for s in _FORKED_SPANS[bounds[0]:bounds[1]]]
+
+
+def _bad_number(span: bytes, file, line, column) -> UDFError:
+    for m in re.finditer(rb"[^\s,{}\[\]]+", span):
+        if not _NUMBER_B.fullmatch(m.group()):
+            before = span[:m.start()]
+            ln = line + before.count(b"\n")
+            col = (m.start() - before.rfind(b"\n")) if b"\n" in before else column + m.start()
+            tok = m.group().decode("ascii", errors="replace")
+            return UDFError(f"malformed number {tok!r} in an array", file, ln, col)
+    return UDFError("malformed numeric array", file, line, column)
+
+
+# ---------------------------------------------------------------------------------------
+class _Builder:
+    """Turns a Lark tree into Sections, resolving includes."""
+
+    def __init__(self, file: str, text: str, bulks: list, loader):
+        self.file = file
+        self.text = text
+        self.bulks = bulks
+        self.loader = loader
+
+    # --- definitions ---
+    def type_of(self, node):
+        kind = node.data
+        if kind == "primitive":
+            return Primitive(str(node.children[0]))
+        if kind == "select":
+            return Select(tuple(_unquote(c) for c in node.children))
+        if kind == "struct":
+            return Struct(tuple(self.member(c) for c in node.children))
+        if kind == "class_ref":
+            return ("ref", str(node.children[0]), node.children[0].line, node.children[0].column)
+        raise AssertionError(kind)
+
+    def _unit_desc(self, children):
+        unit = desc = None
+        for c in children:
+            if isinstance(c, lark.Tree) and c.data == "unit":
+                unit = str(c.children[0])[1:-1]
+            elif isinstance(c, lark.Tree) and c.data == "description":
+                desc = _unquote(c.children[0])
+        return unit, desc
+
+    def member(self, node) -> Member:
+        name, dims, typ, *rest = node.children
+        unit, desc = self._unit_desc(rest)
+        return Member(str(name), len(dims.children),
+                      self.type_of(typ), unit, desc)
+
+    def definitions(self, node, kind):
+        sec = Section(kind, self.file, text=self.raw(node))
+        for d in node.children:
+            if d.data == "class_def":
+                name, typ, *rest = d.children
+                unit, desc = self._unit_desc(rest)
+                t = self.type_of(typ)
+                if isinstance(t, Struct):
+                    t = Struct(t.members, name=str(name), unit=unit)
+                sec.classes.append((str(name), t, name.line, name.column))
+            else:
+                sec.members.append(self.member(d))
+        return sec
+
+    def raw(self, node) -> str:
+        return self.text[node.meta.start_pos:node.meta.end_pos]
+
+    # --- data ---
+    def value(self, node):
+        if isinstance(node, lark.Token):
+            return node
+        kind = node.data
+        if kind in ("number", "string"):
+            return node.children[0]
+        if kind == "bulk":
+            tok = node.children[0]
+            return self.bulks[int(str(tok)[1:-1])]
+        if kind in ("group", "array"):
+            return Group("{" if kind == "group" else "[", [self.value(c) for c in node.children],
+                         node.meta.line, node.meta.column)
+        raise AssertionError(kind)
+
+    def data_items(self, node):
+        items = []
+        for it in node.children:
+            name, dims, val = it.children[0], it.children[1], it.children[2]
+            items.append((str(name), len(dims.children), self.value(val), name.line, name.column))
+        return items
+
+    def sections(self, tree) -> list[Section]:
+        out = []
+        for node in tree.children:
+            kind = node.data
+            if kind == "include":
+                target = _unquote(node.children[0])
+                path = os.path.join(os.path.dirname(self.file), target)
+                if not os.path.exists(path):
+                    tok = node.children[0]
+                    raise UDFError(f'included file "{target}" not found (looked for {path})',
+                                   self.file, tok.line, tok.column)
+                out.extend(self.loader(path))
+            elif kind in ("def_block", "global_def_block"):
+                out.append(self.definitions(node, "def" if kind == "def_block" else "global_def"))
+            elif kind == "data_block":
+                out.append(Section("data", self.file, items=self.data_items(node)))
+            elif kind == "record_block":
+                comment = None
+                data = node.children[-1]
+                if len(node.children) == 2:
+                    comment = _unquote(node.children[0].children[0])
+                out.append(Section("record", self.file, items=self.data_items(data),
+                                   comment=comment))
+            elif kind == "unit_block":
+                out.append(Section("unit", self.file, text=self.raw(node)))
+            elif kind == "header":
+                sec = Section("header", self.file, text=self.raw(node))
+                for c in node.children:
+                    if c.data == "def_block":
+                        sec.header_members = self.definitions(c, "def").members
+                    else:
+                        sec.header_items = self.data_items(c)
+                out.append(sec)
+        return out
+
+
+_TERMINAL_NAMES = {"LBRACE": "'{'", "RBRACE": "'}'", "LSQB": "'['", "RSQB": "']'",
+                   "COMMA": "','", "SEMICOLON": "';'", "COLON": "':'", "NUMBER": "a number",
+                   "STRING": "a string", "NAME": "a name", "BULK": "a number array",
+                   "DIM": "'[]'", "UNIT": "a [unit]", "PRIMITIVE": "a type"}
+
+
+def _syntax_error(e: lark.exceptions.UnexpectedInput, file: str, text: str) -> UDFError:
+    line, col = e.line, e.column
+    if isinstance(e, lark.exceptions.UnexpectedCharacters):
+        ch = text[e.pos_in_stream] if e.pos_in_stream < len(text) else "end of file"
+        return UDFError(f"unexpected character {ch!r}", file, line, col)
+    if isinstance(e, lark.exceptions.UnexpectedToken):
+        tok = e.token
+        if tok.type == "$END":
+            return UDFError("unexpected end of file (a block or bracket is not closed)",
+                            file, line if line and line > 0 else text.count("\n") + 1, None)
+        exp = sorted({_TERMINAL_NAMES.get(x, x.strip('"')) for x in e.expected})[:8]
+        return UDFError(f"unexpected {str(tok)!r}; expected one of: {', '.join(exp)}",
+                        file, line, col)
+    return UDFError(str(e).splitlines()[0], file, line, col)
+
+
+def load_sections(path: str, _stack=()) -> list[Section]:
+    """Parse ``path`` (and, recursively, what it includes) into a list of Sections."""
+    path = os.path.normpath(path)
+    if path in _stack:
+        raise UDFError(f"include cycle: {' -> '.join(_stack + (path,))}", path)
+    try:
+        with open(path, "rb") as fh:
+            data = fh.read()
+    except OSError as e:
+        raise UDFError(f"cannot read file: {e.strerror}", path) from None
+    reduced, bulks = extract_bulk(data, path)
+    try:
+        tree = grammar().parse(reduced)
+    except lark.exceptions.UnexpectedInput as e:
+        raise _syntax_error(e, path, reduced) from None
+    builder = _Builder(path, reduced, bulks, lambda p: load_sections(p, _stack + (path,)))
+    return builder.sections(tree)
+
+
+def build_schema(sections: list[Section]) -> Schema:
+    """Collect definitions from all sections, resolving class references."""
+    schema = Schema()
+    pending = []
+    for sec in sections:
+        if sec.kind == "header":
+            schema.header_items.update({m.name: m for m in sec.header_members})
+        for name, t, line, col in sec.classes:
+            schema.classes[name] = t
+        if sec.kind in ("def", "global_def"):
+            target = schema.record_items if sec.kind == "def" else schema.global_items
+            for m in sec.members:
+                target[m.name] = m
+        pending.append(sec)
+
+    def resolve(t, file):
+        if isinstance(t, tuple) and t[0] == "ref":
+            _, name, line, col = t
+            if name not in schema.classes:
+                raise UDFError(f"unknown type or class {name!r}", file, line, col)
+            return resolve(schema.classes[name], file)
+        if isinstance(t, Struct):
+            members = tuple(Member(m.name, m.ndim, resolve(m.type, file), m.unit, m.description)
+                            for m in t.members)
+            if all(a.type is b.type for a, b in zip(members, t.members)):
+                return t
+            return Struct(members, name=t.name, unit=t.unit)
+        return t
+
+    # classes may refer to classes defined later: resolve repeatedly
+    files = {name: sec.file for sec in sections for name, *_ in sec.classes}
+    for name in list(schema.classes):
+        schema.classes[name] = resolve(schema.classes[name], files.get(name))
+    for items, secs in ((schema.global_items, "global_def"), (schema.record_items, "def")):
+        for name, m in list(items.items()):
+            f = next((s.file for s in sections if s.kind == secs and m in s.members), None)
+            items[name] = Member(m.name, m.ndim, resolve(m.type, f), m.unit, m.description)
+    return schema
