@@ -1,0 +1,84 @@
+"""The ``kapsel-py`` command: flags -> config -> simulation -> exit code.
+
+    kapsel-py -Iinput.udf -Ooutput.udf -Ddefine.udf -Rrestart.udf [--threads N] [--seed S]
+
+The flags are the original kapsel_u2m's (``-I input.udf`` with a space works too).
+Exit codes: 0 success, 1 run failed (instability, solver did not converge, interrupted),
+2 bad command line or bad input.
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+
+from . import __version__
+
+EXIT_OK, EXIT_RUN_FAILED, EXIT_BAD_INPUT = 0, 1, 2
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(
+        prog="kapsel-py",
+        description="Colloidal particles in one- or two-component fluids by the Smoothed "
+                    "Profile Method: a drop-in replacement for KAPSEL's kapsel_u2m.",
+        epilog="Example: kapsel-py -Iinput.udf -Ooutput.udf -Ddefine.udf -Rrestart.udf\n"
+               "Analyses: kapsel-py analyze {cna,erotate,sq} ... (see kapsel-py analyze -h)",
+        formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("-I", dest="input", metavar="INPUT.udf", required=True,
+                   help="input UDF (simulation conditions)")
+    p.add_argument("-O", dest="output", metavar="OUTPUT.udf", default="output.udf",
+                   help="output UDF: the input data plus one record per snapshot "
+                        "(default: output.udf)")
+    p.add_argument("-D", dest="define", metavar="DEFINE.udf", default="define.udf",
+                   help="schema (define.udf) the output and restart files follow "
+                        "(default: define.udf)")
+    p.add_argument("-R", dest="restart", metavar="RESTART.udf", default="restart.udf",
+                   help="restart UDF written at every snapshot and at the end "
+                        "(default: restart.udf)")
+    p.add_argument("--threads", type=int, default=1, metavar="N",
+                   help="threads for FFTs and array work (default: 1)")
+    p.add_argument("--seed", type=int, default=None, metavar="S",
+                   help="random seed: runs with the same input and seed are identical "
+                        "(default: drawn from the OS and reported)")
+    p.add_argument("--quiet", action="store_true", help="no progress on stderr")
+    p.add_argument("--overwrite", action="store_true",
+                   help="replace existing output and restart files")
+    p.add_argument("--version", action="version", version=f"kapsel-py {__version__}")
+    return p
+
+
+def fail(message: str, code: int = EXIT_BAD_INPUT) -> int:
+    print(f"kapsel-py: error: {message}", file=sys.stderr)
+    return code
+
+
+def main(argv=None) -> int:
+    argv = list(sys.argv[1:] if argv is None else argv)
+    if argv and argv[0] == "analyze":
+        from .analysis.cli import main as analyze
+        return analyze(argv[1:])
+    args = build_parser().parse_args(argv)
+    if args.threads < 1:
+        return fail(f"--threads must be at least 1, got {args.threads}")
+    for flag, path in (("-I", args.input), ("-D", args.define)):
+        if not os.path.isfile(path):
+            return fail(f"{flag}{path}: no such file")
+
+    import udf
+    from . import config
+    try:
+        cfg = config.load(args.input)
+        udf.UDFManager(args.define)  # the schema for output.udf and restart.udf must read
+    except (udf.UDFError, config.ConfigError) as e:
+        return fail(str(e))
+
+    from .simulation import SOLVERS
+    if cfg.type not in SOLVERS:
+        return fail(f"constitutive_eq.type {cfg.type!r} is not implemented yet in kapsel-py "
+                    f"(implemented: {', '.join(sorted(SOLVERS)) or 'none'})")
+    return SOLVERS[cfg.type](cfg, args)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,453 @@
+"""The run configuration: the input UDF read into typed, validated, frozen dataclasses.
+
+Every value is read by its UDF path (manual §6.1, tables 1-7).  A bad value raises
+``ConfigError`` naming the file position, the path and the value; options the program does
+not implement raise ``ConfigError`` naming the option (never a silent fallback).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+import udf
+from udf import UDFError
+
+SPECTRAL_TYPES = ("Navier_Stokes", "Shear_Navier_Stokes", "Shear_Navier_Stokes_Lees_Edwards",
+                  "Electrolyte")
+FDM_TYPES = ("Navier_Stokes_FDM", "Navier_Stokes_Cahn_Hilliard_FDM",
+             "Shear_Navier_Stokes_Lees_Edwards_FDM", "Shear_NS_LE_CH_FDM")
+PHASE_TYPES = ("Navier_Stokes_Cahn_Hilliard_FDM", "Shear_NS_LE_CH_FDM")
+SHEAR_TYPES = ("Shear_Navier_Stokes", "Shear_Navier_Stokes_Lees_Edwards",
+               "Shear_Navier_Stokes_Lees_Edwards_FDM", "Shear_NS_LE_CH_FDM")
+
+
+class ConfigError(Exception):
+    """An invalid or unsupported input value: one line for the user."""
+
+    def __init__(self, message: str, where: str = "", path: str = "", value=None):
+        self.path, self.value = path, value
+        text = ""
+        if where:
+            text += where + ": "
+        if path:
+            text += path + (f" = {value!r}" if value is not None else "") + ": "
+        super().__init__(text + message)
+
+
+@dataclass(frozen=True)
+class Mesh:
+    NPX: int
+    NPY: int
+    NPZ: int
+    DX: float
+
+    @property
+    def shape(self) -> tuple:
+        return (2 ** self.NPX, 2 ** self.NPY, 2 ** self.NPZ)
+
+    @property
+    def box(self) -> np.ndarray:
+        return np.array(self.shape, dtype=float) * self.DX
+
+
+@dataclass(frozen=True)
+class Shear:
+    kind: str             # 'DC' | 'AC'
+    shear_rate: float
+    frequency: float = 0.0
+
+
+@dataclass(frozen=True)
+class Fluid:
+    RHO: float
+    ETA: float
+    kBT: float
+    alpha_v: float
+    alpha_o: float
+    ns_solver: str = "spectral"     # 'spectral' | 'explicit_scheme' | 'implicit_scheme'
+    tolerance: float = 1e-9         # BiCGSTAB relative residual (10**exponent of the file)
+    maximum_iteration: int = 1000
+    viscosity_change: bool = False
+    ETA_A: float = 0.0
+    ETA_B: float = 0.0
+
+    @property
+    def nu(self) -> float:
+        return self.ETA / self.RHO
+
+
+@dataclass(frozen=True)
+class PhaseField:
+    ch_solver: str                 # 'explicit_scheme' | 'implicit_scheme'
+    tolerance: float
+    maximum_iteration: int
+    potential: str                 # 'Landau' | 'Flory_Huggins'
+    composition_ratio: float
+    initial_fluctuation: float
+    d: float
+    w: float
+    alpha: float
+    kappa: float
+    a: float = 0.0
+    b: float = 0.0
+    na: float = 0.0
+    nb: float = 0.0
+    chi: float = 0.0
+
+
+@dataclass(frozen=True)
+class Species:
+    """One Particle_spec / Chain_spec / Rigid_spec entry."""
+    number: int                    # particles, or chains / bodies
+    beads: int                     # beads per chain or body (1 for spheres)
+    MASS_RATIO: float
+    surface_charge: float = 0.0
+    rigid_motion: str = "free"
+    rigid_velocity: tuple = (0.0, 0.0, 0.0)
+    rigid_omega: tuple = (0.0, 0.0, 0.0)
+
+    @property
+    def particles(self) -> int:
+        return self.number * self.beads
+
+
+@dataclass(frozen=True)
+class Particles:
+    object_type: str               # 'spherical_particle' | 'chain' | 'rigid'
+    species: tuple
+    A: float
+    A_XI: float
+
+    @property
+    def count(self) -> int:
+        return sum(s.particles for s in self.species)
+
+
+@dataclass(frozen=True)
+class Interactions:
+    EPSILON: float
+    LJ_powers: str                 # '12:6' | '24:12' | '36:18' | 'macro_vdw'
+    LJ_truncate: str               # 'ON' | 'OFF' | 'NONE'
+    G: float
+    G_direction: str               # '-X' | '-Y' | '-Z'
+
+
+@dataclass(frozen=True)
+class Switches:
+    ROTATION: bool
+    init_distribution: str
+    random_walk_iterations: int
+    user_particles: np.ndarray = field(compare=False)   # (n, 13): R, v, q, omega
+    init_orientation: str = "space_align"
+    fix_cell: tuple = (False, False, False)
+    pin: tuple = ()
+    pin_rot: tuple = ()
+    free_rigid: tuple = ()         # ((spec_id, (vx,vy,vz), (ox,oy,oz)), ...) of bools
+    OBL_INT: str = "linear"
+
+
+@dataclass(frozen=True)
+class TimeIncrement:
+    kind: str                      # 'auto' | 'manual'
+    factor: float = 1.0
+    delta_t: float = 0.0
+
+
+@dataclass(frozen=True)
+class Output:
+    GTS: int
+    Num_snap: int
+    UDF: bool
+    AVS: bool = False
+
+    @property
+    def total_steps(self) -> int:
+        return self.GTS * self.Num_snap
+
+
+@dataclass(frozen=True)
+class Resume:
+    calculation: str               # 'NEW' | 'CONTINUE' | 'CONTINUE_ORIGINAL' | 'CONTINUE_FDM' | ...
+
+
+@dataclass(frozen=True)
+class RunConfig:
+    type: str                      # constitutive_eq.type
+    mesh: Mesh
+    fluid: Fluid
+    particles: Particles
+    interactions: Interactions
+    switches: Switches
+    time: TimeIncrement
+    output: Output
+    resume: Resume
+    phase: PhaseField | None = None
+    shear: Shear | None = None
+    input_path: str = ""
+
+    @property
+    def is_fdm(self) -> bool:
+        return self.type in FDM_TYPES
+
+    @property
+    def has_phase_field(self) -> bool:
+        return self.type in PHASE_TYPES
+
+
+# ---------------------------------------------------------------------------------------
+class _Reader:
+    """Reads values by path and remembers where they came from for messages."""
+
+    def __init__(self, doc: udf.UDFManager):
+        self.doc = doc
+
+    def where(self, path: str) -> str:
+        return self.doc.where(path.split(".")[0].split("[")[0])
+
+    def get(self, path: str):
+        try:
+            return self.doc.get(path)
+        except UDFError as e:
+            raise ConfigError(f"missing or unreadable in this input ({e.message})",
+                              self.where(path), path) from None
+
+    def has(self, path: str) -> bool:
+        try:
+            self.doc.get(path)
+            return True
+        except UDFError:
+            return False
+
+    def fail(self, path, value, message):
+        raise ConfigError(message, self.where(path), path, value)
+
+    def positive(self, path):
+        v = self.get(path)
+        if not v > 0 or not math.isfinite(v):
+            self.fail(path, v, "must be a positive number")
+        return v
+
+    def non_negative(self, path):
+        v = self.get(path)
+        if not v >= 0 or not math.isfinite(v):
+            self.fail(path, v, "must be zero or positive")
+        return v
+
+    def finite(self, path):
+        v = self.get(path)
+        if not math.isfinite(v):
+            self.fail(path, v, "must be a finite number")
+        return v
+
+
+def load(input_path: str) -> RunConfig:
+    """Read and validate ``input_path``; raises UDFError (syntax) or ConfigError (values)."""
+    doc = udf.UDFManager(input_path)
+    return from_document(doc, input_path)
+
+
+def from_document(doc: udf.UDFManager, input_path: str = "") -> RunConfig:
+    r = _Reader(doc)
+    eq_type = r.get("constitutive_eq.type")
+    base = f"constitutive_eq.{eq_type}"
+    if eq_type == "Electrolyte":
+        r.fail("constitutive_eq.type", eq_type,
+               "the Electrolyte type (charged particles) is not supported by kapsel-py")
+
+    # ---- mesh ------------------------------------------------------------------------
+    nps = []
+    for ax in ("NPX", "NPY", "NPZ"):
+        p = f"mesh.{ax}"
+        v = r.get(p)
+        if v < 1:
+            r.fail(p, v, "must be at least 1 (the mesh has 2^NP points per direction)")
+        if v > 12:
+            r.fail(p, v, "is too large (2^NP > 4096 points per direction)")
+        nps.append(v)
+    mesh = Mesh(*nps, DX=r.positive(f"{base}.DX"))
+
+    # ---- fluid -----------------------------------------------------------------------
+    fl = dict(RHO=r.positive(f"{base}.RHO"), ETA=r.positive(f"{base}.ETA"),
+              kBT=r.non_negative(f"{base}.kBT"), alpha_v=r.non_negative(f"{base}.alpha_v"),
+              alpha_o=r.non_negative(f"{base}.alpha_o"))
+    if eq_type in FDM_TYPES:
+        sp = f"{base}.NS_solver"
+        fl["ns_solver"] = r.get(f"{sp}.type")
+        if fl["ns_solver"] == "implicit_scheme":
+            tol = r.finite(f"{sp}.implicit_scheme.tolerance")
+            if tol >= 0:
+                r.fail(f"{sp}.implicit_scheme.tolerance", tol,
+                       "is a base-10 exponent and must be negative (e.g. -9 for 1e-9)")
+            fl["tolerance"] = 10.0 ** tol
+            it = r.get(f"{sp}.implicit_scheme.maximum_iteration")
+            if it < 1:
+                r.fail(f"{sp}.implicit_scheme.maximum_iteration", it, "must be at least 1")
+            fl["maximum_iteration"] = it
+            vc = f"{sp}.implicit_scheme.viscosity_change"
+            if eq_type in PHASE_TYPES and r.has(vc) and r.get(vc) == "ON":
+                fl["viscosity_change"] = True
+                fl["ETA_A"] = r.positive(f"{vc.rsplit('.', 1)[0]}.ON.ETA_A")
+                fl["ETA_B"] = r.positive(f"{vc.rsplit('.', 1)[0]}.ON.ETA_B")
+    fluid = Fluid(**fl)
+
+    # ---- shear -----------------------------------------------------------------------
+    shear = None
+    if eq_type in SHEAR_TYPES:
+        ef = f"{base}.External_field"
+        kind = r.get(f"{ef}.type")
+        rate = r.finite(f"{ef}.{kind}.Shear_rate")
+        freq = r.non_negative(f"{ef}.AC.Frequency") if kind == "AC" else 0.0
+        shear = Shear(kind, rate, freq)
+
+    # ---- phase field -----------------------------------------------------------------
+    phase = None
+    if eq_type in PHASE_TYPES:
+        cp = f"{base}.CH_solver"
+        ch = r.get(f"{cp}.type")
+        tol, it = 1e-9, 1000
+        if ch == "implicit_scheme":
+            t = r.finite(f"{cp}.implicit_scheme.tolerance")
+            if t >= 0:
+                r.fail(f"{cp}.implicit_scheme.tolerance", t,
+                       "is a base-10 exponent and must be negative (e.g. -9 for 1e-9)")
+            tol = 10.0 ** t
+            it = r.get(f"{cp}.implicit_scheme.maximum_iteration")
+            if it < 1:
+                r.fail(f"{cp}.implicit_scheme.maximum_iteration", it, "must be at least 1")
+        pot = r.get(f"{base}.Potential.type")
+        pp = f"{base}.Potential.{pot}"
+        common = dict(composition_ratio=r.finite(f"{pp}.composition_ratio"),
+                      initial_fluctuation=r.non_negative(f"{pp}.initial_fluctuation"),
+                      d=r.finite(f"{pp}.d"), w=r.finite(f"{pp}.w"),
+                      alpha=r.non_negative(f"{pp}.alpha"), kappa=r.positive(f"{pp}.kappa"))
+        for extra in ("k", "z"):  # walls and fluid-interface penalties of newer define.udf
+            if r.has(f"{pp}.{extra}") and r.get(f"{pp}.{extra}") != 0:
+                r.fail(f"{pp}.{extra}", r.get(f"{pp}.{extra}"),
+                       "is not supported by kapsel-py (set it to 0)")
+        if pot == "Landau":
+            phase = PhaseField(ch, tol, it, pot, a=r.finite(f"{pp}.a"), b=r.finite(f"{pp}.b"),
+                               **common)
+        else:
+            phase = PhaseField(ch, tol, it, pot, na=r.positive(f"{pp}.na"),
+                               nb=r.positive(f"{pp}.nb"), chi=r.finite(f"{pp}.chi"), **common)
+            c = phase.composition_ratio
+            if not 0 < c < 1:
+                r.fail(f"{pp}.composition_ratio", c,
+                       "must lie strictly between 0 and 1 for the Flory-Huggins potential "
+                       "(psi is a volume fraction)")
+
+    # ---- particles -------------------------------------------------------------------
+    obj = r.get("object_type.type")
+    A = r.positive("A")
+    A_XI = r.positive("A_XI")
+    species = []
+    if obj == "spherical_particle":
+        sp = "object_type.spherical_particle.Particle_spec"
+        for i in range(doc.size(f"{sp}[]")):
+            p = f"{sp}[{i}]"
+            n = r.get(f"{p}.Particle_number")
+            if n < 0:
+                r.fail(f"{p}.Particle_number", n, "must be zero or positive")
+            for opt, off in (("janus_axis", "NONE"), ("janus_propulsion", "OFF")):
+                if r.has(f"{p}.{opt}") and r.get(f"{p}.{opt}") != off and n > 0:
+                    r.fail(f"{p}.{opt}", r.get(f"{p}.{opt}"),
+                           f"self-propelled (janus) particles are not supported by kapsel-py; "
+                           f"set it to {off}")
+            species.append(Species(n, 1, r.positive(f"{p}.MASS_RATIO"),
+                                   r.get(f"{p}.Surface_charge")))
+    elif obj == "chain":
+        sp = "object_type.chain.Chain_spec"
+        for i in range(doc.size(f"{sp}[]")):
+            p = f"{sp}[{i}]"
+            nb, nc = r.get(f"{p}.Beads_number"), r.get(f"{p}.Chain_number")
+            if nb < 1 or nc < 0:
+                r.fail(f"{p}", [nb, nc], "Beads_number must be >= 1 and Chain_number >= 0")
+            species.append(Species(nc, nb, r.positive(f"{p}.MASS_RATIO"),
+                                   r.get(f"{p}.Surface_charge")))
+    else:
+        sp = "object_type.rigid.Rigid_spec"
+        for i in range(doc.size(f"{sp}[]")):
+            p = f"{sp}[{i}]"
+            nb, nc = r.get(f"{p}.Beads_number"), r.get(f"{p}.Chain_number")
+            if nb < 1 or nc < 0:
+                r.fail(f"{p}", [nb, nc], "Beads_number must be >= 1 and Chain_number >= 0")
+            species.append(Species(nc, nb, r.positive(f"{p}.MASS_RATIO"),
+                                   r.get(f"{p}.Surface_charge"),
+                                   rigid_motion=r.get(f"{p}.Rigid_motion"),
+                                   rigid_velocity=tuple(r.get(f"{p}.Rigid_velocity")),
+                                   rigid_omega=tuple(r.get(f"{p}.Rigid_omega"))))
+    particles = Particles(obj, tuple(species), A, A_XI)
+    box = mesh.box
+    if particles.count:
+        if 2 * A >= box.min():
+            r.fail("A", A, f"a particle of diameter {2 * A:g} does not fit in the box "
+                           f"{' x '.join(f'{x:g}' for x in box)}")
+        fraction = particles.count * (4 / 3) * math.pi * A ** 3 / float(np.prod(box))
+        if fraction > 0.74:
+            r.fail("object_type", particles.count,
+                   f"{particles.count} particles of radius {A:g} cannot fit in the box "
+                   f"(volume fraction {fraction:.2f} > 0.74, the densest packing)")
+
+    # ---- interactions ----------------------------------------------------------------
+    inter = Interactions(EPSILON=r.non_negative("EPSILON"), LJ_powers=r.get("LJ_powers"),
+                         LJ_truncate=r.get("switch.LJ_truncate"), G=r.finite("gravity.G"),
+                         G_direction=r.get("gravity.G_direction"))
+
+    # ---- switches ----------------------------------------------------------------------
+    dist = r.get("switch.INIT_distribution.type")
+    rw = r.get("switch.INIT_distribution.random_walk.iteration")
+    if dist == "random_walk" and rw < 0:
+        r.fail("switch.INIT_distribution.random_walk.iteration", rw, "must be zero or positive")
+    user = np.asarray(doc.getArray("switch.INIT_distribution.user_specify.Particles[]"),
+                      dtype=float).reshape(-1, 13)
+    if dist == "user_specify" and particles.count and len(user) < particles.count:
+        r.fail("switch.INIT_distribution.user_specify.Particles[]", len(user),
+               f"user_specify needs one entry per particle ({particles.count} particles)")
+    pin, pin_rot = (), ()
+    if r.has("switch.pin.type") and r.get("switch.pin.type") == "YES":
+        pin = tuple(r.get("switch.pin.YES.pin[]"))
+        pin_rot = tuple(r.get("switch.pin.YES.pin_rot[]"))
+        for p_, ids in (("switch.pin.YES.pin[]", pin), ("switch.pin.YES.pin_rot[]", pin_rot)):
+            bad = [i for i in ids if not 0 <= i < max(particles.count, 1)]
+            if bad:
+                r.fail(p_, bad, f"particle ids must lie in 0..{particles.count - 1}")
+    free_rigid = ()
+    if r.has("switch.free_rigid.type") and r.get("switch.free_rigid.type") == "YES":
+        rows = []
+        for dof in r.get("switch.free_rigid.YES.DOF[]"):
+            sid, vel, om = dof
+            rows.append((sid, tuple(x == "YES" for x in vel), tuple(x == "YES" for x in om)))
+        free_rigid = tuple(rows)
+    for opt, off in (("switch.wall.type", "NONE"), ("switch.quincke.type", "OFF"),
+                     ("switch.multipole.type", "OFF")):
+        if r.has(opt) and r.get(opt) != off:
+            r.fail(opt, r.get(opt), f"is not supported by kapsel-py; set it to {off}")
+    fix = tuple(r.get(f"switch.FIX_CELL.{ax}") == "ON" for ax in "xyz")
+    switches = Switches(ROTATION=r.get("switch.ROTATION") == "ON", init_distribution=dist,
+                        random_walk_iterations=rw, user_particles=user,
+                        init_orientation=r.get("switch.INIT_orientation"), fix_cell=fix,
+                        pin=pin, pin_rot=pin_rot, free_rigid=free_rigid,
+                        OBL_INT=r.get("switch.ns_solver.OBL_INT"))
+
+    # ---- time, output, resume --------------------------------------------------------
+    kind = r.get("time_increment.type")
+    if kind == "auto":
+        time = TimeIncrement("auto", factor=r.positive("time_increment.auto.factor"))
+    else:
+        time = TimeIncrement("manual", delta_t=r.positive("time_increment.manual.delta_t"))
+    gts, nsnap = r.get("output.GTS"), r.get("output.Num_snap")
+    if gts < 1:
+        r.fail("output.GTS", gts, "must be at least 1 (steps between snapshots)")
+    if nsnap < 0:
+        r.fail("output.Num_snap", nsnap, "must be zero or positive")
+    avs = r.get("output.AVS") == "ON"
+    if avs:
+        r.fail("output.AVS", "ON", "AVS output is not supported by kapsel-py (HDF5 + XDMF "
+                                   "field files are written for the FDM types); set it to OFF")
+    output = Output(gts, nsnap, r.get("output.UDF") == "ON", avs)
+    resume = Resume(r.get("resume.Calculation"))
+    return RunConfig(type=eq_type, mesh=mesh, fluid=fluid, particles=particles,
+                     interactions=inter, switches=switches, time=time, output=output,
+                     resume=resume, phase=phase, shear=shear, input_path=input_path)
