@@ -260,3 +260,19 @@ def test_error_malformed_number_inside_numeric_text(tmp_path):
     path.write_text("\n".join(lines) + "\n")
     msg = error_of(str(path))
     assert f"o.udf:{k + 1}:" in msg and "'1.0.0'" in msg and "malformed number" in msg
+
+
+def test_get_with_unit_conversion():
+    u = UDFManager(os.path.join(SAMPLES, "input.udf"))
+    # [L] = Unit_Parameter.Length = 57.5 nm (kapsel_unit.udf)
+    assert u.get("constitutive_eq.Navier_Stokes.DX", "[nm]") == pytest.approx(57.5)
+    assert u.get("switch.INIT_distribution.user_specify.Particles[0].R", "[nm]") == \
+        pytest.approx([32 * 57.5] * 3)
+    # [eta] = [mass/(L*tau)], mass = rho L^3, tau = mass^0.5 L epsilon^-0.5, epsilon = kB T
+    kB, T, L, rho = 1.3806503e-23, 473.15, 57.5e-9, 1188.0
+    mass = rho * L ** 3
+    tau = mass ** 0.5 * L / (kB * T) ** 0.5
+    assert u.get("constitutive_eq.Navier_Stokes.ETA", "[Pa*s]") == \
+        pytest.approx(mass / (L * tau), rel=1e-9)
+    with pytest.raises(UDFError, match="different dimensions"):
+        u.get("constitutive_eq.Navier_Stokes.DX", "[s]")
