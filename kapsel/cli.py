@@ -66,18 +66,26 @@ def main(argv=None) -> int:
             return fail(f"{flag}{path}: no such file")
 
     import udf
-    from . import config
+    from . import config, models  # noqa: F401  (models register their types)
+    from .simulation import SOLVERS, run
     try:
-        cfg = config.load(args.input)
+        doc = udf.UDFManager(args.input)
+        cfg = config.from_document(doc, args.input)
         udf.UDFManager(args.define)  # the schema for output.udf and restart.udf must read
     except (udf.UDFError, config.ConfigError) as e:
         return fail(str(e))
 
-    from .simulation import SOLVERS
     if cfg.type not in SOLVERS:
         return fail(f"constitutive_eq.type {cfg.type!r} is not implemented yet in kapsel-py "
                     f"(implemented: {', '.join(sorted(SOLVERS)) or 'none'})")
-    return SOLVERS[cfg.type](cfg, args)
+    for flag, path in (("-O", args.output), ("-R", args.restart)):
+        if os.path.exists(path) and not args.overwrite:
+            return fail(f"{flag}{path} exists; pass --overwrite to replace it")
+    try:
+        model = SOLVERS[cfg.type](cfg, args, doc)
+    except config.ConfigError as e:
+        return fail(str(e))
+    return run(cfg, args, doc, model)
 
 
 if __name__ == "__main__":

@@ -1,0 +1,2 @@
+"""Models: the physics of each constitutive_eq.type.  Importing this package registers every
+implemented type in ``kapsel.simulation.SOLVERS``."""
