@@ -1,0 +1,99 @@
+"""``kapsel-py analyze ...``: the analyses shipped with kapsel-py.
+
+    kapsel-py analyze sq OUTPUT_DIR [--dx 1.0] [--plot sq.png] [--table sq.txt]
+    kapsel-py analyze cna OUTPUT.udf|positions.xyz|dump.lammpstrj [--cutoff r] [--record n|all]
+    kapsel-py analyze erotate OUTPUT.udf
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+
+
+def _fail(msg: str) -> int:
+    print(f"kapsel-py analyze: error: {msg}", file=sys.stderr)
+    return 2
+
+
+def cmd_sq(a) -> int:
+    from .structure_factor import (characteristic_wavenumber, read_psi, snapshot_files,
+                                   snapshot_times, structure_factor)
+    files = snapshot_files(a.directory)
+    if not files:
+        return _fail(f"no orderparam_<n>.h5 files in {a.directory}")
+    times = snapshot_times(a.directory)
+    rows = []
+    curves = []
+    for f in files:
+        n = int(os.path.basename(f).split("_")[1].split(".")[0])
+        q, s, _ = structure_factor(read_psi(f), a.dx)
+        q1 = characteristic_wavenumber(q, s)
+        rows.append((n, times.get(n, float("nan")), q1))
+        curves.append((n, q, s))
+    lines = ["# snapshot  time  q1 (characteristic wavenumber)  domain size 2pi/q1"]
+    lines += [f"{n:8d} {t:12.6g} {q1:14.6g} {2 * 3.141592653589793 / q1:14.6g}"
+              for n, t, q1 in rows]
+    lines.append("")
+    lines.append("# S(q) per snapshot: snapshot q S(q)")
+    for n, q, s in curves:
+        lines += [f"{n:8d} {qq:14.6g} {ss:14.6g}" for qq, ss in zip(q, s)]
+    text = "\n".join(lines) + "\n"
+    table = a.table or os.path.join(a.directory, "sq.txt")
+    with open(table, "w", encoding="utf-8") as fh:
+        fh.write(text)
+    print("\n".join(lines[:len(rows) + 1]))
+    print(f"S(q) table written to {table}")
+    plot = a.plot or os.path.join(a.directory, "sq.png")
+    try:
+        import matplotlib
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+    except ImportError:
+        print("matplotlib is not installed: no plot (pip install matplotlib)", file=sys.stderr)
+        return 0
+    fig, ax = plt.subplots(figsize=(6, 4.5))
+    for n, q, s in curves:
+        ax.plot(q, s, label=f"snapshot {n}")
+    ax.set_xlabel("q [1/DX]")
+    ax.set_ylabel("S(q)")
+    ax.set_yscale("log")
+    if len(curves) <= 12:
+        ax.legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(plot, dpi=120)
+    print(f"plot written to {plot}")
+    return 0
+
+
+def cmd_cna(a) -> int:
+    from . import cna_command
+    return cna_command.run(a)
+
+
+def cmd_erotate(a) -> int:
+    from . import erotate_command
+    return erotate_command.run(a)
+
+
+def main(argv) -> int:
+    p = argparse.ArgumentParser(prog="kapsel-py analyze", description=__doc__,
+                                formatter_class=argparse.RawDescriptionHelpFormatter)
+    sub = p.add_subparsers(dest="command", required=True)
+    s = sub.add_parser("sq", help="structure factor S(q) of the order parameter snapshots")
+    s.add_argument("directory")
+    s.add_argument("--dx", type=float, default=1.0, help="grid spacing (default 1)")
+    s.add_argument("--plot", help="PNG file (default OUTPUT_DIR/sq.png)")
+    s.add_argument("--table", help="text table (default OUTPUT_DIR/sq.txt)")
+    s.set_defaults(fn=cmd_sq)
+    c = sub.add_parser("cna", help="Common Neighbor Analysis (FCC/HCP/BCC/ICOS/OTHER)")
+    c.add_argument("file", help="output.udf, an XYZ file or a LAMMPS dump")
+    c.add_argument("--cutoff", type=float, help="neighbour cutoff (default: from the data)")
+    c.add_argument("--record", default="all", help="record number or 'all' (default all)")
+    c.add_argument("--labels", help="write per-particle labels to this .csv or .h5 file")
+    c.set_defaults(fn=cmd_cna)
+    e = sub.add_parser("erotate", help="rotational energy of rigid bodies per record")
+    e.add_argument("file", help="output.udf")
+    e.set_defaults(fn=cmd_erotate)
+    a = p.parse_args(argv)
+    return a.fn(a)
