@@ -1,0 +1,388 @@
+"""MAC solver of the Navier-Stokes equation on the semi-staggered Arakawa B grid (manual §5.1).
+
+Velocities at the nodes, pressure at the cell centres (see kapsel.fluid.operators).
+
+* ``explicit_scheme`` (eqs 20-21): explicit advection + diffusion, then the pressure Poisson
+  equation (21) - keeping its ∇·u^n "cycle error self-adjustment" term - solved by FFT with
+  the B-grid D∘G symbol, then the pressure correction.  Equivalent to projecting
+  u^n + dt(-(u·∇)u + ν∇²u + f).
+* ``implicit_scheme`` (eqs 23-26): Crank-Nicolson diffusion, advection u*·∇u^{n+1/2} with the
+  Adams-Bashforth velocity u* = (3u^n - u^{n-1})/2 (eq 25), pressure from eq (26) solved first
+  by FFT, then the linear system for u^{n+1} by BiCGSTAB without preconditioner (the
+  original's choice).  With ``eta_field`` the viscous term is the full
+  ∇·η(∇u + ∇u^T)/ρ (components coupled), otherwise ν∇²u.
+
+Advection is in divergence form ∇·(u u) (∇·(u* u^{n+1/2}) in the implicit scheme) with central
+differences at the nodes, so total momentum is conserved to round-off by both schemes.
+"""
+import numpy as np
+import scipy.fft
+import scipy.sparse as sp
+from scipy.sparse.linalg import LinearOperator, bicgstab
+
+from . import operators as op
+
+try:  # pragma: no cover - import guard
+    import pyfftw
+except ImportError:  # pragma: no cover
+    pyfftw = None
+
+__all__ = ["MACSolver", "SolverDidNotConverge", "UnstableTimeStep"]
+
+
+class SolverDidNotConverge(RuntimeError):
+    """BiCGSTAB did not reach ``tolerance`` within ``maximum_iteration`` (manual table 2)."""
+
+    def __init__(self, iterations, residual, message=None):
+        self.iterations = int(iterations)
+        self.residual = float(residual)
+        super().__init__(message or (
+            "implicit NS solver (BiCGSTAB) did not converge in %d iterations: relative residual "
+            "%.3e; reduce the time step or raise maximum_iteration" % (self.iterations,
+                                                                        self.residual)))
+
+
+class UnstableTimeStep(ValueError):
+    """dt above the explicit-scheme stability limit."""
+
+
+class _PoissonFFT:
+    """Solves D G phi = r (B grid, cell arrays) by a real FFT; null modes -> 0."""
+
+    def __init__(self, shape, dx, threads=1, backend="pyfftw"):
+        self.shape = tuple(shape)
+        self.inv = op.inverse_div_grad_b(shape, dx)
+        self.threads = int(threads)
+        self.backend = backend if (backend != "pyfftw" or pyfftw is not None) else "scipy"
+        if self.backend == "pyfftw":
+            cshape = shape[:2] + (shape[2] // 2 + 1,)
+            self._r = pyfftw.empty_aligned(shape, dtype="float64")
+            self._c = pyfftw.empty_aligned(cshape, dtype="complex128")
+            self._o = pyfftw.empty_aligned(shape, dtype="float64")
+            flags = ("FFTW_MEASURE",)
+            self._fwd = pyfftw.FFTW(self._r, self._c, axes=(0, 1, 2), direction="FFTW_FORWARD",
+                                    flags=flags, threads=self.threads)
+            self._bwd = pyfftw.FFTW(self._c, self._o, axes=(0, 1, 2), direction="FFTW_BACKWARD",
+                                    flags=flags + ("FFTW_DESTROY_INPUT",), threads=self.threads)
+            self.rhs = self._r      # write the right-hand side here, then call solve()
+        else:
+            self.rhs = np.empty(shape)
+
+    def solve(self):
+        """phi for the right-hand side stored in ``self.rhs``; returns an internal buffer."""
+        if self.backend == "pyfftw":
+            self._fwd()
+            np.multiply(self._c, self.inv, out=self._c)
+            self._bwd()             # normalised by pyfftw
+            return self._o
+        c = scipy.fft.rfftn(self.rhs, workers=self.threads)
+        c *= self.inv
+        return scipy.fft.irfftn(c, s=self.shape, workers=self.threads)
+
+
+class MACSolver:
+    """MAC solver (manual §5.1, eqs 20-26) for node velocities u of shape (3, NX, NY, NZ).
+
+    Parameters follow the input file: ``scheme`` is NS_solver ('explicit_scheme' |
+    'implicit_scheme'); ``tolerance`` (relative residual) and ``maximum_iteration`` are the
+    BiCGSTAB settings of implicit_scheme (table 2).  ``threads`` is passed to the FFTs.
+    ``linear``: 'sparse' (assembled CSR, default, faster) or 'matfree' (LinearOperator).
+    """
+
+    def __init__(self, shape, dx, rho, eta, dt, scheme="explicit_scheme", tolerance=1e-9,
+                 maximum_iteration=1000, threads=1, fft="pyfftw", linear="sparse"):
+        if scheme not in ("explicit_scheme", "implicit_scheme"):
+            raise ValueError("scheme must be 'explicit_scheme' or 'implicit_scheme', not %r"
+                             % (scheme,))
+        if linear not in ("sparse", "matfree"):
+            raise ValueError("linear must be 'sparse' or 'matfree'")
+        self.shape = tuple(int(n) for n in shape)
+        if len(self.shape) != 3 or min(self.shape) < 3:
+            raise ValueError("shape must be (NX, NY, NZ) with every N >= 3")
+        self.dx, self.rho, self.eta, self.dt = float(dx), float(rho), float(eta), float(dt)
+        self.nu = self.eta / self.rho
+        self.scheme = scheme
+        self.tolerance = float(tolerance)
+        self.maximum_iteration = int(maximum_iteration)
+        self.threads = int(threads)
+        self.linear = linear
+        self.iterations = 0
+        self.residual = 0.0
+        self._poisson = _PoissonFFT(self.shape, self.dx, self.threads, fft)
+        vshape = (3,) + self.shape
+        self.pressure = np.zeros(self.shape)    # p^{n+1} at the cell centres
+        self._u_old = np.zeros(vshape)
+        self._have_old = False
+        self._v1 = np.empty(vshape)
+        self._v2 = np.empty(vshape)
+        self._w2 = np.empty((2,) + self.shape)
+        self._s = np.empty(self.shape)
+        self._pattern = None
+        self._eta_faces = None
+
+    # ------------------------------------------------------------------ state
+    @property
+    def u_old(self):
+        """u^{n-1} (restart U_OLD); equals u^n before the first step."""
+        return self._u_old
+
+    @u_old.setter
+    def u_old(self, value):
+        self._u_old[...] = value
+        self._have_old = True
+
+    def stable_dt(self, u=None, eta_field=None):
+        """Largest stable dt: explicit diffusion (3D FTCS) DX^2 / (6 nu_max) and, when u is
+        given, the advection-diffusion bound 2 nu / |u|^2_max; inf for implicit_scheme."""
+        if self.scheme == "implicit_scheme":
+            return np.inf
+        nu = self.nu if eta_field is None else float(np.max(eta_field)) / self.rho
+        lim = self.dx ** 2 / (6.0 * nu)
+        if u is not None:
+            u2 = float(np.max(np.sum(u * u, axis=0)))
+            if u2 > 0:
+                lim = min(lim, 2.0 * nu / u2)
+        return lim
+
+    def check_stability(self, u=None, eta_field=None):
+        """Return stable_dt(); raise UnstableTimeStep if dt exceeds it."""
+        lim = self.stable_dt(u, eta_field)
+        if self.dt > lim:
+            raise UnstableTimeStep(
+                "time step dt = %g exceeds the stability limit %g of the explicit MAC scheme "
+                "(nu dt / DX^2 <= 1/6); lower the time-increment factor or use implicit_scheme"
+                % (self.dt, lim))
+        return lim
+
+    def kinetic_energy(self, u):
+        """(rho/2) sum |u|^2 DX^3."""
+        return 0.5 * self.rho * float(np.vdot(u, u)) * self.dx ** 3
+
+    def momentum(self, u):
+        """rho sum u DX^3 (3-vector)."""
+        return self.rho * u.sum(axis=(1, 2, 3)) * self.dx ** 3
+
+    # ------------------------------------------------------------------ projection
+    def _solve_phi(self, u):
+        """phi with D G phi = D u (phi = dt p / rho); internal buffer."""
+        op.div_b(u, self.dx, out=self._poisson.rhs, work=self._w2)
+        return self._poisson.solve()
+
+    def project(self, u):
+        """Make u discretely divergence-free on the B grid in place (eq 22); keeps the mean."""
+        phi = self._solve_phi(u)
+        g = op.grad_b(phi, self.dx, out=self._v1, work=self._w2)
+        u -= g
+        return u
+
+    def divergence(self, u, out=None):
+        """B-grid divergence of u at the cell centres."""
+        return op.div_b(u, self.dx, out=out, work=self._w2)
+
+    # ------------------------------------------------------------------ step
+    def step(self, u, force=None, eta_field=None):
+        """Advance u (3, NX, NY, NZ) by one dt in place; ``force`` is a body-force acceleration
+        (e.g. -psi grad(mu)/rho), ``eta_field`` a node viscosity field (eta*, eq 23)."""
+        if u.shape != (3,) + self.shape or u.dtype != np.float64:
+            raise ValueError("u must be float64 of shape %s" % (((3,) + self.shape),))
+        if not self._have_old:
+            self._u_old[...] = u
+            self._have_old = True
+        if self.scheme == "explicit_scheme":
+            self._step_explicit(u, force, eta_field)
+        else:
+            self._step_implicit(u, force, eta_field)
+        return u
+
+    def _viscous(self, u, eta_field, out):
+        """(1/rho) div(eta (grad u + grad u^T)), or nu lap u when eta_field is None."""
+        if eta_field is None:
+            op.laplacian(u, self.dx, out=out)
+            out *= self.nu
+        else:
+            op.viscous_variable(u, eta_field, self.dx, out=out, work=self._w2,
+                                eta_faces=self._eta_faces)
+            out *= 1.0 / self.rho
+        return out
+
+    def _step_explicit(self, u, force, eta_field):
+        """Eqs 20-21."""
+        self._u_old[...] = u
+        self._eta_faces = None if eta_field is None else op.face_viscosities(eta_field)
+        rhs = op.advection(u, self.dx, out=self._v1, work=self._s)
+        np.negative(rhs, out=rhs)
+        rhs += self._viscous(u, eta_field, self._v2)
+        if force is not None:
+            rhs += force
+        rhs *= self.dt
+        u += rhs                                 # u^n + dt(...): eq 21's rhs is D of this
+        phi = self._solve_phi(u)
+        np.multiply(phi, self.rho / self.dt, out=self.pressure)
+        u -= op.grad_b(phi, self.dx, out=self._v1, work=self._w2)   # eq 20
+
+    # ------------------------------------------------------------------ implicit
+    def _step_implicit(self, u, force, eta_field):
+        """Eqs 23-26.  A w = w + dt/2 N(u*, w) - dt/2 V(w);  eq 26 projects
+        u^n + dt(-N(u*,u*) + V(u*) + f) = u^n + 2(u* - A u*) + dt f, and eq 23 reads
+        A u^{n+1} = 2u^n - A u^n - G phi + dt f."""
+        dt = self.dt
+        ustar = np.multiply(u, 1.5)
+        ustar -= 0.5 * self._u_old               # eq 25
+        A = self._operator(ustar, eta_field)
+        # eq 26: w = u + 2 (u* - A u*) + dt f
+        w = (A @ ustar.ravel()).reshape(u.shape)
+        np.subtract(ustar, w, out=w)
+        w *= 2.0
+        w += u
+        if force is not None:
+            w += dt * force
+        phi = self._solve_phi(w)
+        np.multiply(phi, self.rho / dt, out=self.pressure)
+        gp = op.grad_b(phi, self.dx, out=self._v1, work=self._w2)
+        w -= gp                                  # projected predictor: initial guess
+        # eq 23 right-hand side
+        b = (A @ u.ravel()).reshape(u.shape)
+        np.subtract(2.0 * u, b, out=b)
+        b -= gp
+        if force is not None:
+            b += dt * force
+        x = self._bicgstab(A, b.ravel(), w.ravel())
+        self._u_old[...] = u
+        u[...] = x.reshape(u.shape)
+
+    def _bicgstab(self, A, b, x0):
+        """Solve A x = b to ||b - A x|| <= tolerance ||b|| from x0 (unpreconditioned BiCGSTAB on
+        the correction, normalised so the breakdown thresholds are scale-free)."""
+        bn = np.linalg.norm(b)
+        if bn == 0.0:
+            self.iterations, self.residual = 0, 0.0
+            return np.zeros_like(b)
+        r0 = b - A @ x0
+        rn = np.linalg.norm(r0)
+        if rn <= self.tolerance * bn:
+            self.iterations, self.residual = 0, rn / bn
+            return x0
+        nmv = [0]
+
+        def mv(v):
+            nmv[0] += 1
+            return A @ v
+        r0 /= rn
+        d, info = bicgstab(LinearOperator(A.shape, matvec=mv, dtype=np.float64), r0,
+                           rtol=self.tolerance * bn / rn, atol=0.0,
+                           maxiter=self.maximum_iteration)
+        d *= rn
+        x = x0 + d
+        self.iterations = (nmv[0] + 1) // 2     # 2 matvecs per BiCGSTAB iteration
+        res = np.linalg.norm(b - A @ x) / bn
+        self.residual = res
+        if info != 0 and not res <= self.tolerance:
+            raise SolverDidNotConverge(self.iterations, res)
+        return x
+
+    # ------------------------------------------------------------------ linear operator
+    def _operator(self, ustar, eta_field):
+        if self.linear == "sparse":
+            return self._assemble(ustar, eta_field)
+        return self._matfree(ustar, eta_field)
+
+    def _matfree(self, ustar, eta_field):
+        n3 = 3 * int(np.prod(self.shape))
+        shape = (3,) + self.shape
+        h = 0.5 * self.dt
+        self._eta_faces = None if eta_field is None else op.face_viscosities(eta_field)
+        tmp = np.empty(shape)
+
+        def mv(x):
+            w = x.reshape(shape)
+            out = op.advection_linear(ustar, w, self.dx, work=self._s)
+            out *= h
+            out += w
+            out -= h * self._viscous(w, eta_field, tmp)
+            return out.ravel()
+        return LinearOperator((n3, n3), matvec=mv, dtype=np.float64)
+
+    def _build_pattern(self, variable):
+        """Column indices of the fixed stencil slots (row = component, node)."""
+        nx, ny, nz = self.shape
+        n = nx * ny * nz
+        idx = np.arange(n).reshape(self.shape)
+
+        def sh(s):  # index of node n + s (periodic), s a 3-tuple
+            return np.roll(idx, tuple(-q for q in s), axis=(0, 1, 2)).ravel()
+        e = [(1, 0, 0), (0, 1, 0), (0, 0, 1)]
+        cols = []
+        for i in range(3):
+            c = [idx.ravel() + i * n]
+            for j in range(3):
+                c.append(sh(e[j]) + i * n)
+                c.append(sh(tuple(-q for q in e[j])) + i * n)
+            if variable:
+                for j in range(3):
+                    if j == i:
+                        continue
+                    for sj in (1, -1):
+                        for si in (1, -1):
+                            s = tuple(sj * e[j][a] + si * e[i][a] for a in range(3))
+                            c.append(sh(s) + j * n)
+            cols.append(np.stack(c, axis=1))
+        indices = np.concatenate(cols, axis=0).astype(np.int32)
+        nslot = indices.shape[1]
+        indptr = np.arange(0, 3 * n * nslot + 1, nslot, dtype=np.int32)
+        return {"variable": variable, "indices": indices.ravel(), "indptr": indptr,
+                "nslot": nslot, "data": np.empty((3, n, nslot))}
+
+    def _assemble(self, ustar, eta_field):
+        """CSR matrix of A = I + dt/2 N(u*, .) - dt/2 V (fixed pattern, data refilled)."""
+        variable = eta_field is not None
+        if self._pattern is None or self._pattern["variable"] != variable:
+            self._pattern = self._build_pattern(variable)
+        P = self._pattern
+        n = int(np.prod(self.shape))
+        data = P["data"]
+        dx, h = self.dx, 0.5 * self.dt
+        sh = op.shift_assign
+        t = self._s
+        if not variable:
+            c = h * self.nu / dx ** 2
+            data[:, :, 0] = 1.0 + 6.0 * c
+            for j in range(3):
+                for k, s in ((1 + 2 * j, 1), (2 + 2 * j, -1)):
+                    sh(t, ustar[j], s, j)
+                    col = data[0, :, k]
+                    np.multiply(t.ravel(), s * h / (2 * dx), out=col)
+                    col -= c
+                    data[1, :, k] = col
+                    data[2, :, k] = col
+        else:
+            eta = eta_field
+            g = h / (self.rho * dx * dx)
+            ef = op.face_viscosities(eta)
+            efm = np.empty_like(ef)            # eta at i-1/2
+            for j in range(3):
+                sh(efm[j], ef[j], -1, j)
+            for i in range(3):
+                d = data[i]
+                d[:, 0] = 1.0
+                for j in range(3):
+                    m = 2.0 if j == i else 1.0
+                    fp, fm = ef[j].ravel(), efm[j].ravel()
+                    d[:, 0] += (g * m) * (fp + fm)
+                    sh(t, ustar[j], 1, j)
+                    np.multiply(t.ravel(), h / (2 * dx), out=d[:, 1 + 2 * j])
+                    d[:, 1 + 2 * j] -= (g * m) * fp
+                    sh(t, ustar[j], -1, j)
+                    np.multiply(t.ravel(), -h / (2 * dx), out=d[:, 2 + 2 * j])
+                    d[:, 2 + 2 * j] -= (g * m) * fm
+                k = 7
+                for j in range(3):
+                    if j == i:
+                        continue
+                    for sj in (1, -1):
+                        sh(t, eta, sj, j)
+                        tv = t.ravel()
+                        for si in (1, -1):
+                            # D_j(eta D_i w_j): coefficient sj*si*eta[n+sj e_j]/(4dx^2)
+                            np.multiply(tv, -sj * si * 0.25 * g, out=d[:, k])
+                            k += 1
+        return sp.csr_matrix((data.ravel(), P["indices"], P["indptr"]), shape=(3 * n, 3 * n))

@@ -1,0 +1,360 @@
+"""Finite-difference operators on the periodic grid used by the MAC solver (manual §5.1).
+
+Layout (semi-staggered Arakawa B grid): velocities at the nodes x = i*DX, pressure at the cell
+centres x = (i+1/2)*DX; a cell array ``p[i, j, k]`` holds the value at (i+1/2, j+1/2, k+1/2).
+Scalars have shape (NX, NY, NZ), vectors (3, NX, NY, NZ), indexed [x, y, z]; float64.
+
+All operators are whole-array numpy: periodic shifts are done with slice copies into
+caller-supplied ``out=`` / ``work=`` buffers (no ``np.roll`` temporaries, no loops over points).
+``out`` must not alias the input.  Every operator is a difference of periodic fluxes, so its sum
+over the grid vanishes: momentum is conserved to round-off.
+
+Fourier symbols are for ``numpy``/``pyfftw`` ``rfftn`` over the three grid axes of arrays in the
+layout above (index Fourier convention, no cell-centre phase factor needed for the B-grid
+div∘grad pair since it maps cell arrays to cell arrays).
+"""
+import numpy as np
+
+__all__ = [
+    "shift_assign", "shift_add", "shift_sub",
+    "laplacian", "grad_central", "div_central", "div_b", "grad_b",
+    "advection", "advection_linear", "viscous_variable", "face_viscosities",
+    "wavenumbers", "symbol_laplacian", "symbol_central", "symbol_div_grad_b",
+    "b_grid_null_modes", "inverse_div_grad_b", "symbol_div_b", "symbol_grad_b",
+]
+
+
+# --------------------------------------------------------------------------- periodic shifts
+def _sl(axis, start, stop):
+    """Index tuple selecting start:stop along ``axis`` (negative: counted from the end)."""
+    return (Ellipsis, slice(start, stop)) + (slice(None),) * (-axis - 1)
+
+
+def _ix(axis, i):
+    return (Ellipsis, i) + (slice(None),) * (-axis - 1)
+
+
+def _ax(axis, ndim):
+    """Grid axis 0,1,2 -> negative axis counted from the end (works for leading dims)."""
+    return axis - 3 if axis >= 0 else axis
+
+
+def shift_assign(out, f, s, axis):
+    """out[i] = f[i+s] (periodic) along grid ``axis`` (0, 1, 2), s = +1 or -1."""
+    a = _ax(axis, f.ndim)
+    if s == 1:
+        out[_sl(a, None, -1)] = f[_sl(a, 1, None)]
+        out[_ix(a, -1)] = f[_ix(a, 0)]
+    else:
+        out[_sl(a, 1, None)] = f[_sl(a, None, -1)]
+        out[_ix(a, 0)] = f[_ix(a, -1)]
+    return out
+
+
+def shift_add(out, f, s, axis):
+    """out[i] += f[i+s] (periodic)."""
+    a = _ax(axis, f.ndim)
+    if s == 1:
+        o, g = out[_sl(a, None, -1)], f[_sl(a, 1, None)]
+        np.add(o, g, out=o)
+        o, g = out[_ix(a, -1)], f[_ix(a, 0)]
+    else:
+        o, g = out[_sl(a, 1, None)], f[_sl(a, None, -1)]
+        np.add(o, g, out=o)
+        o, g = out[_ix(a, 0)], f[_ix(a, -1)]
+    np.add(o, g, out=o)
+    return out
+
+
+def shift_sub(out, f, s, axis):
+    """out[i] -= f[i+s] (periodic)."""
+    a = _ax(axis, f.ndim)
+    if s == 1:
+        o, g = out[_sl(a, None, -1)], f[_sl(a, 1, None)]
+        np.subtract(o, g, out=o)
+        o, g = out[_ix(a, -1)], f[_ix(a, 0)]
+    else:
+        o, g = out[_sl(a, 1, None)], f[_sl(a, None, -1)]
+        np.subtract(o, g, out=o)
+        o, g = out[_ix(a, 0)], f[_ix(a, -1)]
+    np.subtract(o, g, out=o)
+    return out
+
+
+def _fdiff(out, f, axis):
+    """out[i] = f[i+1] - f[i]."""
+    shift_assign(out, f, 1, axis)
+    np.subtract(out, f, out=out)
+    return out
+
+
+def _bdiff(out, f, axis):
+    """out[i] = f[i] - f[i-1]."""
+    shift_assign(out, f, -1, axis)
+    np.subtract(f, out, out=out)
+    return out
+
+
+def _cdiff_acc(out, f, axis):
+    """out[i] += f[i+1] - f[i-1] (unscaled central difference, accumulated)."""
+    shift_add(out, f, 1, axis)
+    shift_sub(out, f, -1, axis)
+    return out
+
+
+def _avg(out, f, s, axis):
+    """out[i] = (f[i] + f[i+s]) / 2."""
+    shift_assign(out, f, s, axis)
+    np.add(out, f, out=out)
+    out *= 0.5
+    return out
+
+
+def _buf(out, shape):
+    return np.empty(shape) if out is None else out
+
+
+# --------------------------------------------------------------------------- node operators
+def laplacian(f, dx, out=None):
+    """7-point node Laplacian of a scalar (NX,NY,NZ) or vector (3,NX,NY,NZ) field (eq 20)."""
+    out = _buf(out, f.shape)
+    np.multiply(f, -6.0, out=out)
+    for ax in range(3):
+        shift_add(out, f, 1, ax)
+        shift_add(out, f, -1, ax)
+    out *= 1.0 / (dx * dx)
+    return out
+
+
+def grad_central(f, dx, out=None):
+    """Central gradient of a node scalar at the nodes -> (3, NX, NY, NZ)."""
+    out = _buf(out, (3,) + f.shape)
+    for ax in range(3):
+        out[ax] = 0.0
+        _cdiff_acc(out[ax], f, ax)
+    out *= 0.5 / dx
+    return out
+
+
+def div_central(u, dx, out=None):
+    """Central divergence of node velocities at the nodes."""
+    out = _buf(out, u.shape[1:])
+    out[...] = 0.0
+    for ax in range(3):
+        _cdiff_acc(out, u[ax], ax)
+    out *= 0.5 / dx
+    return out
+
+
+# --------------------------------------------------------------------------- B-grid pair
+def div_b(u, dx, out=None, work=None):
+    """B-grid divergence: node velocity u -> cell centres (eq 21 left of the projection).
+
+    (D u)_c = sum_a  (1/DX) * mean over the 4 cell edges along a of the node difference;
+    done separably as  avg_b avg_c diff_a u_a.  ``work``: (2, NX, NY, NZ) scratch.
+    """
+    shp = u.shape[1:]
+    out = _buf(out, shp)
+    w = np.empty((2,) + shp) if work is None else work
+    t0, t1 = w[0], w[1]
+    # x: diff_x, avg_y, (avg_z later, shared with the y term)
+    _fdiff(t0, u[0], 0)
+    _avg(out, t0, 1, 1)
+    # y: diff_y, avg_x
+    _fdiff(t0, u[1], 1)
+    _avg(t1, t0, 1, 0)
+    np.add(out, t1, out=out)
+    _avg(t0, out, 1, 2)                 # avg_z of (x + y terms)
+    # z: diff_z, avg_x, avg_y
+    _fdiff(out, u[2], 2)
+    _avg(t1, out, 1, 0)
+    _avg(out, t1, 1, 1)
+    np.add(out, t0, out=out)
+    out *= 1.0 / dx
+    return out
+
+
+def grad_b(p, dx, out=None, work=None):
+    """B-grid gradient: cell-centre p -> nodes (the adjoint stencil, G = -D^T).
+
+    (G p)_a at node n = (1/DX) * mean over the 4 cell pairs straddling n along a.
+    ``work``: (2, NX, NY, NZ) scratch.
+    """
+    shp = p.shape
+    out = _buf(out, (3,) + shp)
+    w = np.empty((2,) + shp) if work is None else work
+    t0, t1 = w[0], w[1]
+    # avg_z once, reused by x and y components
+    _avg(t0, p, -1, 2)
+    _bdiff(t1, t0, 0)
+    _avg(out[0], t1, -1, 1)             # x: diff_x avg_y avg_z
+    _bdiff(t1, t0, 1)
+    _avg(out[1], t1, -1, 0)             # y: diff_y avg_x avg_z
+    _avg(t0, p, -1, 0)
+    _avg(t1, t0, -1, 1)
+    _bdiff(out[2], t1, 2)               # z: diff_z avg_x avg_y
+    out *= 1.0 / dx
+    return out
+
+
+# --------------------------------------------------------------------------- advection
+def advection(u, dx, out=None, work=None):
+    """Momentum-conserving advection in divergence form, div(u u)_i = sum_j D_j(u_j u_i),
+
+    with central differences D_j at the nodes (eq 20's (u.grad)u for div u = 0).  Sums to
+    zero over the periodic grid.  ``work``: (NX, NY, NZ) scratch.
+    """
+    shp = u.shape[1:]
+    out = _buf(out, u.shape)
+    t = np.empty(shp) if work is None else work
+    out[...] = 0.0
+    for i in range(3):
+        for j in range(i, 3):
+            np.multiply(u[i], u[j], out=t)
+            _cdiff_acc(out[i], t, j)
+            if j != i:
+                _cdiff_acc(out[j], t, i)
+    out *= 0.5 / dx
+    return out
+
+
+def advection_linear(a, w, dx, out=None, work=None):
+    """Linearised divergence-form advection sum_j D_j(a_j w_i) (eq 23: u* . grad u^{n+1/2})."""
+    shp = w.shape[1:]
+    out = _buf(out, w.shape)
+    t = np.empty(shp) if work is None else work
+    out[...] = 0.0
+    for i in range(3):
+        for j in range(3):
+            np.multiply(a[j], w[i], out=t)
+            _cdiff_acc(out[i], t, j)
+    out *= 0.5 / dx
+    return out
+
+
+# --------------------------------------------------------------------------- variable viscosity
+def face_viscosities(eta, out=None):
+    """eta at the half-way points i+1/2 along each axis: (eta[i] + eta[i+1]) / 2 -> (3, ...)."""
+    out = _buf(out, (3,) + eta.shape)
+    for ax in range(3):
+        _avg(out[ax], eta, 1, ax)
+    return out
+
+
+def viscous_variable(u, eta, dx, out=None, eta_faces=None, work=None):
+    """div(eta (grad u + grad u^T)) at the nodes, eta a node field (eq 15, 23).
+
+    component i = sum_j d_j(eta_f d_j u_i) + d_i(eta_f d_i u_i)     [compact, eta at faces]
+                + sum_{j != i} D_j(eta D_i u_j)                    [central, cross terms]
+    For uniform eta the compact part is eta * laplacian(u) exactly.  Flux form: sums to zero.
+    ``eta_faces`` from face_viscosities(eta) (reuse inside iterative solves);
+    ``work``: (2, NX, NY, NZ) scratch.
+    """
+    shp = u.shape[1:]
+    out = _buf(out, u.shape)
+    ef = face_viscosities(eta) if eta_faces is None else eta_faces
+    w = np.empty((2,) + shp) if work is None else work
+    t0, t1 = w[0], w[1]
+    inv2 = 1.0 / (dx * dx)
+    for i in range(3):
+        o = out[i]
+        o[...] = 0.0
+        for j in range(3):
+            _fdiff(t0, u[i], j)
+            np.multiply(t0, ef[j], out=t0)
+            if j == i:
+                t0 *= 2.0
+            # o += t0[i] - t0[i-1]
+            np.add(o, t0, out=o)
+            shift_sub(o, t0, -1, j)
+        o *= inv2
+        # cross terms, central, scale 1/(4 dx^2)
+        t1[...] = 0.0
+        for j in range(3):
+            if j == i:
+                continue
+            t0[...] = 0.0
+            _cdiff_acc(t0, u[j], i)
+            np.multiply(t0, eta, out=t0)
+            _cdiff_acc(t1, t0, j)
+        t1 *= 0.25 * inv2
+        np.add(o, t1, out=o)
+    return out
+
+
+# --------------------------------------------------------------------------- Fourier symbols
+def wavenumbers(shape, dx):
+    """Broadcastable (kx, ky, kz) in rad per length for rfftn over (NX, NY, NZ)."""
+    nx, ny, nz = shape
+    kx = 2 * np.pi * np.fft.fftfreq(nx, d=dx)[:, None, None]
+    ky = 2 * np.pi * np.fft.fftfreq(ny, d=dx)[None, :, None]
+    kz = 2 * np.pi * np.fft.rfftfreq(nz, d=dx)[None, None, :]
+    return kx, ky, kz
+
+
+def symbol_laplacian(shape, dx):
+    """Symbol of the 7-point Laplacian: -(4/DX^2) sum_a sin^2(k_a DX/2)."""
+    s = 0.0
+    for k in wavenumbers(shape, dx):
+        s = s + np.sin(0.5 * k * dx) ** 2
+    return -4.0 / dx ** 2 * s
+
+
+def symbol_central(shape, dx):
+    """Symbols (i sin(k_a DX)/DX) of the central first derivatives at the nodes."""
+    return tuple(1j * np.sin(k * dx) / dx for k in wavenumbers(shape, dx))
+
+
+def symbol_div_grad_b(shape, dx):
+    """Symbol of the B-grid D∘G (cell -> cell):
+    -(4/DX^2)[s_x^2 c_y^2 c_z^2 + c_x^2 s_y^2 c_z^2 + c_x^2 c_y^2 s_z^2],
+    s_a = sin(k_a DX/2), c_a = cos(k_a DX/2).  Zero at the null modes (b_grid_null_modes)."""
+    kx, ky, kz = wavenumbers(shape, dx)
+    sx, sy, sz = (np.sin(0.5 * k * dx) ** 2 for k in (kx, ky, kz))
+    cx, cy, cz = 1 - sx, 1 - sy, 1 - sz
+    return -4.0 / dx ** 2 * (sx * cy * cz + cx * sy * cz + cx * cy * sz)
+
+
+def b_grid_null_modes(shape):
+    """Boolean rfftn-shaped mask of the null space of G (and of D∘G): k = 0 and, for even N,
+    every mode with at least two of (k_x, k_y, k_z) at the Nyquist value pi/DX (the B-grid
+    checkerboard pressure modes, e.g. p ~ (-1)^(i+j) for any k_z)."""
+    nx, ny, nz = shape
+    ix = np.arange(nx)[:, None, None]
+    iy = np.arange(ny)[None, :, None]
+    iz = np.arange(nz // 2 + 1)[None, None, :]
+    qx = (nx % 2 == 0) & (ix == nx // 2)
+    qy = (ny % 2 == 0) & (iy == ny // 2)
+    qz = (nz % 2 == 0) & (iz == nz // 2)
+    n = qx.astype(int) + qy.astype(int) + qz.astype(int)
+    zero = (ix == 0) & (iy == 0) & (iz == 0)
+    return np.broadcast_to((n >= 2) | zero, (nx, ny, nz // 2 + 1)).copy()
+
+
+def inverse_div_grad_b(shape, dx):
+    """1 / symbol_div_grad_b, set to 0 on the null modes.
+
+    Choosing zero pressure there is a gauge choice: D u has no component on these modes (the
+    symbol of D vanishes there too) and G annihilates them, so the projected velocity is the
+    same for any value.  The result is used to solve D G phi = D u by FFT."""
+    s = symbol_div_grad_b(shape, dx)
+    mask = b_grid_null_modes(shape)
+    s = np.where(mask, 1.0, s)
+    inv = 1.0 / s
+    inv[mask] = 0.0
+    return inv
+
+
+def symbol_div_b(shape, dx):
+    """Symbols (per component) of div_b (node array -> cell array, index convention):
+    (e^{i k_a DX} - 1)/DX * prod_{b != a} (1 + e^{i k_b DX})/2."""
+    k = wavenumbers(shape, dx)
+    e = [np.exp(1j * q * dx) for q in k]
+    h = [(1 + q) / 2 for q in e]
+    return ((e[0] - 1) / dx * h[1] * h[2], (e[1] - 1) / dx * h[0] * h[2],
+            (e[2] - 1) / dx * h[0] * h[1])
+
+
+def symbol_grad_b(shape, dx):
+    """Symbols of grad_b (cell array -> node array): the adjoint, -conj(symbol_div_b)."""
+    return tuple(-np.conj(s) for s in symbol_div_b(shape, dx))
