@@ -7,7 +7,6 @@ line and column of the rest of the file stays where it was.
 """
 from __future__ import annotations
 
-import multiprocessing as mp
 import os
 import re
 import warnings
@@ -110,9 +109,10 @@ def extract_bulk(data: bytes, file: str):
                 if g_start:
                     levels = levels - depth[g_start - 1]
                 g0, g1 = start + g_start, start + c + 1
-                spans.append((g0, g1, np.bincount(levels.astype(np.int64))))
+                newlines = data.count(b"\n", g0, g1)
+                spans.append((g0, g1, np.bincount(levels.astype(np.int64)), newlines))
                 pieces.append(data[pos:g0])
-                pieces.append(b"@%d@" % (len(spans) - 1) + b"\n" * data.count(b"\n", g0, g1))
+                pieces.append(b"@%d@" % (len(spans) - 1) + b"\n" * newlines)
                 pos = g1
             g_start = c + 1
             if g_start >= len(b):
@@ -120,22 +120,25 @@ def extract_bulk(data: bytes, file: str):
     if not spans:
         return data.decode("utf-8", errors="replace"), []
     pieces.append(data[pos:])
-    numbers = _parse_numbers([data[g0:g1] for g0, g1, _ in spans])
     bulks = []
     line, lpos = 1, 0
-    for k, ((g0, g1, counts), nums) in enumerate(zip(spans, numbers)):
+    for g0, g1, counts, newlines in spans:
         line += data.count(b"\n", lpos, g0)
         lpos = g0
         column = g0 - (data.rfind(b"\n", 0, g0) + 1) + 1
+        span = data[g0:g1]   # one span at a time: its memory is reused for the next
+        nums = _parse_one(span)
         if nums is None:
-            raise _bad_number(data[g0:g1], file, line, column)
-        integral = not any(ch in data[g0:g1] for ch in (b".", b"e", b"E"))
+            raise _bad_number(span, file, line, column)
+        integral = not any(ch in span for ch in (b".", b"e", b"E"))
         bulks.append(Bulk(nums, counts, integral, line, column))
+        del span
     return b"".join(pieces).decode("utf-8", errors="replace"), bulks
 
 
 def _parse_one(span: bytes):
-    """The numbers of one bracket group, or None if a token is not a number."""
+    """The numbers of one bracket group, or None if a token is not a number.
+    numpy's text parser is the floor here: about 0.1 us per number."""
     flat = span.translate(_DELIMS)
     if not _DIGIT_B.search(flat):
         return np.zeros(0)
@@ -145,35 +148,6 @@ def _parse_one(span: bytes):
             return np.fromstring(flat, dtype=np.float64, sep=" ")
         except (DeprecationWarning, ValueError):
             return None
-
-
-PARALLEL_BYTES = 64 << 20
-
-
-def _parse_numbers(spans: list) -> list:
-    """Parse every span; large inputs are split over two processes (numpy's text parser is
-    the floor: about 0.1 us per number)."""
-    total = sum(len(s) for s in spans)
-    if total < PARALLEL_BYTES or len(spans) < 2 or (os.cpu_count() or 1) < 2 \
-            or "fork" not in mp.get_all_start_methods():
-        return [_parse_one(s) for s in spans]
-    global _FORKED_SPANS
-    half = len(spans) // 2
-    _FORKED_SPANS = spans  # the forked child sees them without pickling
-    try:
-        with mp.get_context("fork").Pool(1) as pool:
-            other = pool.map_async(_parse_range, [(half, len(spans))])
-            mine = _parse_range((0, half))
-            return mine + other.get()[0]
-    finally:
-        _FORKED_SPANS = None
-
-
-_FORKED_SPANS = None
-
-
-def _parse_range(bounds):
-    return [_parse_one(s) for s in _FORKED_SPANS[bounds[0]:bounds[1]]]
 
 
 def _bad_number(span: bytes, file, line, column) -> UDFError:
