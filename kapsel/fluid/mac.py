@@ -274,10 +274,13 @@ class MACSolver:
         d *= rn
         x = x0 + d
         self.iterations = (nmv[0] + 1) // 2     # 2 matvecs per BiCGSTAB iteration
-        res = np.linalg.norm(b - A @ x) / bn
-        self.residual = res
-        if info != 0 and not res <= self.tolerance:
-            raise SolverDidNotConverge(self.iterations, res)
+        if info == 0:
+            self.residual = float("nan")         # below tolerance; not recomputed (1 matvec)
+        else:
+            res = np.linalg.norm(b - A @ x) / bn
+            self.residual = res
+            if not res <= self.tolerance:
+                raise SolverDidNotConverge(self.iterations, res)
         return x
 
     # ------------------------------------------------------------------ linear operator
@@ -330,59 +333,97 @@ class MACSolver:
         nslot = indices.shape[1]
         indptr = np.arange(0, 3 * n * nslot + 1, nslot, dtype=np.int32)
         return {"variable": variable, "indices": indices.ravel(), "indptr": indptr,
-                "nslot": nslot, "data": np.empty((3, n, nslot))}
+                "nslot": nslot, "data": np.empty((3, n, nslot)), "T": np.empty((nslot, n)),
+                "adv": np.empty((6, n)) if variable else None}
 
     def _assemble(self, ustar, eta_field):
-        """CSR matrix of A = I + dt/2 N(u*, .) - dt/2 V (fixed pattern, data refilled)."""
+        """CSR matrix of A = I + dt/2 N(u*, .) - dt/2 V (fixed pattern, data refilled).
+
+        Slots of row (component i, node n): n, n+e_x, n-e_x, n+e_y, ..., then (variable eta)
+        the cross-term corners of the other components.  Filled slot-major in ``T`` and
+        copied transposed into the row-major CSR data."""
         variable = eta_field is not None
         if self._pattern is None or self._pattern["variable"] != variable:
             self._pattern = self._build_pattern(variable)
         P = self._pattern
         n = int(np.prod(self.shape))
-        data = P["data"]
+        data, T = P["data"], P["T"]
         dx, h = self.dx, 0.5 * self.dt
         sh = op.shift_assign
         t = self._s
+        tv = t.reshape(-1)
         if not variable:
             c = h * self.nu / dx ** 2
-            data[:, :, 0] = 1.0 + 6.0 * c
+            T[0] = 1.0 + 6.0 * c
             for j in range(3):
                 for k, s in ((1 + 2 * j, 1), (2 + 2 * j, -1)):
                     sh(t, ustar[j], s, j)
-                    col = data[0, :, k]
-                    np.multiply(t.ravel(), s * h / (2 * dx), out=col)
-                    col -= c
-                    data[1, :, k] = col
-                    data[2, :, k] = col
+                    np.multiply(tv, s * h / (2 * dx), out=T[k])
+                    T[k] -= c
+            data[0] = T.T
+            data[1] = data[0]
+            data[2] = data[0]
         else:
             eta = eta_field
             g = h / (self.rho * dx * dx)
-            ef = op.face_viscosities(eta)
+            ef = op.face_viscosities(eta).reshape(3, n)
             efm = np.empty_like(ef)            # eta at i-1/2
             for j in range(3):
-                sh(efm[j], ef[j], -1, j)
+                sh(efm[j].reshape(self.shape), ef[j].reshape(self.shape), -1, j)
+            # advection part of the 6 neighbour slots, shared by the components
+            adv = P["adv"]
+            for j in range(3):
+                sh(t, ustar[j], 1, j)
+                np.multiply(tv, h / (2 * dx), out=adv[2 * j])
+                sh(t, ustar[j], -1, j)
+                np.multiply(tv, -h / (2 * dx), out=adv[2 * j + 1])
             for i in range(3):
-                d = data[i]
-                d[:, 0] = 1.0
+                T[0] = 1.0
                 for j in range(3):
-                    m = 2.0 if j == i else 1.0
-                    fp, fm = ef[j].ravel(), efm[j].ravel()
-                    d[:, 0] += (g * m) * (fp + fm)
-                    sh(t, ustar[j], 1, j)
-                    np.multiply(t.ravel(), h / (2 * dx), out=d[:, 1 + 2 * j])
-                    d[:, 1 + 2 * j] -= (g * m) * fp
-                    sh(t, ustar[j], -1, j)
-                    np.multiply(t.ravel(), -h / (2 * dx), out=d[:, 2 + 2 * j])
-                    d[:, 2 + 2 * j] -= (g * m) * fm
+                    m = g * (2.0 if j == i else 1.0)
+                    fp, fm = ef[j], efm[j]
+                    np.multiply(fp, m, out=T[1 + 2 * j])
+                    np.multiply(fm, m, out=T[2 + 2 * j])
+                    T[0] += T[1 + 2 * j]
+                    T[0] += T[2 + 2 * j]
+                    np.subtract(adv[2 * j], T[1 + 2 * j], out=T[1 + 2 * j])
+                    np.subtract(adv[2 * j + 1], T[2 + 2 * j], out=T[2 + 2 * j])
                 k = 7
                 for j in range(3):
                     if j == i:
                         continue
                     for sj in (1, -1):
                         sh(t, eta, sj, j)
-                        tv = t.ravel()
                         for si in (1, -1):
                             # D_j(eta D_i w_j): coefficient sj*si*eta[n+sj e_j]/(4dx^2)
-                            np.multiply(tv, -sj * si * 0.25 * g, out=d[:, k])
+                            np.multiply(tv, -sj * si * 0.25 * g, out=T[k])
                             k += 1
-        return sp.csr_matrix((data.ravel(), P["indices"], P["indptr"]), shape=(3 * n, 3 * n))
+                data[i] = T.T
+        return self._csr(P)
+
+    def _csr(self, P):
+        """The CSR matrix, or for threads > 1 a LinearOperator running row blocks in threads
+        (scipy's csr_matvec releases the GIL)."""
+        n3 = P["indptr"].size - 1
+        d = P["data"].reshape(-1)
+        if self.threads <= 1:
+            return sp.csr_matrix((d, P["indices"], P["indptr"]), shape=(n3, n3))
+        ns = P["nslot"]
+        cuts = np.linspace(0, n3, self.threads + 1).astype(int)
+        blocks = []
+        for r0, r1 in zip(cuts[:-1], cuts[1:]):
+            blocks.append(sp.csr_matrix((d[r0 * ns:r1 * ns], P["indices"][r0 * ns:r1 * ns],
+                                         P["indptr"][:r1 - r0 + 1]), shape=(r1 - r0, n3)))
+        pool = self._thread_pool()
+
+        def mv(x):
+            x = np.asarray(x).reshape(-1)
+            futs = [pool.submit(B.dot, x) for B in blocks]
+            return np.concatenate([f.result() for f in futs])
+        return LinearOperator((n3, n3), matvec=mv, dtype=np.float64)
+
+    def _thread_pool(self):
+        if getattr(self, "_pool", None) is None:
+            from concurrent.futures import ThreadPoolExecutor
+            self._pool = ThreadPoolExecutor(self.threads)
+        return self._pool

@@ -1,0 +1,265 @@
+"""MAC solver on the B grid (manual §5.1, eqs 20-26) and its finite-difference operators."""
+import numpy as np
+import pytest
+
+from kapsel.fluid import operators as op
+from kapsel.fluid.mac import MACSolver, SolverDidNotConverge, UnstableTimeStep
+
+SCHEMES = ["explicit_scheme", "implicit_scheme"]
+RHO, ETA = 1.0, 1.0
+NU = ETA / RHO
+
+
+def spectral_reference(u0, nu, t, dx):
+    """Pseudo-spectral Stokes decay exp(-nu k^2 t) of every Fourier mode (exact for the
+    shear wave and the ABC flow, whose advection term is a pure gradient)."""
+    shape = u0.shape[1:]
+    kx, ky, kz = op.wavenumbers(shape, dx)
+    k2 = kx ** 2 + ky ** 2 + kz ** 2
+    uh = np.fft.rfftn(u0, axes=(1, 2, 3)) * np.exp(-nu * k2 * t)
+    return np.fft.irfftn(uh, s=shape, axes=(1, 2, 3))
+
+
+def shear_wave(shape, dx, amp=1.0):
+    """u_x = U sin(2 pi y / L_y)."""
+    k = 2 * np.pi / (shape[1] * dx)
+    y = np.arange(shape[1]) * dx
+    u = np.zeros((3,) + shape)
+    u[0] = amp * np.sin(k * y)[None, :, None]
+    return u, k
+
+
+def abc_flow(n, dx, amp):
+    """Arnold-Beltrami-Childress flow (A = B = C = amp): 3D, divergence-free, all three
+    components non-zero; curl u = k u so (u.grad)u = grad |u|^2/2 and it decays exactly as
+    exp(-nu k^2 t) under the full Navier-Stokes equation."""
+    k = 2 * np.pi / (n * dx)
+    x = np.arange(n) * dx
+    X, Y, Z = np.meshgrid(x, x, x, indexing="ij")
+    u = amp * np.stack([np.sin(k * Z) + np.cos(k * Y),
+                        np.sin(k * X) + np.cos(k * Z),
+                        np.sin(k * Y) + np.cos(k * X)])
+    return u, k
+
+
+def k_of(n, dx):
+    return 2 * np.pi / (n * dx)
+
+
+def run(u0, k, scheme, dx, r, tfac=0.2, eta_field=None, **kw):
+    """Integrate to t = tfac / (nu k^2) with nu dt / dx^2 <= r; return (u, t, solver)."""
+    T = tfac / (NU * k * k)
+    nst = int(np.ceil(T / (r * dx * dx / NU)))
+    dt = T / nst
+    s = MACSolver(u0.shape[1:], dx, RHO, ETA, dt, scheme=scheme, **kw)
+    u = u0.copy()
+    for _ in range(nst):
+        s.step(u, eta_field=eta_field)
+    return u, T, s
+
+
+def rel(a, b):
+    return np.linalg.norm(a - b) / np.linalg.norm(b)
+
+
+# ------------------------------------------------------------------ operators
+def test_b_grid_operators_adjoint_and_symbols():
+    rng = np.random.default_rng(0)
+    sh, dx = (6, 8, 10), 0.7
+    u = rng.standard_normal((3,) + sh)
+    p = rng.standard_normal(sh)
+    # G = -D^T
+    assert abs(np.sum(op.div_b(u, dx) * p) + np.sum(u * op.grad_b(p, dx))) < 1e-12
+    ax = (0, 1, 2)
+    dg = np.fft.irfftn(np.fft.rfftn(p) * op.symbol_div_grad_b(sh, dx), sh, axes=ax)
+    assert np.abs(dg - op.div_b(op.grad_b(p, dx), dx)).max() < 1e-12
+    lap = np.fft.irfftn(np.fft.rfftn(p) * op.symbol_laplacian(sh, dx), sh, axes=ax)
+    assert np.abs(lap - op.laplacian(p, dx)).max() < 1e-12
+    sd = op.symbol_div_b(sh, dx)
+    div = np.fft.irfftn(sum(np.fft.rfftn(u[a]) * sd[a] for a in range(3)), sh, axes=ax)
+    assert np.abs(div - op.div_b(u, dx)).max() < 1e-12
+    # null modes of D∘G: k = 0 and the checkerboard lines (two Nyquist components)
+    s = op.symbol_div_grad_b((8, 8, 8), 1.0)
+    m = op.b_grid_null_modes((8, 8, 8))
+    assert np.array_equal(m, np.abs(s) < 1e-12) and m.sum() == 20
+    # momentum-conserving forms: every operator sums to zero
+    eta = rng.random(sh) + 0.5
+    for f in (op.advection(u, dx), op.viscous_variable(u, eta, dx), op.laplacian(u, dx),
+              op.grad_b(p, dx)):
+        assert np.abs(f.sum(axis=(1, 2, 3))).max() < 1e-11
+    # uniform eta: the viscous operator is eta * (lap u + grad div u), lap part exact
+    w, _ = shear_wave(sh, dx)
+    assert np.abs(op.viscous_variable(w, np.full(sh, 1.3), dx)
+                  - 1.3 * op.laplacian(w, dx)).max() < 1e-12
+
+
+def test_assembled_matrix_matches_matrix_free():
+    rng = np.random.default_rng(1)
+    sh = (5, 6, 7)
+    us, w = rng.standard_normal((2, 3) + sh)
+    eta = rng.random(sh) + 0.5
+    for ef in (None, eta):
+        for th in (1, 2):
+            a = MACSolver(sh, 0.9, 1.3, 1.1, 0.2, scheme="implicit_scheme", linear="sparse",
+                          threads=th)
+            b = MACSolver(sh, 0.9, 1.3, 1.1, 0.2, scheme="implicit_scheme", linear="matfree")
+            d = a._operator(us, ef) @ w.ravel() - b._operator(us, ef) @ w.ravel()
+            assert np.abs(d).max() < 1e-12
+
+
+# ------------------------------------------------------------------ accuracy
+@pytest.mark.parametrize("scheme", SCHEMES)
+def test_shear_wave_32(scheme):
+    n, dx = 32, 1.0
+    u0, k = shear_wave((n, n, n), dx, amp=0.01)
+    u, T, _ = run(u0, k, scheme, dx, r=1 / 12)
+    exact = u0 * np.exp(-NU * k * k * T)
+    assert rel(u, exact) < 1e-3
+    assert rel(u, spectral_reference(u0, NU, T, dx)) < 1e-3
+    assert np.abs(u[1:]).max() < 1e-14
+
+
+@pytest.mark.parametrize("scheme", SCHEMES)
+def test_abc_flow_32(scheme):
+    n, dx = 32, 1.0
+    u0, k = abc_flow(n, dx, amp=0.5 * NU * k_of(n, dx))     # Re = U / (nu k) = 0.5
+    u, T, _ = run(u0, k, scheme, dx, r=1 / 12)
+    assert rel(u, spectral_reference(u0, NU, T, dx)) < 1e-3
+
+
+@pytest.mark.parametrize("scheme", SCHEMES)
+@pytest.mark.parametrize("case", ["shear", "abc"])
+def test_second_order_in_space(scheme, case):
+    """Errors at L = 8, 16, 32 points per wavelength, same physical time, nu dt/dx^2 fixed
+    and small (time error a few % of the space error)."""
+    r = 0.02 if scheme == "explicit_scheme" else 0.1
+    errs, ns = [], [8, 16, 32]
+    for n in ns:
+        dx = 1.0
+        if case == "shear":
+            u0, k = shear_wave((4, n, 4), dx, amp=0.01)
+        else:
+            u0, k = abc_flow(n, dx, amp=0.5 * NU * k_of(n, dx))
+        u, T, _ = run(u0, k, scheme, dx, r=r)
+        errs.append(rel(u, spectral_reference(u0, NU, T, dx)))
+    order = np.polyfit(np.log(ns), np.log(errs), 1)[0] * -1
+    assert 1.8 <= order <= 2.2, (errs, order)
+
+
+# ------------------------------------------------------------------ projection, conservation
+@pytest.mark.parametrize("shape", [(16, 16, 16), (9, 10, 12)])
+def test_project_divergence_free_keeps_mean(shape):
+    rng = np.random.default_rng(2)
+    u = rng.standard_normal((3,) + shape) + np.array([0.3, -0.2, 0.1])[:, None, None, None]
+    mean = u.mean(axis=(1, 2, 3))
+    s = MACSolver(shape, 0.5, RHO, ETA, 0.01)
+    assert np.abs(s.divergence(u)).max() > 1.0
+    s.project(u)
+    assert np.abs(s.divergence(u)).max() < 1e-12
+    assert np.abs(u.mean(axis=(1, 2, 3)) - mean).max() < 1e-15
+    v = u.copy()
+    s.project(v)                                   # idempotent
+    assert np.abs(v - u).max() < 1e-13
+
+
+@pytest.mark.parametrize("fft", ["pyfftw", "scipy"])
+def test_explicit_step_is_divergence_free(fft):
+    rng = np.random.default_rng(3)
+    sh = (12, 12, 12)
+    s = MACSolver(sh, 1.0, RHO, ETA, 0.1, fft=fft)
+    u = 0.1 * rng.standard_normal((3,) + sh)
+    s.step(u)
+    assert np.abs(s.divergence(u)).max() < 1e-13
+
+
+@pytest.mark.parametrize("scheme", SCHEMES)
+@pytest.mark.parametrize("variable", [False, True])
+def test_momentum_conserved(scheme, variable):
+    rng = np.random.default_rng(4)
+    sh = (12, 12, 12)
+    u = 0.2 * rng.standard_normal((3,) + sh) + np.array([0.5, -0.3, 0.2])[:, None, None, None]
+    eta = (0.5 + rng.random(sh)) if variable else None
+    s = MACSolver(sh, 1.0, RHO, ETA, 0.05, scheme=scheme)
+    p0 = s.momentum(u)
+    for _ in range(5):
+        s.step(u, eta_field=eta)
+    assert np.abs(s.momentum(u) - p0).max() < 1e-12 * np.abs(u).sum()
+
+
+@pytest.mark.parametrize("scheme", SCHEMES)
+def test_uniform_force_accelerates(scheme):
+    sh = (8, 8, 8)
+    s = MACSolver(sh, 1.0, RHO, ETA, 0.1, scheme=scheme)
+    u = np.zeros((3,) + sh)
+    f = np.zeros_like(u)
+    f[2] = 0.3
+    for _ in range(4):
+        s.step(u, force=f)
+    assert np.abs(u[2] - 0.3 * 0.4).max() < 1e-14 and np.abs(u[:2]).max() < 1e-14
+
+
+# ------------------------------------------------------------------ implicit specifics
+@pytest.mark.parametrize("case", ["shear", "abc"])
+def test_uniform_eta_field_equals_constant_viscosity(case):
+    n, dx = 16, 1.0
+    if case == "shear":
+        u0, k = shear_wave((n, n, n), dx, amp=0.01)
+    else:
+        u0, k = abc_flow(n, dx, amp=0.5 * NU * k_of(n, dx))
+    kw = dict(tolerance=1e-12)
+    a, _, _ = run(u0, k, "implicit_scheme", dx, r=0.2, **kw)
+    b, _, _ = run(u0, k, "implicit_scheme", dx, r=0.2, eta_field=np.full((n, n, n), ETA), **kw)
+    # the full form adds eta grad(div u) (discretely nonzero once advection has distorted the
+    # ABC field at O(dx^2)); for the shear wave it vanishes identically
+    assert rel(b, a) < (1e-10 if case == "shear" else 1e-6)
+    # a uniform eta_field of 2 ETA is the constant-viscosity solver with ETA -> 2 ETA
+    c, T, s = run(u0, k, "implicit_scheme", dx, r=0.2, eta_field=np.full((n, n, n), 2 * ETA),
+                  **kw)
+    s2 = MACSolver((n, n, n), dx, RHO, 2 * ETA, s.dt, scheme="implicit_scheme", **kw)
+    d = u0.copy()
+    for _ in range(int(round(T / s.dt))):
+        s2.step(d)
+    assert rel(c, d) < (1e-10 if case == "shear" else 1e-6)
+    assert rel(c, spectral_reference(u0, 2 * NU, T, dx)) < 1e-2   # O((k dx)^2) at L = 16
+
+
+def test_non_convergence_raises():
+    rng = np.random.default_rng(5)
+    sh = (8, 8, 8)
+    u = 0.1 * rng.standard_normal((3,) + sh)
+    eta = 0.5 + 5 * rng.random(sh)
+    s = MACSolver(sh, 1.0, RHO, ETA, 0.5, scheme="implicit_scheme", tolerance=1e-9,
+                  maximum_iteration=1)
+    with pytest.raises(SolverDidNotConverge) as ei:
+        s.step(u, eta_field=eta)
+    assert ei.value.iterations == 1 and ei.value.residual > 1e-9
+    assert "did not converge" in str(ei.value)
+
+
+def test_u_old_and_iterations():
+    sh = (8, 8, 8)
+    u, _ = shear_wave(sh, 1.0, amp=0.1)
+    u += 0.01 * np.random.default_rng(6).standard_normal(u.shape)
+    s = MACSolver(sh, 1.0, RHO, ETA, 0.1, scheme="implicit_scheme")
+    u0 = u.copy()
+    s.step(u)
+    assert np.array_equal(s.u_old, u0) and s.iterations >= 1
+    u1 = u.copy()
+    s.step(u)
+    assert np.array_equal(s.u_old, u1)
+    s.u_old = u0                                  # restart: U_OLD restored
+    assert np.array_equal(s.u_old, u0)
+
+
+def test_stability_limit():
+    dx, nu = 0.5, 2.0
+    s = MACSolver((8, 8, 8), dx, 1.0, nu, 0.1)
+    assert s.stable_dt() == pytest.approx(dx * dx / (6 * nu))
+    with pytest.raises(UnstableTimeStep, match="stability limit"):
+        s.check_stability()
+    ok = MACSolver((8, 8, 8), dx, 1.0, nu, 0.01)
+    assert ok.check_stability() == pytest.approx(dx * dx / (6 * nu))
+    assert MACSolver((8, 8, 8), dx, 1.0, nu, 10.0, scheme="implicit_scheme").stable_dt() \
+        == np.inf
+    with pytest.raises(ValueError):
+        MACSolver((8, 8, 8), dx, 1.0, nu, 0.1, scheme="spectral")
