@@ -12,6 +12,23 @@ Velocities at the nodes, pressure at the cell centres (see kapsel.fluid.operator
   original's choice).  With ``eta_field`` the viscous term is the full
   ∇·η(∇u + ∇u^T)/ρ (components coupled), otherwise ν∇²u.
 
+Choices, measured on this 2-core machine (shared, so +-30 %; ms, min of repeats):
+
+* FFT: pyfftw (planned once with FFTW_MEASURE, aligned buffers reused) vs scipy.fft, one
+  Poisson solve (rfftn + scale + irfftn): 32^3 0.10 vs 0.34, 64^3 1.06 vs 3.36 -> pyfftw
+  (scipy.fft kept as ``fft='scipy'``).
+* BiCGSTAB operator: assembled CSR (fixed sparsity pattern, data refilled each step, 7 slots
+  per row, 15 with variable eta) vs matrix-free LinearOperator over the numpy stencils:
+    const eta  32^3: build 0.34, matvec 0.30 vs 1.06;  64^3: build 4.9, matvec 4.6 vs 5.9
+    var eta    32^3: build 2.3,  matvec 0.73 vs 1.46;  64^3: build 27,  matvec 11 vs 14
+  step (const eta, dt = RHO DX^2/(ETA pi^2)): 32^3 6.3 vs 11.0, 64^3 76 vs 95 -> CSR
+  (``linear='matfree'`` kept).  With threads > 1 the CSR rows are split in blocks applied in
+  threads (sparsetools releases the GIL).
+* Jacobi preconditioning: no gain for constant eta (the diagonal is constant), at 32^3 and
+  eta ratio 10 / 100 it saves 5 % / 13 % of the iterations (21 -> 20, 62 -> 54), and its
+  non-constant scaling would break the exact momentum conservation below (the Krylov
+  corrections of an unpreconditioned solve all have zero sum) -> not used, as in the original.
+
 Advection is in divergence form ∇·(u u) (∇·(u* u^{n+1/2}) in the implicit scheme) with central
 differences at the nodes, so total momentum is conserved to round-off by both schemes.
 """
@@ -86,7 +103,10 @@ class MACSolver:
     Parameters follow the input file: ``scheme`` is NS_solver ('explicit_scheme' |
     'implicit_scheme'); ``tolerance`` (relative residual) and ``maximum_iteration`` are the
     BiCGSTAB settings of implicit_scheme (table 2).  ``threads`` is passed to the FFTs.
-    ``linear``: 'sparse' (assembled CSR, default, faster) or 'matfree' (LinearOperator).
+    ``linear``: 'sparse' (assembled CSR, default, faster) or 'matfree' (LinearOperator);
+    ``fft``: 'pyfftw' (default, faster) or 'scipy'.
+    Attributes: ``pressure`` (last p^{n+1}), ``u_old`` (u^{n-1}, settable for restarts),
+    ``iterations`` / ``residual`` of the last BiCGSTAB solve (residual is NaN when converged).
     """
 
     def __init__(self, shape, dx, rho, eta, dt, scheme="explicit_scheme", tolerance=1e-9,
@@ -181,8 +201,14 @@ class MACSolver:
 
     # ------------------------------------------------------------------ step
     def step(self, u, force=None, eta_field=None):
-        """Advance u (3, NX, NY, NZ) by one dt in place; ``force`` is a body-force acceleration
-        (e.g. -psi grad(mu)/rho), ``eta_field`` a node viscosity field (eta*, eq 23)."""
+        """Advance u (3, NX, NY, NZ) by one dt in place (u~^{n+1} of eqs 20 / 23).
+
+        ``force``: body-force acceleration (3, NX, NY, NZ), e.g. -psi* grad(mu*)/rho of eq 23;
+        ``eta_field``: node viscosity eta* (the caller passes the extrapolated or current
+        field); None means the constant ETA.  After the explicit step D u = 0 to round-off;
+        after the implicit one D u is O(dt x the AB extrapolation error) and is corrected at the
+        next step by the D u^n term of eq 26.  Sets ``pressure`` (p^{n+1}, cell centres),
+        ``iterations``; raises SolverDidNotConverge (implicit)."""
         if u.shape != (3,) + self.shape or u.dtype != np.float64:
             raise ValueError("u must be float64 of shape %s" % (((3,) + self.shape),))
         if not self._have_old:
