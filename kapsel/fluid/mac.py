@@ -117,8 +117,8 @@ class MACSolver:
         if linear not in ("sparse", "matfree"):
             raise ValueError("linear must be 'sparse' or 'matfree'")
         self.shape = tuple(int(n) for n in shape)
-        if len(self.shape) != 3 or min(self.shape) < 3:
-            raise ValueError("shape must be (NX, NY, NZ) with every N >= 3")
+        if len(self.shape) != 3 or min(self.shape) < 1:
+            raise ValueError("shape must be (NX, NY, NZ)")
         self.dx, self.rho, self.eta, self.dt = float(dx), float(rho), float(eta), float(dt)
         self.nu = self.eta / self.rho
         self.scheme = scheme

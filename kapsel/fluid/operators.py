@@ -34,14 +34,14 @@ def _ix(axis, i):
     return (Ellipsis, i) + (slice(None),) * (-axis - 1)
 
 
-def _ax(axis, ndim):
+def _ax(axis):
     """Grid axis 0,1,2 -> negative axis counted from the end (works for leading dims)."""
     return axis - 3 if axis >= 0 else axis
 
 
 def shift_assign(out, f, s, axis):
     """out[i] = f[i+s] (periodic) along grid ``axis`` (0, 1, 2), s = +1 or -1."""
-    a = _ax(axis, f.ndim)
+    a = _ax(axis)
     if s == 1:
         out[_sl(a, None, -1)] = f[_sl(a, 1, None)]
         out[_ix(a, -1)] = f[_ix(a, 0)]
@@ -53,7 +53,7 @@ def shift_assign(out, f, s, axis):
 
 def shift_add(out, f, s, axis):
     """out[i] += f[i+s] (periodic)."""
-    a = _ax(axis, f.ndim)
+    a = _ax(axis)
     if s == 1:
         o, g = out[_sl(a, None, -1)], f[_sl(a, 1, None)]
         np.add(o, g, out=o)
@@ -68,7 +68,7 @@ def shift_add(out, f, s, axis):
 
 def shift_sub(out, f, s, axis):
     """out[i] -= f[i+s] (periodic)."""
-    a = _ax(axis, f.ndim)
+    a = _ax(axis)
     if s == 1:
         o, g = out[_sl(a, None, -1)], f[_sl(a, 1, None)]
         np.subtract(o, g, out=o)
