@@ -105,6 +105,7 @@ def test_assembled_matrix_matches_matrix_free(sh):
         for th in (1, 2):
             a = MACSolver(sh, 0.9, 1.3, 1.1, 0.2, scheme="implicit_scheme", linear="sparse",
                           threads=th)
+            a._thread_min_rows = 0                # exercise the threaded row blocks
             b = MACSolver(sh, 0.9, 1.3, 1.1, 0.2, scheme="implicit_scheme", linear="matfree")
             d = a._operator(us, ef) @ w.ravel() - b._operator(us, ef) @ w.ravel()
             assert np.abs(d).max() < 1e-12

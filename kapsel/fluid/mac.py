@@ -22,8 +22,9 @@ Choices, measured on this 2-core machine (shared, so +-30 %; ms, min of repeats)
     const eta  32^3: build 0.34, matvec 0.30 vs 1.06;  64^3: build 4.9, matvec 4.6 vs 5.9
     var eta    32^3: build 2.3,  matvec 0.73 vs 1.46;  64^3: build 27,  matvec 11 vs 14
   step (const eta, dt = RHO DX^2/(ETA pi^2)): 32^3 6.3 vs 11.0, 64^3 76 vs 95 -> CSR
-  (``linear='matfree'`` kept).  With threads > 1 the CSR rows are split in blocks applied in
-  threads (sparsetools releases the GIL).
+  (``linear='matfree'`` kept).  With threads > 1 and 3N >= 500 000 the CSR rows are split in
+  blocks applied in threads (sparsetools releases the GIL): matvec 64^3 4.5 -> 3.2 ms, but
+  32^3 0.29 -> 0.38 ms, hence the size threshold.
 * Jacobi preconditioning: no gain for constant eta (the diagonal is constant), at 32^3 and
   eta ratio 10 / 100 it saves 5 % / 13 % of the iterations (21 -> 20, 62 -> 54), and its
   non-constant scaling would break the exact momentum conservation below (the Krylov
@@ -139,6 +140,7 @@ class MACSolver:
         self._s = np.empty(self.shape)
         self._pattern = None
         self._eta_faces = None
+        self._thread_min_rows = 500_000        # threaded CSR matvec only above this size
 
     # ------------------------------------------------------------------ state
     @property
@@ -432,7 +434,8 @@ class MACSolver:
         (scipy's csr_matvec releases the GIL)."""
         n3 = P["indptr"].size - 1
         d = P["data"].reshape(-1)
-        if self.threads <= 1:
+        # threads pay only for large systems: matvec 64^3 const 4.5 -> 3.2 ms, 32^3 0.29 -> 0.38
+        if self.threads <= 1 or n3 < self._thread_min_rows:
             return sp.csr_matrix((d, P["indices"], P["indptr"]), shape=(n3, n3))
         ns = P["nslot"]
         cuts = np.linspace(0, n3, self.threads + 1).astype(int)
