@@ -128,7 +128,8 @@ def _grad_sq(f, dx):
 
 
 def discrete_k2(shape, dx):
-    """K^2 = sum_a (2/DX)^2 sin^2(k_a DX/2) on the rfft-free full grid, shape ``shape``."""
+    """K^2 = sum_a (2/DX)^2 sin^2(k_a DX/2) of every mesh mode (full FFT order), -symbol of
+    the 7-point Laplacian; max 12/DX^2 for even N."""
     parts = []
     for a, n in enumerate(shape):
         k = 2.0 * np.pi * np.fft.fftfreq(n, d=dx)
@@ -268,8 +269,11 @@ class CahnHilliard:
 
     def _fpp_max(self, psi, phi):
         if psi is None:
-            lo, hi = self.potential.equilibrium()
-            fpp = float(np.max(self.potential.d2f(np.array([lo, hi]))))
+            try:
+                pts = np.array(self.potential.equilibrium())
+            except ValueError:              # one-phase parameters: the mean composition
+                pts = np.array([self.params.composition_ratio])
+            fpp = float(np.max(self.potential.d2f(pts)))
         else:
             fpp = float(np.max(self.potential.d2f(psi)))
         if phi is not None and self.params.d > 0:
@@ -354,11 +358,10 @@ class CahnHilliard:
             raise ValueError("u must have shape %s" % (((3,) + self.shape),))
         if phi is not None and phi.shape != self.shape:
             raise ValueError("phi must have shape %s" % (self.shape,))
+        old = psi.copy()
         if self.scheme == "explicit_scheme":
-            old = psi.copy()
             self._step_explicit(psi, u, phi)
         else:
-            old = psi.copy()
             self._step_implicit(psi, u, phi)
         self.psi_old = old
         return psi

@@ -143,24 +143,33 @@ class FloryHuggins:
         return tuple(sorted(float(x.real) for x in r))
 
     def equilibrium(self):
-        """Binodal (common-tangent) compositions (psi_A-poor, psi_A-rich); chi > chi_c."""
-        from scipy.optimize import root
+        """Binodal (common-tangent) compositions (psi_A-poor, psi_A-rich); chi > chi_c.
+
+        Equal-area construction: for a slope mu between the spinodal values of f', the
+        outer roots psi1 < s1, psi2 > s2 of f' = mu, and brentq on mu for
+        f(psi2) - f(psi1) = mu (psi2 - psi1) (unclipped logarithms)."""
+        from scipy.optimize import brentq
         s1, s2 = self.spinodal()
+        na, nb, chi, T = self.na, self.nb, self.chi, self.kBT
 
-        def unpack(z):
-            return 1.0 / (1.0 + np.exp(-z))
+        def f(p):
+            return T * (p / na * math.log(p) + (1 - p) / nb * math.log1p(-p) + chi * p * (1 - p))
 
-        def eqs(z):
-            p1, p2 = unpack(z)
-            d1, d2 = self.df(p1), self.df(p2)
-            return [d1 - d2, (self.f(p1) - self.f(p2)) - d1 * (p1 - p2)]
-        g = np.array([0.5 * s1, 0.5 * (1.0 + s2)])
-        sol = root(eqs, np.log(g / (1.0 - g)), tol=1e-14)
-        p1, p2 = sorted(float(x) for x in unpack(sol.x))
-        if not sol.success or not p1 < s1 < s2 < p2:
-            raise RuntimeError("Flory-Huggins binodal not found (NA=%g NB=%g chi=%g)"
-                               % (self.na, self.nb, self.chi))
-        return (p1, p2)
+        def df(p):
+            return T * ((math.log(p) + 1) / na - (math.log1p(-p) + 1) / nb + chi * (1 - 2 * p))
+
+        def branches(mu):
+            p1 = brentq(lambda p: df(p) - mu, 1e-300, s1, xtol=1e-300, rtol=1e-15)
+            p2 = brentq(lambda p: df(p) - mu, s2, 1 - 1e-16, xtol=1e-300, rtol=1e-15)
+            return p1, p2
+
+        def tangent(mu):
+            p1, p2 = branches(mu)
+            return f(p2) - f(p1) - mu * (p2 - p1)
+        lo, hi = df(s2), df(s1)
+        span = hi - lo
+        mu = brentq(tangent, lo + 1e-12 * span, hi - 1e-12 * span, xtol=1e-15, rtol=1e-15)
+        return branches(mu)
 
 
 def make_potential(params, kBT=1.0):
