@@ -1,0 +1,175 @@
+"""The finite-difference types: ``Navier_Stokes_FDM`` and ``Navier_Stokes_Cahn_Hilliard_FDM``.
+
+One step (manual §5.1, §5.3, eqs 15-31):
+
+1. chemical potential mu(psi^n, phi^n) and capillary force -psi grad(mu) / RHO (eq 15);
+2. MAC step of the fluid with that force (explicit eqs 20-21 or implicit eqs 23-26), with
+   the viscosity field of ``viscosity_change`` (linear in composition, ETA_A .. ETA_B);
+3. particles (SPM, eqs 6, 9-12): momentum exchange with the fluid after the step, new
+   velocities, the rigidity force phi (u_p - u) made divergence-free (eq 22), new positions;
+4. Cahn-Hilliard step of psi with the new velocity (eq 30 explicit / eq 31 BDF2).
+
+The explicit Cahn-Hilliard scheme is only stable for dt below its linear limit (fourth
+derivative); when the fluid dt exceeds it, psi is advanced in equal sub-steps below the
+limit and the run says so once.
+"""
+from __future__ import annotations
+
+import math
+import sys
+
+import numpy as np
+
+from ..config import ConfigError, RunConfig
+from ..simulation import register
+from .common import (kinetic_energy, make_forces, make_noise, make_particles, random_seed,
+                     time_step)
+
+
+class FDMModel:
+    def __init__(self, cfg: RunConfig, args):
+        from ..fluid.mac import MACSolver, UnstableTimeStep
+        self.cfg = cfg
+        self.quiet = getattr(args, "quiet", False)
+        threads = getattr(args, "threads", 1)
+        shape, dx = cfg.mesh.shape, cfg.mesh.DX
+        f = cfg.fluid
+        self.dt = time_step(cfg)
+        self.time = 0.0
+        self.step_index = 0
+        seed = random_seed(args)
+        self.rng = np.random.default_rng(seed)
+        self.rho, self.dx, self.shape = f.RHO, dx, shape
+        self.mac = MACSolver(shape, dx, f.RHO, f.ETA, self.dt, scheme=f.ns_solver,
+                             tolerance=f.tolerance, maximum_iteration=f.maximum_iteration,
+                             threads=threads)
+        try:
+            self.mac.check_stability()
+        except UnstableTimeStep as e:
+            raise ConfigError(str(e), path="time_increment", value=self.dt) from None
+        self.u = np.zeros((3,) + shape)
+
+        # particles
+        self.particles = make_particles(cfg, self.rng)
+        self.rotation = cfg.switches.ROTATION
+        self.forces = make_forces(cfg, self.particles)
+        self.noise = make_noise(cfg, self.particles, seed)
+        self.phi = np.zeros(shape) if self.particles.n else None
+        if self.particles.n:
+            from ..particles.profile import Stencil
+            self.stencil = Stencil(cfg.particles.A, cfg.particles.A_XI, dx)
+            self._profiles()
+            self._impose_particle_velocity()
+
+        # phase field
+        self.ch = None
+        self.psi = None
+        self.eta_field = None
+        if cfg.has_phase_field:
+            from ..phase import CahnHilliard, make_potential
+            ph = cfg.phase
+            self.ch_kwargs = dict(threads=threads, xi=cfg.particles.A_XI)
+            self.ch = CahnHilliard(shape, dx, ph, self.dt, **self.ch_kwargs)
+            self.psi = self.ch.initial_field(self.rng)
+            self.substeps = 1
+            if ph.ch_solver == "explicit_scheme":
+                limit = self.ch.stable_dt(self.psi, self.phi)
+                if self.dt > 0.9 * limit:
+                    self.substeps = math.ceil(self.dt / (0.9 * limit))
+                    self.ch = CahnHilliard(shape, dx, ph, self.dt / self.substeps,
+                                           **self.ch_kwargs)
+                    if not self.quiet:
+                        print(f"#explicit Cahn-Hilliard: dt = {self.dt:.4g} exceeds its "
+                              f"stability limit {limit:.4g}; psi advances in {self.substeps} "
+                              f"sub-steps per step", file=sys.stderr)
+            if f.viscosity_change:
+                pot = make_potential(ph)
+                lo, hi = sorted(pot.equilibrium())
+                self.comp_range = (lo, hi)
+                self.eta_field = np.empty(shape)
+                self._update_viscosity()
+
+    # ------------------------------------------------------------------ particles
+    def _profiles(self):
+        from ..particles.profile import particle_profiles, total_phi
+        p = self.particles
+        self.idx, self.phi_i, self.r = particle_profiles(p.R, self.stencil, self.shape, self.dx)
+        self.phi[...] = total_phi(self.idx, self.phi_i, self.phi.size).reshape(self.shape)
+
+    def _impose_particle_velocity(self):
+        """Make the fluid move with the particles (rigidity increment, projected)."""
+        from ..particles.coupling import rigidity_increment
+        p = self.particles
+        self.u += rigidity_increment(self.u, self.idx, self.phi_i, self.r, p.v, p.omega,
+                                     self.phi.size)
+        self.mac.project(self.u)
+
+    def _particle_step(self):
+        from ..particles.coupling import hydro_force_torque
+        from ..particles.motion import update_positions, update_velocities
+        p = self.particles
+        F_H, T_H = hydro_force_torque(self.u, self.idx, self.phi_i, self.r, p.v, p.omega,
+                                      self.rho, self.dx, self.dt)
+        F_o = T_o = None
+        if self.forces is not None:
+            F_o, T_o, ratio = self.forces(p)
+            if ratio < 0.5:
+                raise FloatingPointError(f"particles overlap deeply (closest pair at "
+                                         f"{ratio:.2f} of contact distance)")
+        dP = dL = None
+        if self.noise is not None:
+            dP, dL = self.noise(p.n, self.dt)
+        update_velocities(p, F_H, T_H, F_o, T_o, self.dt, self.rotation, dP, dL)
+        self._impose_particle_velocity()
+        update_positions(p, self.dt, self.cfg.mesh.box, self.rotation)
+        self._profiles()
+
+    # ------------------------------------------------------------------ phase field
+    def _update_viscosity(self):
+        fl = self.cfg.fluid
+        lo, hi = self.comp_range
+        s = np.clip((self.psi - lo) / (hi - lo), 0.0, 1.0)  # fraction of the A-rich phase
+        np.multiply(s, fl.ETA_A - fl.ETA_B, out=self.eta_field)
+        self.eta_field += fl.ETA_B
+
+    # ------------------------------------------------------------------ the step
+    def advance(self):
+        force = None
+        if self.ch is not None:
+            mu = self.ch.chemical_potential(self.psi, self.phi)
+            force = self.ch.capillary_force(self.psi, mu, self.rho)
+        self.mac.step(self.u, force=force, eta_field=self.eta_field)
+        if self.particles.n:
+            self._particle_step()
+        if self.ch is not None:
+            for _ in range(self.substeps):
+                self.ch.step(self.psi, self.u, self.phi)
+            if self.eta_field is not None:
+                self._update_viscosity()
+        self.step_index += 1
+        self.time = self.step_index * self.dt
+
+    # ------------------------------------------------------------------ outputs
+    def kinetic_energy(self) -> float:
+        return kinetic_energy(self.rho, self.dx, self.u, self.phi, self.particles)
+
+    def record_items(self) -> dict:
+        return {"PSI": self.psi} if self.psi is not None else {}
+
+    def fields(self) -> dict:
+        out = {"u": self.u}
+        if self.psi is not None:
+            out["psi"] = self.psi
+        if self.phi is not None:
+            out["phi"] = self.phi
+        return out
+
+
+@register("Navier_Stokes_FDM")
+def make_ns_fdm(cfg, args, doc):
+    return FDMModel(cfg, args)
+
+
+@register("Navier_Stokes_Cahn_Hilliard_FDM")
+def make_ns_ch_fdm(cfg, args, doc):
+    return FDMModel(cfg, args)
