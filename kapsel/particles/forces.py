@@ -1,0 +1,189 @@
+"""Direct particle-particle forces (F_i^other of eq 9) and gravity.
+
+Pair interactions between spheres i, j use sigma = a_i + a_j (as in KAPSEL the
+LJ sigma is the contact distance), lengths in DX.
+
+LJ_powers '12:6', '24:12', '36:18' (table 6):
+    V(r) = 4 EPSILON [(sigma/r)^(2n) - (sigma/r)^n],  n = 6, 12, 18.
+LJ_truncate (table 7):
+    'ON'   repulsive only (WCA): cut at r_min = 2^(1/n) sigma and shifted by
+           +EPSILON so that V(r_min) = 0 (force and energy continuous).
+    'OFF'  full LJ cut at r_c = 2.5 sigma.  This is a *force* cut as in KAPSEL
+           (A_R_cutoff = 2.5): V is not shifted, so the energy jumps by
+           V(2.5 sigma) (= -0.0163 EPSILON for 12:6) at r_c; forces are -dV/dr
+           inside r_c and zero outside.
+    'NONE' no interaction (ghost particles): zeros are returned immediately.
+
+LJ_powers 'macro_vdw' (section 5.4, eqs 33-34; EPSILON is the Hamaker constant
+H, n = MACRO_VDW_N = 1.1), with x = r / sigma:
+    V(x) = H / (48 (n-1)^3) [x^2 - 2x - (3n^2 - 6n + 2)]   x <= n
+    V(x) = -H / (24 (x - 1))                              x >  n   (eq 33)
+
+Continuity check of eq 34 as printed (done analytically, also tested):
+    value:  x^2 - 2x - 3n^2 + 6n - 2 at x = n equals -2 (n-1)^2, so the inner
+            branch gives -2 H (n-1)^2 / (48 (n-1)^3) = -H / (24 (n-1)), which
+            equals the outer branch -H / (24 (n-1)).               -> continuous
+    slope:  d/dx inner = H (2x - 2) / (48 (n-1)^3) -> H / (24 (n-1)^2) at x = n;
+            d/dx outer = H / (24 (x-1)^2)          -> H / (24 (n-1)^2). -> C1
+    curvature: inner H / (24 (n-1)^3), outer -H / (12 (n-1)^3): not C2.
+So eq 34 is C1 exactly as printed; the prefactor and constant are used unchanged.
+The inner branch has its minimum V = -H / (16 (n-1)) at contact x = 1 (soft
+repulsion for x < 1, attraction for 1 < x).
+macro_vdw cutoff choice: the Hamaker tail decays only like 1/(x-1), so with
+'OFF' it is force-cut at r_c = 2.5 sigma (the same A_R_cutoff as LJ 'OFF';
+|F(r_c)| / max|F| = (n-1)^2 / 2.25 = 0.44 %), energy not shifted.  With 'ON'
+only the repulsive part is kept: cut at the minimum r = sigma, shifted by
++H / (16 (n-1)) so that V(sigma) = 0 (C1 at the cut).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from .cells import pairs_within
+
+__all__ = ["LJ_POWERS", "MACRO_VDW_N", "LJ_CUTOFF_OFF", "interaction_range",
+           "pair_potential", "pair_force_magnitude", "pair_forces", "gravity_force"]
+
+LJ_POWERS = {"12:6": 6, "24:12": 12, "36:18": 18}
+MACRO_VDW_N = 1.1
+LJ_CUTOFF_OFF = 2.5
+
+
+def _norm_key(s) -> str:
+    return str(s).strip()
+
+
+def _truncate_key(truncate) -> str:
+    t = _norm_key(truncate).upper()
+    if t not in ("ON", "OFF", "NONE"):
+        raise ValueError(f"LJ_truncate must be ON, OFF or NONE, got {truncate!r}")
+    return t
+
+
+def _check_powers(powers) -> str:
+    p = _norm_key(powers)
+    if p not in LJ_POWERS and p != "macro_vdw":
+        raise ValueError(f"LJ_powers must be one of 12:6, 24:12, 36:18, macro_vdw; got {powers!r}")
+    return p
+
+
+def interaction_range(powers, truncate) -> float:
+    """Cutoff r_c / sigma (0 for 'NONE')."""
+    p, t = _check_powers(powers), _truncate_key(truncate)
+    if t == "NONE":
+        return 0.0
+    if t == "OFF":
+        return LJ_CUTOFF_OFF
+    if p == "macro_vdw":
+        return 1.0
+    return 2.0 ** (1.0 / LJ_POWERS[p])
+
+
+def _raw(r, sigma, p, epsilon):
+    """Untruncated (V, -dV/dr)."""
+    if p == "macro_vdw":
+        n = MACRO_VDW_N
+        x = r / sigma
+        c = epsilon / (48.0 * (n - 1.0) ** 3)
+        inner = x <= n
+        xo = np.where(inner, n + 1.0, x)  # avoid x = 1 in the outer branch
+        V = np.where(inner, c * (x * x - 2.0 * x - (3 * n * n - 6 * n + 2)),
+                     -epsilon / (24.0 * (xo - 1.0)))
+        F = np.where(inner, -c * (2.0 * x - 2.0) / sigma,
+                     -epsilon / (24.0 * sigma * (xo - 1.0) ** 2))
+        return V, F
+    n = LJ_POWERS[p]
+    s = (sigma / r) ** n
+    V = 4.0 * epsilon * (s * s - s)
+    F = 4.0 * epsilon * n * (2.0 * s * s - s) / r
+    return V, F
+
+
+def _shift(p, epsilon, t):
+    if t != "ON":
+        return 0.0
+    if p == "macro_vdw":
+        return epsilon / (16.0 * (MACRO_VDW_N - 1.0))
+    return epsilon  # V(r_min) = -EPSILON for every 2n:n LJ
+
+
+def pair_potential(r, sigma, powers="12:6", epsilon=1.0, truncate="ON"):
+    """Pair potential V(r) including truncation/shift; 0 beyond the cutoff."""
+    p, t = _check_powers(powers), _truncate_key(truncate)
+    r = np.asarray(r, dtype=float)
+    sigma = np.broadcast_to(np.asarray(sigma, dtype=float), r.shape)
+    if t == "NONE":
+        return np.zeros_like(r)
+    inside = r < interaction_range(p, t) * sigma
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        V, _ = _raw(r, sigma, p, epsilon)
+    return np.where(inside, V + _shift(p, epsilon, t), 0.0)
+
+
+def pair_force_magnitude(r, sigma, powers="12:6", epsilon=1.0, truncate="ON"):
+    """-dV/dr (positive = repulsive); 0 beyond the cutoff."""
+    p, t = _check_powers(powers), _truncate_key(truncate)
+    r = np.asarray(r, dtype=float)
+    sigma = np.broadcast_to(np.asarray(sigma, dtype=float), r.shape)
+    if t == "NONE":
+        return np.zeros_like(r)
+    inside = r < interaction_range(p, t) * sigma
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        _, F = _raw(r, sigma, p, epsilon)
+    return np.where(inside, F, 0.0)
+
+
+def pair_forces(R, box, radius, powers="12:6", epsilon=1.0, truncate="ON"):
+    """Total pair forces F (N, 3), potential energy U and min r/sigma.
+
+    F_j += f, F_i -= f for every pair (Newton's third law exact per pair),
+    f = (-dV/dr) dr/|dr|, dr = minimum-image R_j - R_i.  min_ratio is the
+    smallest r/sigma among the pairs inside the cutoff (inf if none), so the
+    caller can stop on deep overlap (coincident particles give non-finite F).
+    """
+    R = np.asarray(R, dtype=float).reshape(-1, 3)
+    n = len(R)
+    F = np.zeros((n, 3))
+    p, t = _check_powers(powers), _truncate_key(truncate)
+    if t == "NONE" or n < 2:
+        return F, 0.0, np.inf
+    radius = np.broadcast_to(np.asarray(radius, dtype=float), (n,))
+    rc = interaction_range(p, t)
+    i, j, dr = pairs_within(R, box, rc * 2.0 * float(radius.max()))
+    if len(i) == 0:
+        return F, 0.0, np.inf
+    r = np.sqrt(np.einsum("ij,ij->i", dr, dr))
+    sigma = radius[i] + radius[j]
+    keep = r < rc * sigma
+    i, j, dr, r, sigma = i[keep], j[keep], dr[keep], r[keep], sigma[keep]
+    if len(i) == 0:
+        return F, 0.0, np.inf
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        V, fmag = _raw(r, sigma, p, epsilon)
+        f = (fmag / r)[:, None] * dr
+    U = float(np.sum(V + _shift(p, epsilon, t)))
+    for k in range(3):
+        F[:, k] = np.bincount(j, f[:, k], minlength=n) - np.bincount(i, f[:, k], minlength=n)
+    return F, U, float(np.min(r / sigma))
+
+
+_DIRECTIONS = {"X": 0, "Y": 1, "Z": 2}
+
+
+def gravity_force(radius, mass_ratio, rho, G, direction="-Z"):
+    """Buoyancy-corrected gravity G RHO (4/3) pi a^3 (MASS_RATIO - 1) along direction.
+
+    direction is '-X', '-Y' or '-Z' (table 6); '+X' / 'X' etc. are accepted too.
+    Returns (N, 3).
+    """
+    radius = np.atleast_1d(np.asarray(radius, dtype=float))
+    mass_ratio = np.broadcast_to(np.asarray(mass_ratio, dtype=float), radius.shape)
+    d = str(direction).strip().upper()
+    sign = -1.0 if d.startswith("-") else 1.0
+    axis = _DIRECTIONS.get(d.lstrip("+-"))
+    if axis is None:
+        raise ValueError(f"gravity.direction must be -X, -Y or -Z, got {direction!r}")
+    mag = G * rho * (4.0 / 3.0) * np.pi * radius ** 3 * (mass_ratio - 1.0)
+    F = np.zeros((len(radius), 3))
+    F[:, axis] = sign * mag
+    return F
