@@ -162,6 +162,12 @@ def test_noise_variance_and_state():
         assert abs(x.mean()) < 5 * np.sqrt(var / x.size)
         c = np.mean(x[:, 0] * x[:, 1]) / var
         assert abs(c) < 5 / np.sqrt(n)
+    # per-particle friction given as (n, 1) columns, as the model layer does
+    st0 = noise.get_state()
+    x1 = noise.impulses(4, dt, kBT, 1, 1, gv[:4, None], go[:4, None])
+    noise.set_state(st0)
+    x2 = noise.impulses(4, dt, kBT, 1, 1, gv[:4], go[:4])
+    assert x1[0].shape == (4, 3) and np.array_equal(x1[0], x2[0]) and np.array_equal(x1[1], x2[1])
     # kBT = 0 draws nothing
     before = json.dumps(noise.get_state())
     z = noise.impulses(10, dt, 0.0, 1, 1, 1, 1)
@@ -174,3 +180,15 @@ def test_noise_variance_and_state():
     other.set_state(st)
     a2 = other.impulses(5, dt, kBT, 1, 1, 1, 1)
     assert np.array_equal(a1[0], a2[0]) and np.array_equal(a1[1], a2[1])
+
+
+@pytest.mark.parametrize("powers,truncate", CASES)
+def test_force_magnitude_is_minus_dV_dr(powers, truncate):
+    sigma, h = 3.0, 1e-6
+    rc = F.interaction_range(powers, truncate) * sigma
+    r = np.linspace(0.88 * sigma, rc, 400)[1:-1]
+    num = -(F.pair_potential(r + h, sigma, powers, 0.7, truncate)
+            - F.pair_potential(r - h, sigma, powers, 0.7, truncate)) / (2 * h)
+    f = F.pair_force_magnitude(r, sigma, powers, 0.7, truncate)
+    far = np.abs(r - rc) > 2 * h
+    assert np.allclose(f[far], num[far], rtol=1e-6, atol=1e-8 * np.abs(f).max())

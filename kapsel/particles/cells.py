@@ -27,7 +27,8 @@ def pairs_within(R, box, rcut):
     Returns (i, j, dr) with i < j (int arrays, M) sorted by (i, j), and
     dr = minimum-image R[j] - R[i], shape (M, 3).  Uses cKDTree with boxsize;
     if rcut > L/2 in any direction, minimum image is ambiguous for the tree and
-    all pairs are scanned instead (each pair counted once, at its minimum image).
+    all pairs are scanned instead (each pair counted once, at its minimum image;
+    further periodic images of the same pair are ignored).
     """
     R = np.asarray(R, dtype=float).reshape(-1, 3)
     L = np.asarray(box, dtype=float)

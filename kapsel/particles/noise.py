@@ -19,6 +19,13 @@ import numpy as np
 __all__ = ["ThermalNoise"]
 
 
+def _per_particle(g, n):
+    g = np.asarray(g, dtype=float)
+    if g.ndim == 1:
+        g = g[:, None]
+    return np.broadcast_to(g, (n, 3))
+
+
 class ThermalNoise:
     """Random impulses from numpy Generator(PCG64(seed)); state is JSON-serialisable."""
 
@@ -42,7 +49,7 @@ class ThermalNoise:
             "has_uint32": int(d["has_uint32"]), "uinteger": int(d["uinteger"])}
 
     def impulses(self, n, dt, kBT, alpha_v=1.0, alpha_o=1.0, gamma_v=1.0, gamma_o=1.0):
-        """(dP (n,3), dL (n,3)) over one step; gamma_* scalars or per-particle (n,).
+        """(dP (n,3), dL (n,3)) over one step; gamma_* scalars, (n,), (n,1) or (n,3).
 
         With kBT == 0 zeros are returned and no random numbers are drawn.
         """
@@ -50,10 +57,8 @@ class ThermalNoise:
             return np.zeros((n, 3)), np.zeros((n, 3))
         if kBT < 0 or dt < 0:
             raise ValueError("kBT and dt must be non-negative")
-        gv = np.broadcast_to(np.asarray(gamma_v, dtype=float), (n,))
-        go = np.broadcast_to(np.asarray(gamma_o, dtype=float), (n,))
-        sv = np.sqrt(2.0 * kBT * alpha_v * gv * dt)[:, None]
-        so = np.sqrt(2.0 * kBT * alpha_o * go * dt)[:, None]
+        sv = np.sqrt(2.0 * kBT * alpha_v * dt * _per_particle(gamma_v, n))
+        so = np.sqrt(2.0 * kBT * alpha_o * dt * _per_particle(gamma_o, n))
         dP = sv * self.rng.standard_normal((n, 3))
         dL = so * self.rng.standard_normal((n, 3))
         return dP, dL
