@@ -280,6 +280,16 @@ _TERMINAL_NAMES = {"LBRACE": "'{'", "RBRACE": "'}'", "LSQB": "'['", "RSQB": "']'
                    "DIM": "'[]'", "UNIT": "a [unit]", "PRIMITIVE": "a type"}
 
 
+def _terminal_name(name: str) -> str:
+    if name in _TERMINAL_NAMES:
+        return _TERMINAL_NAMES[name]
+    try:
+        pattern = grammar().get_terminal(name).pattern
+        return repr(pattern.value) if pattern.type == "str" else name
+    except KeyError:
+        return name.strip('"')
+
+
 def _syntax_error(e: lark.exceptions.UnexpectedInput, file: str, text: str) -> UDFError:
     line, col = e.line, e.column
     if isinstance(e, lark.exceptions.UnexpectedCharacters):
@@ -290,7 +300,7 @@ def _syntax_error(e: lark.exceptions.UnexpectedInput, file: str, text: str) -> U
         if tok.type == "$END":
             return UDFError("unexpected end of file (a block or bracket is not closed)",
                             file, line if line and line > 0 else text.count("\n") + 1, None)
-        exp = sorted({_TERMINAL_NAMES.get(x, x.strip('"')) for x in e.expected})[:8]
+        exp = sorted({_terminal_name(x) for x in e.expected})[:8]
         return UDFError(f"unexpected {str(tok)!r}; expected one of: {', '.join(exp)}",
                         file, line, col)
     return UDFError(str(e).splitlines()[0], file, line, col)
