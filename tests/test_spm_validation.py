@@ -1,0 +1,202 @@
+"""SPM validation with the spectral solver (and the MAC one for momentum): momentum
+conservation, Hasimoto drag of a periodic sphere array, rotational drag, Brownian temperature.
+
+Run the slow ones with ``pytest -m slow tests/test_spm_validation.py -s`` (they print the
+measured ratios).
+"""
+import time
+
+import numpy as np
+import pytest
+
+from kapsel.particles.spm import SPM
+from kapsel.particles.state import ParticleState
+
+A, XI = 4.0, 2.0
+
+
+def _spectral(L, dt, fix_cell, threads=1):
+    grid_mod = pytest.importorskip("kapsel.grid")
+    spectral = pytest.importorskip("kapsel.fluid.spectral")
+    grid = grid_mod.Grid((L, L, L), 1.0, threads=threads)
+    return spectral.SpectralNS(grid, 1.0, 1.0, dt, fix_cell)
+
+
+def _auto_dt():
+    ts = pytest.importorskip("kapsel.timestep")
+    return ts.auto_dt(1.0, 1.0, 1.0, 1.0)
+
+
+def _spheres(R, mass_ratio=1.0):
+    R = np.asarray(R, dtype=float)
+    p = ParticleState.spheres([0] * len(R), [A] * len(R), [mass_ratio] * len(R), 1.0)
+    p.R[:] = R
+    p.R_raw[:] = R
+    return p
+
+
+def _hasimoto_K(L):
+    c = 4 / 3 * np.pi * A ** 3 / L ** 3
+    return 1.0 / (1 - 1.7601 * c ** (1 / 3) + c - 1.5593 * c ** 2 + 3.9799 * c ** (8 / 3)
+                  - 3.0734 * c ** (10 / 3))
+
+
+def _two_pushed(fluid, mass_ratio):
+    p = _spheres([[7.3, 12.2, 11.7], [17.6, 11.1, 12.4]], mass_ratio)
+    F = np.array([[0.4, 0.1, -0.05], [-0.4, -0.1, 0.05]])
+    T = np.array([[0.3, 0.0, 1.0], [0.0, -0.2, -1.0]])
+    return p, (lambda q: (F, T))
+
+
+@pytest.mark.parametrize("mass_ratio", [1.0, 2.5])
+def test_momentum_conservation_spectral(mass_ratio):
+    """Equal and opposite forces (and torques) on two particles, 50 steps: the total
+    momentum RHO DX^3 sum u + sum (M - RHO V_p) V (spm docstring) is constant to round-off."""
+    dt = _auto_dt()
+    fluid = _spectral(24, dt, fix_cell=False)
+    p, forces = _two_pushed(fluid, mass_ratio)
+    spm = SPM(fluid, p, A, XI, 1.0, 1.0, dt, forces=forces)
+    P0 = spm.total_momentum()
+    for _ in range(50):
+        spm.step()
+    P = spm.total_momentum()
+    moved = np.abs(p.R_raw - p.R).max() + np.abs(p.v).max()
+    assert moved > 0
+    scale = np.abs(p.mass[:, None] * p.v).sum()
+    assert np.abs(P - P0).max() < 1e-12 * max(scale, 1.0), (P - P0, scale)
+
+
+def test_momentum_conservation_mac():
+    from kapsel.fluid.mac import MACSolver
+    dt = 0.05
+    mac = MACSolver((24, 24, 24), 1.0, 1.0, 1.0, dt)
+    p, forces = _two_pushed(mac, 1.0)
+    spm = SPM(mac, p, A, XI, 1.0, 1.0, dt, forces=forces)
+    P0 = spm.total_momentum()
+    for _ in range(50):
+        spm.step()
+    assert np.abs(spm.total_momentum() - P0).max() < 1e-12 * np.abs(p.mass[:, None] * p.v).sum()
+
+
+def test_no_particles_is_plain_fluid():
+    dt = _auto_dt()
+    fluid = _spectral(16, dt, fix_cell=False)
+    rng = np.random.default_rng(0)
+    u = rng.normal(size=(3, 16, 16, 16)) * 1e-2
+    fluid.set_velocity(u)
+    ref = _spectral(16, dt, fix_cell=False)
+    ref.set_velocity(u)
+    spm = SPM(fluid, ParticleState.spheres([], [], [], 1.0), A, XI, 1.0, 1.0, dt)
+    for _ in range(3):
+        spm.step()
+        ref.step()
+    np.testing.assert_array_equal(fluid.velocity(), ref.velocity())
+
+
+def terminal_velocity(L, dt=None, tol=2e-4, t_max=None, threads=1):
+    """Sphere A = 4 under F = (1, 0, 0), FIX_CELL on: V_x / (F / (6 pi eta A K)) at steady state
+    (stop when V changes by < tol relatively over one slowest-mode decay time L^2/(4 pi^2))."""
+    dt = dt or _auto_dt()
+    fluid = _spectral(L, dt, fix_cell=True, threads=threads)
+    p = _spheres([[L / 2 + 0.3, L / 2 + 0.2, L / 2 - 0.3]])
+    F = np.array([[1.0, 0.0, 0.0]])
+    spm = SPM(fluid, p, A, XI, 1.0, 1.0, dt, forces=lambda q: (F, np.zeros((1, 3))))
+    U = 1.0 / (6 * np.pi * A * _hasimoto_K(L))
+    tau = L ** 2 / (4 * np.pi ** 2)
+    n_tau = max(1, int(round(tau / dt)))
+    t_max = t_max or 12 * tau
+    prev = None
+    while spm.step_index * dt < t_max:
+        spm.run(n_tau)
+        v = p.v[0, 0]
+        if prev is not None and abs(v - prev) < tol * abs(v):
+            break
+        prev = v
+    return p.v[0] / U, spm.step_index * dt
+
+
+def _check_drag(L, dt=None):
+    t0 = time.perf_counter()
+    ratio, t = terminal_velocity(L, dt)
+    print(f"\nL={L}: V/V_Hasimoto = {ratio[0]:.4f} (t={t:.0f}, {time.perf_counter() - t0:.1f} s)")
+    assert abs(ratio[0] - 1) < 0.05
+    assert np.abs(ratio[1:]).max() < 1e-3
+
+
+@pytest.mark.slow
+def test_drag_L32():
+    _check_drag(32)
+
+
+@pytest.mark.slow
+def test_drag_L64():
+    _check_drag(64)
+
+
+def steady_rotation(L, dt=None, tol=2e-4, threads=1):
+    """Constant torque T = (0, 0, 1) on a sphere: Omega_z / (T (1 - c - 1.95708 c^(10/3)) /
+    (8 pi eta A^3)) at steady state."""
+    dt = dt or _auto_dt()
+    fluid = _spectral(L, dt, fix_cell=True, threads=threads)
+    p = _spheres([[L / 2 + 0.3, L / 2 + 0.2, L / 2 - 0.3]])
+    T = np.array([[0.0, 0.0, 1.0]])
+    spm = SPM(fluid, p, A, XI, 1.0, 1.0, dt, forces=lambda q: (np.zeros((1, 3)), T))
+    c = 4 / 3 * np.pi * A ** 3 / L ** 3
+    W = (1 - c - 1.95708 * c ** (10 / 3)) / (8 * np.pi * A ** 3)
+    n_tau = max(1, int(round(A ** 2 / dt)))
+    prev = None
+    while spm.step_index * dt < 40 * A ** 2:
+        spm.run(n_tau)
+        w = p.omega[0, 2]
+        if prev is not None and abs(w - prev) < tol * abs(w):
+            break
+        prev = w
+    return p.omega[0] / W, spm.step_index * dt
+
+
+@pytest.mark.slow
+def test_rotation_L32():
+    t0 = time.perf_counter()
+    ratio, t = steady_rotation(32)
+    print(f"\nL=32: Omega/Omega_theory = {ratio[2]:.4f} (t={t:.0f}, "
+          f"{time.perf_counter() - t0:.1f} s)")
+    assert abs(ratio[2] - 1) < 0.05
+    assert np.abs(ratio[:2]).max() < 1e-3
+
+
+def brownian_temperature(L=32, n=4, kBT=1.0, t_total=2000.0, t_eq=50.0, seed=7, dt=None):
+    """<M V^2> / 3kBT and <I Omega^2> / 3kBT per particle (MASS_RATIO 1, FIX_CELL on)."""
+    noise_mod = pytest.importorskip("kapsel.particles.noise")
+    from kapsel.particles.placement import uniform_random
+    dt = dt or _auto_dt()
+    fluid = _spectral(L, dt, fix_cell=True)
+    rng = np.random.default_rng(seed)
+    p = _spheres(uniform_random(n, np.full(n, A + 1.0), np.full(3, float(L)), rng))
+    gen = noise_mod.ThermalNoise(seed)
+    gv, go = 6 * np.pi * A, 8 * np.pi * A ** 3
+
+    def noise(m, dt):
+        return gen.impulses(m, dt, kBT, 1.0, 1.0, gv, go)
+
+    def forces(q):  # soft repulsion keeps the particles apart (WCA-like, range 2A + 2)
+        from kapsel.particles.forces import pair_forces
+        F, _, _ = pair_forces(q.R, np.full(3, float(L)), q.radius, "12:6", 1.0, "ON")
+        return F, np.zeros_like(F)
+
+    spm = SPM(fluid, p, A, XI, 1.0, 1.0, dt, forces=forces, noise=noise)
+    spm.run(int(t_eq / dt))
+    sv = so = 0.0
+    m = int(t_total / dt)
+    for _ in range(m):
+        spm.step()
+        sv += np.sum(p.mass * np.sum(p.v ** 2, axis=1))
+        so += np.sum(p.inertia * np.sum(p.omega ** 2, axis=1))
+    return sv / (m * n * 3 * kBT), so / (m * n * 3 * kBT)
+
+
+@pytest.mark.slow
+def test_brownian_temperature():
+    t0 = time.perf_counter()
+    rv, ro = brownian_temperature()
+    print(f"\n<MV^2>/3kT = {rv:.4f}, <I W^2>/3kT = {ro:.4f} ({time.perf_counter() - t0:.0f} s)")
+    assert abs(rv - 1) < 0.1 and abs(ro - 1) < 0.1
