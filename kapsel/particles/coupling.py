@@ -18,29 +18,50 @@ __all__ = ["rigid_velocity", "particle_velocity_field", "hydro_force_torque",
            "rigidity_increment", "sample"]
 
 
+_CYC = ((1, 2), (2, 0), (0, 1))  # (a, b) with (V + W x r)_c = V_c + W_a r_b - W_b r_a
+_work = {}
+
+
+def _buf(key, shape):
+    """Reused scratch array (never returned to callers): avoids re-faulting fresh pages."""
+    a = _work.get(key)
+    if a is None or a.shape != shape:
+        a = _work[key] = np.empty(shape)
+    return a
+
+
 def rigid_velocity(r, V, Omega):
     """V_i + Omega_i x r at every stencil point, shape (3, N, S) (component first)."""
     V = np.asarray(V, dtype=float)
     W = np.asarray(Omega, dtype=float)
-    rx, ry, rz = r[..., 0], r[..., 1], r[..., 2]
-    wx, wy, wz = W[:, 0:1], W[:, 1:2], W[:, 2:3]
-    return np.stack([V[:, 0:1] + wy * rz - wz * ry,
-                     V[:, 1:2] + wz * rx - wx * rz,
-                     V[:, 2:3] + wx * ry - wy * rx])
+    out = np.empty((3,) + r.shape[:2])
+    for c, (a, b) in enumerate(_CYC):
+        np.multiply(r[..., b], W[:, a:a + 1], out=out[c])
+        out[c] -= r[..., a] * W[:, b:b + 1]
+        out[c] += V[:, c:c + 1]
+    return out
 
 
-def sample(u, idx):
+def sample(u, idx, out=None):
     """u at the stencil points, (3, N, S)."""
-    return u.reshape(3, -1)[:, idx]
-
-
-def _scatter(w, idx, size, out_shape):
-    """sum over particles of the per-point vectors w (3, N, S) -> (3, size) or out_shape."""
-    flat = idx.ravel()
-    out = np.empty((3, size))
+    uf = u.reshape(3, -1)
+    out = np.empty((3,) + idx.shape) if out is None else out
     for c in range(3):
-        out[c] = np.bincount(flat, weights=w[c].ravel(), minlength=size)
-    return out.reshape((3,) + tuple(out_shape)) if out_shape is not None else out
+        np.take(uf[c], idx, out=out[c])
+    return out
+
+
+def _scatter(w, idx, size, shape=None, out=None):
+    """sum over particles of the per-point vectors w (3, N, S) -> (3, size) or (3, *shape)."""
+    flat = idx.reshape(-1)
+    if out is None:
+        out = np.empty((3, size))
+    of = out.reshape(3, -1)
+    for c in range(3):
+        of[c] = np.bincount(flat, weights=w[c].reshape(-1), minlength=size)
+    if shape is not None and out.ndim == 2:
+        out = out.reshape((3,) + tuple(shape))
+    return out
 
 
 def particle_velocity_field(idx, phi, r, V, Omega, size, shape=None):
@@ -51,20 +72,28 @@ def particle_velocity_field(idx, phi, r, V, Omega, size, shape=None):
 
 
 def _slip(u, idx, phi, r, V, Omega):
-    """phi_i (u - V_i - Omega_i x r) at the stencil points, (3, N, S)."""
-    w = sample(u, idx)
-    w -= rigid_velocity(r, V, Omega)
-    w *= phi
+    """phi_i (u - V_i - Omega_i x r) at the stencil points, (3, N, S) scratch buffer."""
+    V = np.asarray(V, dtype=float)
+    W = np.asarray(Omega, dtype=float)
+    w = sample(u, idx, out=_buf("w", (3,) + idx.shape))
+    t = _buf("t", idx.shape)
+    for c, (a, b) in enumerate(_CYC):
+        wc = w[c]
+        np.multiply(r[..., b], W[:, a:a + 1], out=t)
+        wc -= t
+        np.multiply(r[..., a], W[:, b:b + 1], out=t)
+        wc += t
+        wc -= V[:, c:c + 1]
+        wc *= phi
     return w
 
 
 def _force_torque(w, r, scale):
     F = w.sum(axis=2).T * scale
-    rx, ry, rz = r[..., 0], r[..., 1], r[..., 2]
-    T = np.stack([np.einsum("ns,ns->n", ry, w[2]) - np.einsum("ns,ns->n", rz, w[1]),
-                  np.einsum("ns,ns->n", rz, w[0]) - np.einsum("ns,ns->n", rx, w[2]),
-                  np.einsum("ns,ns->n", rx, w[1]) - np.einsum("ns,ns->n", ry, w[0])],
-                 axis=1) * scale
+    T = np.empty_like(F)
+    for c, (a, b) in enumerate(_CYC):
+        T[:, c] = (np.einsum("ns,ns->n", r[..., a], w[b])
+                   - np.einsum("ns,ns->n", r[..., b], w[a])) * scale
     return F, T
 
 
@@ -77,14 +106,14 @@ def hydro_force_torque(u, idx, phi, r, V, Omega, rho, dx, dt):
     return _force_torque(w, r, rho * dx ** 3 / dt)
 
 
-def rigidity_increment(u, idx, phi, r, V, Omega, size=None):
+def rigidity_increment(u, idx, phi, r, V, Omega, size=None, out=None):
     """du = sum_i phi_i (V_i + Omega_i x r) - phi u (eq 6 imposed; phi f_p dt of eq 8).
 
-    Shaped like u.  Still to be made solenoidal by the caller (SpectralNS.add_solenoidal,
-    or u += du followed by MACSolver.project(u)).  Computed only at the stencil points:
-    du = -sum_i phi_i (u - V_i - Omega_i x r).
+    Shaped like u (written into ``out`` if given).  Still to be made solenoidal by the
+    caller (SpectralNS.add_solenoidal, or u += du followed by MACSolver.project(u)).
+    Computed only at the stencil points: du = -sum_i phi_i (u - V_i - Omega_i x r).
     """
     size = u[0].size if size is None else size
     w = _slip(u, idx, phi, r, V, Omega)
     w *= -1.0
-    return _scatter(w, idx, size, u.shape[1:])
+    return _scatter(w, idx, size, u.shape[1:], out=out)

@@ -20,23 +20,26 @@ import numpy as np
 
 __all__ = ["h", "g", "Stencil", "particle_profiles", "total_phi", "grid_volume"]
 
+_TINY = 1e-150
+
 
 def h(x, dx=1.0):
     """Eq 3: exp(-DX^2/x^2) for x > 0, 0 otherwise (h(0) = 0 as the limit)."""
-    x = np.asarray(x, dtype=float)
-    pos = x > 0
-    out = np.zeros_like(x)
-    xp = x[pos]
-    out[pos] = np.exp(-(dx * dx) / (xp * xp))
-    return out
+    x = np.maximum(np.asarray(x, dtype=float), _TINY)  # exp(-1/tiny^2) == 0.0 exactly
+    return np.exp(-(dx * dx) / (x * x))
 
 
 def g(x, A, xi, dx=1.0):
-    """Eq 2: radial profile, 1 inside A - xi/2, 0 beyond A + xi/2, smooth in between."""
-    ho = h(A + 0.5 * xi - np.asarray(x, dtype=float), dx)
-    hi = h(np.asarray(x, dtype=float) - (A - 0.5 * xi), dx)
-    s = ho + hi
-    return np.divide(ho, s, out=np.zeros_like(ho), where=s > 0)
+    """Eq 2: radial profile, 1 inside A - xi/2, 0 beyond A + xi/2, smooth in between.
+
+    The denominator never vanishes: (A + xi/2 - x) + (x - A + xi/2) = xi > 0.
+    """
+    x = np.asarray(x, dtype=float)
+    ho = h(A + 0.5 * xi - x, dx)
+    hi = h(x - (A - 0.5 * xi), dx)
+    hi += ho
+    ho /= hi
+    return ho
 
 
 @lru_cache(maxsize=32)
@@ -69,6 +72,9 @@ class Stencil:
             raise ValueError("need A > xi/2 > 0 for the profile of eqs 1-3")
         self.offsets = _offsets(self.A, self.xi, self.dx)
         self.offsets_f = self.offsets.astype(float)
+        # contiguous per-component copies for the vectorised index / vector arithmetic
+        self.o = [np.ascontiguousarray(self.offsets[:, c]) for c in range(3)]
+        self.of = [np.ascontiguousarray(self.offsets_f[:, c]) for c in range(3)]
 
     @property
     def size(self):
@@ -82,25 +88,35 @@ def particle_profiles(R, stencil, shape, dx):
     """Profiles of all particles (eq 1) on their stencil points.
 
     Returns ``idx`` (N, S) int64 flat indices into a C-ordered (NX, NY, NZ) field,
-    ``phi`` (N, S) phi_i at those points, ``r`` (N, S, 3) minimum-image x - R_i.
+    ``phi`` (N, S) phi_i at those points, ``r`` (N, S, 3) minimum-image x - R_i (a view of a
+    (3, N, S) array, so r[..., c] is contiguous).
     R must lie in [0, L) (wrapped) or anywhere (it is reduced modulo the grid).
     """
     R = np.asarray(R, dtype=float).reshape(-1, 3)
-    nx, ny, nz = shape
+    n, S = len(R), stencil.size
     s = R / dx
     base = np.floor(s)
     frac = s - base
-    off = stencil.offsets
-    # r = (base + o) dx - R = (o - frac) dx
-    r = (stencil.offsets_f[None, :, :] - frac[:, None, :]) * dx
-    dist = np.sqrt(np.einsum("nsk,nsk->ns", r, r))
-    phi = g(dist, stencil.A, stencil.xi, dx)
     b = base.astype(np.int64)
-    ix = (b[:, 0:1] + off[None, :, 0]) % nx
-    iy = (b[:, 1:2] + off[None, :, 1]) % ny
-    iz = (b[:, 2:3] + off[None, :, 2]) % nz
-    idx = (ix * ny + iy) * nz + iz
-    return idx, phi, r
+    # r = (base + o) dx - R = (o - frac) dx, stored component-major: r[..., c] contiguous
+    rc = np.empty((3, n, S))
+    idx = np.zeros((n, S), dtype=np.int64)
+    tmp = np.empty((n, S), dtype=np.int64)
+    for c in range(3):
+        np.subtract(stencil.of[c][None, :], frac[:, c:c + 1], out=rc[c])
+        if dx != 1.0:
+            rc[c] *= dx
+        np.add(b[:, c:c + 1], stencil.o[c][None, :], out=tmp)
+        np.remainder(tmp, shape[c], out=tmp)
+        if c:
+            idx *= shape[c]
+        idx += tmp
+    dist = rc[0] * rc[0]
+    dist += rc[1] * rc[1]
+    dist += rc[2] * rc[2]
+    np.sqrt(dist, out=dist)
+    phi = g(dist, stencil.A, stencil.xi, dx)
+    return idx, phi, rc.transpose(1, 2, 0)
 
 
 def total_phi(idx, phi, size):

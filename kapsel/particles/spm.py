@@ -98,6 +98,7 @@ class SPM:
         else:
             raise TypeError("fluid must be a SpectralNS or a MACSolver")
         self.size = int(np.prod(self.shape))
+        self._du = np.empty((3,) + self.shape) if particles.n else None
         self.box = np.array(self.shape, dtype=float) * self.dx
         self.stencil = Stencil(A, xi, dx) if particles.n else None
         a = np.asarray(particles.radius, dtype=float)
@@ -119,7 +120,7 @@ class SPM:
         self.grid_volume = w * self.dx ** 3
         if self.center:
             c = np.einsum("ns,nsk->nk", self.phi_i, r) / w[:, None]
-            r -= c[:, None, :]
+            r -= c[:, None, :]  # in place: keeps the component-major layout
         self.r = r
         if self.mass_mode == "grid":
             self.mass = self.rho * self.grid_volume + self.excess_mass
@@ -189,7 +190,8 @@ class SPM:
                 dP, dL = self.noise(p.n, self.dt)
             update_velocities(p, F_H, T_H, F_o, T_o, self.dt, self.rotation, dP, dL,
                               mass=self.mass, inertia=self.inertia)
-            du = rigidity_increment(u, self.idx, self.phi_i, self.r, p.v, p.omega, self.size)
+            du = rigidity_increment(u, self.idx, self.phi_i, self.r, p.v, p.omega, self.size,
+                                    out=self._du)
             self._add_solenoidal(du)
             update_positions(p, self.dt, self.box, self.rotation)
             self._profiles()
