@@ -3,6 +3,7 @@ import json
 
 import numpy as np
 import pytest
+from hypothesis import HealthCheck, given, settings, strategies as st
 
 from kapsel.particles import forces as F
 from kapsel.particles.cells import minimum_image, pairs_within
@@ -150,8 +151,67 @@ def test_pairs_equal_brute_force_noncubic():
         assert np.all(i < j)
 
 
+def _brute(R, box, rcut):
+    W = np.mod(R, box)
+    ii, jj = np.triu_indices(len(R), 1)
+    d = minimum_image(W[jj] - W[ii], box)
+    keep = np.einsum("ij,ij->i", d, d) <= rcut * rcut
+    return ii[keep], jj[keep], d[keep]
+
+
+@settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(seed=st.integers(0, 2 ** 32 - 1),
+       box=st.tuples(*[st.floats(8.0, 40.0)] * 3),
+       frac=st.floats(0.05, 0.45))
+def test_pairs_all_methods_match_brute_force(seed, box, frac):
+    box = np.array(box)
+    rng = np.random.default_rng(seed)
+    R = rng.random((300, 3)) * box * 1.5 - 0.25 * box        # partly outside [0, L)
+    R[0] = box                                                # exactly on the far faces
+    rcut = frac * box.min()
+    bi, bj, bd = _brute(R, box, rcut)
+    for method in ("auto", "cells", "kdtree", "brute"):
+        i, j, dr = pairs_within(R, box, rcut, method)
+        assert np.array_equal(i, bi) and np.array_equal(j, bj), method
+        assert np.allclose(dr, bd, atol=1e-10), method
+
+
+def test_pairs_three_cells_and_tiny_inputs():
+    rng = np.random.default_rng(11)
+    box = np.array([15.0, 30.0, 45.0])                          # exactly 3, 6, 9 cells of 5
+    R = rng.random((500, 3)) * box
+    bi, bj, bd = _brute(R, box, 4.99)
+    for method in ("cells", "kdtree"):
+        i, j, dr = pairs_within(R, box, 4.99, method)
+        assert np.array_equal(i, bi) and np.array_equal(j, bj)
+        assert np.allclose(dr, bd, atol=1e-12)
+    for n in (0, 1):
+        i, j, dr = pairs_within(np.zeros((n, 3)), box, 3.0)
+        assert len(i) == len(j) == 0 and dr.shape == (0, 3)
+    with pytest.raises(ValueError):
+        pairs_within(R, box, 3.0, "octree")
+
+
+def test_dVdr_and_deep_overlap_ratio():
+    r = np.linspace(2.0, 3.3, 7)
+    assert np.array_equal(F.pair_dVdr(r, 3.0, "24:12", 1.0, "ON"),
+                          -F.pair_force_magnitude(r, 3.0, "24:12", 1.0, "ON"))
+    R = np.array([[5.0, 5.0, 5.0], [5.0, 5.0, 6.0]])
+    _, _, mr = F.pair_forces(R, (16, 16, 16), 1.5, "12:6", 1.0, "ON")
+    assert mr == pytest.approx(1.0 / 3.0) and mr < F.DEEP_OVERLAP_RATIO
+
+
+def test_noise_accepts_pcg64_generator():
+    g = np.random.Generator(np.random.PCG64(42))
+    a = ThermalNoise(g).impulses(3, 0.1, 1.0, 1, 1, 2.0, 3.0)
+    b = ThermalNoise(42).impulses(3, 0.1, 1.0, 1, 1, 2.0, 3.0)
+    assert np.array_equal(a[0], b[0]) and np.array_equal(a[1], b[1])
+    with pytest.raises(ValueError, match="PCG64"):
+        ThermalNoise(np.random.Generator(np.random.MT19937(1)))
+
+
 def test_noise_variance_and_state():
-    noise = ThermalNoise(seed=7)
+    noise = ThermalNoise(7)
     n, dt, kBT = 20000, 0.05, 0.3
     a = np.full(n, 2.0)
     gv, go = 6 * np.pi * a, 8 * np.pi * a ** 3
@@ -176,7 +236,7 @@ def test_noise_variance_and_state():
     # exact restart through JSON
     st = json.loads(before)
     a1 = noise.impulses(5, dt, kBT, 1, 1, 1, 1)
-    other = ThermalNoise(seed=123)
+    other = ThermalNoise(123)
     other.set_state(st)
     a2 = other.impulses(5, dt, kBT, 1, 1, 1, 1)
     assert np.array_equal(a1[0], a2[0]) and np.array_equal(a1[1], a2[1])

@@ -30,8 +30,10 @@ So eq 34 is C1 exactly as printed; the prefactor and constant are used unchanged
 The inner branch has its minimum V = -H / (16 (n-1)) at contact x = 1 (soft
 repulsion for x < 1, attraction for 1 < x).
 macro_vdw cutoff choice: the Hamaker tail decays only like 1/(x-1), so with
-'OFF' it is force-cut at r_c = 2.5 sigma (the same A_R_cutoff as LJ 'OFF';
-|F(r_c)| / max|F| = (n-1)^2 / 2.25 = 0.44 %), energy not shifted.  With 'ON'
+'OFF' it is force-cut at r_c = 2.5 sigma (the same A_R_cutoff as LJ 'OFF', as in
+KAPSEL).  At r_c the attraction is (n-1)^2 / 1.5^2 = 0.44 % of its maximum (at
+r = n sigma) and V(r_c) = -H/36 is 4.4 % of the well depth H / (16 (n-1)); the
+energy is not shifted (jump of H/36 at r_c, forces consistent inside).  With 'ON'
 only the repulsive part is kept: cut at the minimum r = sigma, shifted by
 +H / (16 (n-1)) so that V(sigma) = 0 (C1 at the cut).
 """
@@ -41,12 +43,13 @@ import numpy as np
 
 from .cells import pairs_within
 
-__all__ = ["LJ_POWERS", "MACRO_VDW_N", "LJ_CUTOFF_OFF", "interaction_range",
-           "pair_potential", "pair_force_magnitude", "pair_forces", "gravity_force"]
+__all__ = ["LJ_POWERS", "MACRO_VDW_N", "LJ_CUTOFF_OFF", "DEEP_OVERLAP_RATIO", "interaction_range",
+           "pair_potential", "pair_force_magnitude", "pair_dVdr", "pair_forces", "gravity_force"]
 
 LJ_POWERS = {"12:6": 6, "24:12": 12, "36:18": 18}
 MACRO_VDW_N = 1.1
 LJ_CUTOFF_OFF = 2.5
+DEEP_OVERLAP_RATIO = 0.5  # suggested stop threshold for min r / sigma
 
 
 def _norm_key(s) -> str:
@@ -67,9 +70,9 @@ def _check_powers(powers) -> str:
     return p
 
 
-def interaction_range(powers, truncate) -> float:
+def interaction_range(kind, truncate) -> float:
     """Cutoff r_c / sigma (0 for 'NONE')."""
-    p, t = _check_powers(powers), _truncate_key(truncate)
+    p, t = _check_powers(kind), _truncate_key(truncate)
     if t == "NONE":
         return 0.0
     if t == "OFF":
@@ -107,9 +110,9 @@ def _shift(p, epsilon, t):
     return epsilon  # V(r_min) = -EPSILON for every 2n:n LJ
 
 
-def pair_potential(r, sigma, powers="12:6", epsilon=1.0, truncate="ON"):
+def pair_potential(r, sigma, kind="12:6", epsilon=1.0, truncate="ON"):
     """Pair potential V(r) including truncation/shift; 0 beyond the cutoff."""
-    p, t = _check_powers(powers), _truncate_key(truncate)
+    p, t = _check_powers(kind), _truncate_key(truncate)
     r = np.asarray(r, dtype=float)
     sigma = np.broadcast_to(np.asarray(sigma, dtype=float), r.shape)
     if t == "NONE":
@@ -120,9 +123,9 @@ def pair_potential(r, sigma, powers="12:6", epsilon=1.0, truncate="ON"):
     return np.where(inside, V + _shift(p, epsilon, t), 0.0)
 
 
-def pair_force_magnitude(r, sigma, powers="12:6", epsilon=1.0, truncate="ON"):
+def pair_force_magnitude(r, sigma, kind="12:6", epsilon=1.0, truncate="ON"):
     """-dV/dr (positive = repulsive); 0 beyond the cutoff."""
-    p, t = _check_powers(powers), _truncate_key(truncate)
+    p, t = _check_powers(kind), _truncate_key(truncate)
     r = np.asarray(r, dtype=float)
     sigma = np.broadcast_to(np.asarray(sigma, dtype=float), r.shape)
     if t == "NONE":
@@ -133,18 +136,27 @@ def pair_force_magnitude(r, sigma, powers="12:6", epsilon=1.0, truncate="ON"):
     return np.where(inside, F, 0.0)
 
 
-def pair_forces(R, box, radius, powers="12:6", epsilon=1.0, truncate="ON"):
-    """Total pair forces F (N, 3), potential energy U and min r/sigma.
+def pair_dVdr(r, sigma, kind="12:6", epsilon=1.0, truncate="ON"):
+    """dV/dr (= -pair_force_magnitude); 0 beyond the cutoff."""
+    return -pair_force_magnitude(r, sigma, kind, epsilon, truncate)
 
-    F_j += f, F_i -= f for every pair (Newton's third law exact per pair),
-    f = (-dV/dr) dr/|dr|, dr = minimum-image R_j - R_i.  min_ratio is the
-    smallest r/sigma among the pairs inside the cutoff (inf if none), so the
-    caller can stop on deep overlap (coincident particles give non-finite F).
+
+def pair_forces(R, box, radius, kind="12:6", epsilon=1.0, truncate="ON"):
+    """Pair forces F_i^other (eq 9) -> (F (N, 3), U_total, min_ratio).
+
+    kind is LJ_powers ('12:6', '24:12', '36:18', 'macro_vdw'), epsilon is EPSILON
+    (the Hamaker constant H for macro_vdw), truncate is LJ_truncate; sigma = a_i + a_j.
+    F_j += f, F_i -= f for every pair (Newton's third law exact per pair, so the
+    total force vanishes to round-off), f = (-dV/dr) dr/|dr|, dr = minimum-image
+    R_j - R_i.  Nothing is capped (as in KAPSEL); instead min_ratio, the smallest
+    r/sigma among the pairs inside the cutoff (inf if none), is returned so the
+    caller can stop on deep overlap, e.g. min_ratio < DEEP_OVERLAP_RATIO
+    (coincident particles give non-finite F).
     """
     R = np.asarray(R, dtype=float).reshape(-1, 3)
     n = len(R)
     F = np.zeros((n, 3))
-    p, t = _check_powers(powers), _truncate_key(truncate)
+    p, t = _check_powers(kind), _truncate_key(truncate)
     if t == "NONE" or n < 2:
         return F, 0.0, np.inf
     radius = np.broadcast_to(np.asarray(radius, dtype=float), (n,))

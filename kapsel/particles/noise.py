@@ -1,16 +1,19 @@
 """Thermal random force / torque on particles (G^V, G^Omega of eqs 9, 10, 13, 14).
 
 Over one step dt the white noise integrates to Gaussian impulses
-dP = ∫ G^V dt, dL = ∫ G^Omega dt with zero mean and per-component variance
+dP = int G^V dt, dL = int G^Omega dt with zero mean and per-component variance
 
     <dP_a dP_b> = 2 kBT alpha_v gamma_v dt delta_ab,
     <dL_a dL_b> = 2 kBT alpha_o gamma_o dt delta_ab,
 
-the fluctuation-dissipation amplitude for a friction coefficient gamma
-(the caller passes gamma_v = 6 pi eta a, gamma_o = 8 pi eta a^3).  alpha_v and
-alpha_o are the manual's temperature correction factors (eqs 13, 14, table 2:
-usually 1).  Summed over the 3 components this is 3 * (2 kBT alpha gamma dt),
-matching the "3 kBT alpha" trace form of eqs 13-14 up to the friction factor.
+the fluctuation-dissipation amplitude for a friction coefficient gamma.  The
+caller passes the Stokes frictions gamma_v = 6 pi eta a and gamma_o = 8 pi eta a^3
+(translation / rotation of a sphere of radius a); alpha_v and alpha_o are the
+manual's dimensionless correction factors (eqs 13, 14, table 2 alpha_v / alpha_o:
+tune the particle temperature, normally 1).  Eqs 13-14 as printed write the trace
+<G.G> = 3 kBT alpha delta(t), i.e. kBT alpha per component with alpha carrying
+the friction; here that strength is 2 kBT alpha gamma, so the manual's alpha
+corresponds to 2 alpha gamma of this module (the FDT value for friction gamma).
 """
 from __future__ import annotations
 
@@ -27,10 +30,20 @@ def _per_particle(g, n):
 
 
 class ThermalNoise:
-    """Random impulses from numpy Generator(PCG64(seed)); state is JSON-serialisable."""
+    """Random impulses from numpy Generator(PCG64); state is JSON-serialisable.
 
-    def __init__(self, seed=None):
-        self.rng = np.random.Generator(np.random.PCG64(seed))
+    seed_or_generator: None, an int / SeedSequence (-> Generator(PCG64(seed))), or a
+    numpy Generator backed by PCG64, which is then used (and advanced) directly.
+    """
+
+    def __init__(self, seed_or_generator=None):
+        if isinstance(seed_or_generator, np.random.Generator):
+            if not isinstance(seed_or_generator.bit_generator, np.random.PCG64):
+                raise ValueError("ThermalNoise needs a PCG64-backed Generator, got "
+                                 f"{type(seed_or_generator.bit_generator).__name__}")
+            self.rng = seed_or_generator
+        else:
+            self.rng = np.random.Generator(np.random.PCG64(seed_or_generator))
 
     def get_state(self) -> dict:
         """Generator state as plain JSON types (128-bit integers as decimal strings)."""
