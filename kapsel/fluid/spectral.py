@@ -75,13 +75,14 @@ def _factorial(n):
 class SpectralNS:
     """Pseudo-spectral NS solver (module docstring) on ``grid`` (a ``kapsel.grid.Grid``).
 
-    rho, eta : RHO, ETA;  dt : time step (``grid.auto_dt``);  scheme : 'etd2' | 'etd1';
-    fix_cell : (bool, bool, bool) switch.FIX_CELL per axis;  force : optional constant body
+    rho, eta : RHO, ETA;  dt : time step (``grid.auto_dt``);  fix_cell : switch.FIX_CELL,
+    (bool, bool, bool) per axis or one bool for all;  scheme : 'etd2' | 'etd1';
+    force : optional constant body
     force per unit mass (acceleration) f, real (3, NX, NY, NZ) or a 3-vector (uniform);
     advection : False drops u x omega (unsteady Stokes).
     """
 
-    def __init__(self, grid: Grid, rho, eta, dt, scheme="etd2", fix_cell=(False, False, False),
+    def __init__(self, grid: Grid, rho, eta, dt, fix_cell=(False, False, False), scheme="etd2",
                  force=None, advection=True):
         if scheme not in ("etd1", "etd2"):
             raise ValueError("scheme must be 'etd1' or 'etd2'")
@@ -91,6 +92,8 @@ class SpectralNS:
             raise ValueError("rho, eta and dt must be positive")
         self.nu = self.eta / self.rho
         self.scheme = scheme
+        if np.ndim(fix_cell) == 0:
+            fix_cell = (fix_cell,) * 3
         self.fix_cell = tuple(bool(f) for f in fix_cell)
         if len(self.fix_cell) != 3:
             raise ValueError("fix_cell must have 3 flags")
