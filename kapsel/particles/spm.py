@@ -204,6 +204,8 @@ class SPM:
     # ------------------------------------------------------------------ diagnostics
     def fluid_momentum(self):
         """RHO DX^3 sum_x u over the whole field (particle interiors included)."""
+        if self.mode == "spectral":
+            return np.asarray(self.fluid.momentum(), dtype=float)
         u = self.velocity()
         return self.rho * self.dx ** 3 * u.reshape(3, -1).sum(axis=1)
 
