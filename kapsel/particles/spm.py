@@ -119,12 +119,14 @@ class SPM:
         w = self.phi_i.sum(axis=1)
         self.grid_volume = w * self.dx ** 3
         if self.center:
-            c = np.einsum("ns,nsk->nk", self.phi_i, r) / w[:, None]
+            c = np.stack([np.einsum("ns,ns->n", self.phi_i, r[..., k]) for k in range(3)],
+                         axis=1) / w[:, None]
             r -= c[:, None, :]  # in place: keeps the component-major layout
         self.r = r
         if self.mass_mode == "grid":
             self.mass = self.rho * self.grid_volume + self.excess_mass
-            r2 = np.einsum("ns,nsk,nsk->n", self.phi_i, r, r)
+            r2 = sum(np.einsum("ns,ns,ns->n", self.phi_i, r[..., k], r[..., k])
+                     for k in range(3))
             self.inertia = (2.0 / 3.0) * self.rho * self.dx ** 3 * r2 + self.excess_inertia
         else:
             self.mass, self.inertia = p.mass, p.inertia
