@@ -29,8 +29,24 @@ def register(type_name: str):
     return deco
 
 
-class Interrupted(Exception):
-    pass
+class InstabilityError(Exception):
+    """NaN or infinity in the fields or particles."""
+
+
+def check_finite(model) -> None:
+    import numpy as np
+    for name, arr in model.fields().items():
+        if not np.isfinite(arr).all():
+            raise InstabilityError(f"the field {name} is not finite (NaN or infinity)")
+    p = model.particles
+    if p is not None and p.n and not (np.isfinite(p.R).all() and np.isfinite(p.v).all()):
+        raise InstabilityError("particle positions or velocities are not finite")
+
+
+def restart_hint(step) -> str:
+    if step is None:
+        return "No restart file was written."
+    return f"The restart file holds the last good state (step {step})."
 
 
 def run(cfg, args, input_doc, model) -> int:
@@ -50,30 +66,61 @@ def run(cfg, args, input_doc, model) -> int:
 
     def snapshot():
         n = model.step_index // cfg.output.GTS
+        check_finite(model)
         if output is not None:
             output.add_record(model.step_index, model.time, model.kinetic_energy(),
                               model.particles, model.record_items())
         if fields is not None:
             fields.write(n, model.time, **model.fields())
+        save_restart()
+
+    saved = {"step": None}
+
+    def save_restart():
+        if not hasattr(model, "restart_state"):
+            return
+        from .io.restart import write_restart
+        kind, data = model.restart_state()
+        write_restart(args.restart, args.define, input_doc, kind, model.step_index, model.time,
+                      model.particles, data)
+        saved["step"] = model.step_index
 
     stop = {"signal": None}
 
     def on_signal(signum, frame):
         stop["signal"] = signum
 
+    from .fluid.mac import SolverDidNotConverge
     old = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
     try:
         snapshot()
         first = model.step_index
         for _ in range(first, total):
-            model.advance()
+            try:
+                model.advance()
+            except (SolverDidNotConverge, FloatingPointError, InstabilityError) as e:
+                print(f"kapsel-py: error: the run stopped at step {model.step_index + 1} "
+                      f"(t = {model.time + model.dt:g}): {e}. {restart_hint(saved['step'])} "
+                      f"Try a smaller time_increment factor (or delta_t), or the "
+                      f"implicit_scheme.", file=sys.stderr)
+                return 1
             progress.step(model.step_index, model.time)
             if model.step_index % cfg.output.GTS == 0:
-                snapshot()
+                try:
+                    snapshot()
+                except InstabilityError as e:
+                    print(f"kapsel-py: error: {e} at step {model.step_index}. "
+                          f"{restart_hint(saved['step'])} Try a smaller time_increment "
+                          f"factor (or delta_t).", file=sys.stderr)
+                    return 1
             if stop["signal"] is not None:
+                save_restart()
                 print(f"kapsel-py: interrupted at step {model.step_index} (t = {model.time:g}); "
-                      f"output written up to the last snapshot", file=sys.stderr)
+                      f"output.udf holds every snapshot so far and {args.restart} this step",
+                      file=sys.stderr)
                 return 1
+        if saved["step"] != model.step_index:
+            save_restart()
     finally:
         for s, h in old.items():
             signal.signal(s, h)

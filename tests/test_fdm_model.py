@@ -110,3 +110,40 @@ def test_same_seed_same_run(tmp_path):
         b.advance()
     assert np.array_equal(a.psi, b.psi) and np.array_equal(a.particles.R, b.particles.R)
     assert np.array_equal(a.u, b.u)
+
+
+def test_non_convergence_stops_with_message_and_restart(tmp_path):
+    path = sample(tmp_path, gts=2, nsnap=3, ns="implicit_scheme", manual_dt=0.1)
+    u = UDFManager(path)
+    u.put(-15.0, f"{NS_CH}.NS_solver.implicit_scheme.tolerance")
+    u.put(1, f"{NS_CH}.NS_solver.implicit_scheme.maximum_iteration")
+    u.write(path)
+    r = subprocess.run([sys.executable, "-m", "kapsel.cli", "-Iinput.udf", "-Ooutput.udf",
+                        "-Ddefine.udf", "-Rrestart.udf", "--seed", "1", "--quiet"],
+                       cwd=tmp_path, capture_output=True, text=True, timeout=300)
+    assert r.returncode == 1
+    assert "did not converge" in r.stderr and "restart" in r.stderr
+    assert "Traceback" not in r.stderr
+    rs = UDFManager(str(tmp_path / "restart.udf"))
+    assert rs.get("resume.Calculation") == "CONTINUE_FDM_PHASE_SEPARATION"
+    base = "resume.CONTINUE_FDM_PHASE_SEPARATION.Saved_Data"
+    assert rs.get(f"{base}.jikan") == [0, 0.0]
+    assert rs.getArray(f"{base}.U[]").shape == (32, 32, 32, 3)
+    assert rs.getArray(f"{base}.PSI[]").shape[:3] == (32, 32, 32)
+    assert rs.size(f"{base}.Particles[]") == 8
+
+
+def test_restart_written_at_the_end_holds_the_state(tmp_path):
+    path = sample(tmp_path, gts=2, nsnap=2, manual_dt=0.1)
+    r = subprocess.run([sys.executable, "-m", "kapsel.cli", "-Iinput.udf", "-Ooutput.udf",
+                        "-Ddefine.udf", "-Rrestart.udf", "--seed", "1", "--quiet"],
+                       cwd=tmp_path, capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stderr
+    rs = UDFManager(str(tmp_path / "restart.udf"))
+    base = "resume.CONTINUE_FDM_PHASE_SEPARATION.Saved_Data"
+    assert rs.get(f"{base}.jikan") == [4, pytest.approx(0.4)]
+    out = UDFManager(str(tmp_path / "output.udf"))
+    out.jump(out.totalRecord() - 1)
+    R_out = out.getArray("Particles[].R")
+    R_rs = rs.getArray(f"{base}.Particles[].R")
+    assert np.allclose(R_out, R_rs, rtol=1e-6)   # output is single precision

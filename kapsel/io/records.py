@@ -17,15 +17,26 @@ import numpy as np
 from udf import UDFManager, atomic_write_text
 from udf.schema import Struct, leaf_count, leaf_slice
 
-# outParticle member -> ParticleState attribute
-OUT_FIELDS = {"R": "R", "R_raw": "R_raw", "v": "v", "q": "q", "omega": "omega",
-              "f_hydro": "f_hydro", "torque_hydro": "torque_hydro", "f_r": "f_r",
-              "torque_r": "torque_r", "f_slip": "f_slip", "torque_slip": "torque_slip"}
+# outParticle / sParticle member -> ParticleState attribute.  f_hydro1 and torque_hydro1
+# (intermediate values of the original's integrator) hold the step's hydrodynamic force.
+OUT_FIELDS = {"R": "R", "R_raw": "R_raw", "v": "v", "v_old": "v_old", "q": "q",
+              "q_old": "q_old", "omega": "omega", "omega_old": "omega_old",
+              "f_hydro": "f_hydro", "f_hydro_previous": "f_hydro_previous",
+              "f_hydro1": "f_hydro", "torque_hydro": "torque_hydro",
+              "torque_hydro_previous": "torque_hydro_previous", "torque_hydro1": "torque_hydro",
+              "f_r": "f_r", "fr": "f_r", "fr_previous": "f_r_previous",
+              "torque_r": "torque_r", "torque_r_previous": "torque_r_previous",
+              "f_slip": "f_slip", "f_slip_previous": "f_slip_previous",
+              "torque_slip": "torque_slip", "torque_slip_previous": "torque_slip_previous"}
 
 
 def particle_table(state, struct: Struct) -> np.ndarray:
     """The (N, leaf_count) array of a particle record type, filled by member name."""
     table = np.zeros((state.n, leaf_count(struct)))
+    for m in struct.members:
+        if m.name not in OUT_FIELDS:
+            raise ValueError(f"the define file's particle class has a member {m.name!r} "
+                             f"that kapsel-py does not know")
     for m in struct.members:
         off, cnt, _ = leaf_slice(struct, [m.name])
         attr = OUT_FIELDS.get(m.name)

@@ -64,6 +64,7 @@ class FDMModel:
         # phase field
         self.ch = None
         self.psi = None
+        self.last_force = None
         self.eta_field = None
         if cfg.has_phase_field:
             from ..phase import CahnHilliard, make_potential
@@ -138,6 +139,7 @@ class FDMModel:
         if self.ch is not None:
             mu = self.ch.chemical_potential(self.psi, self.phi)
             force = self.ch.capillary_force(self.psi, mu, self.rho)
+        self.last_force = force
         self.mac.step(self.u, force=force, eta_field=self.eta_field)
         if self.particles.n:
             self._particle_step()
@@ -155,6 +157,18 @@ class FDMModel:
 
     def record_items(self) -> dict:
         return {"PSI": self.psi} if self.psi is not None else {}
+
+    def restart_state(self):
+        """(resume.Calculation, Saved_Data fields) of the current state."""
+        from ..io.restart import vector_field
+        fields = {"U": vector_field(self.u), "U_OLD": vector_field(self.mac.u_old)}
+        if self.ch is None:
+            return "CONTINUE_FDM", fields
+        psi_old = self.ch.psi_old if self.ch.psi_old is not None else self.psi
+        fields.update(PSI=self.psi, PSI_OLD=psi_old,
+                      STRESS_OLD=vector_field(self.last_force if self.last_force is not None
+                                              else np.zeros_like(self.u)))
+        return "CONTINUE_FDM_PHASE_SEPARATION", fields
 
     def fields(self) -> dict:
         out = {"u": self.u}
