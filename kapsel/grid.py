@@ -45,11 +45,15 @@ class Grid:
     size : NX NY NZ;  box : (Lx, Ly, Lz) = N DX
     kx, ky, kz : wavenumbers 2 pi m / L, broadcastable (NX,1,1), (1,NY,1), (1,1,NZ//2+1)
     k2 : |k|^2 (cshape);  inv_k2 : 1/|k|^2 with 0 at k = 0
-    dealias : 2/3-rule mask (cshape, float 0/1): keeps |m_a| <= (N_a - 1) // 3 on every axis
-    k_max : largest resolved wavenumber along one axis after dealiasing (see ``auto_dt``)
+    dealias : 2/3-rule mask (cshape, bool): keeps |m_a| <= (N_a - 1) // 3 on every axis
+        (``dealias_f``: the same as float 0/1)
+    k_max : pi / DX, the Nyquist wavenumber (``kapsel.timestep.auto_dt``);  k_trunc : largest
+        wavenumber along one axis kept by the 2/3 rule
+    volume : Lx Ly Lz
     """
 
     def __init__(self, shape, dx=1.0, threads=1, planner="FFTW_MEASURE"):
+        """``planner``: FFTW planner flag (module docstring: MEASURE measured to pay)."""
         self.shape = tuple(int(n) for n in shape)
         if len(self.shape) != 3 or min(self.shape) < 1:
             raise ValueError(f"shape must be (NX, NY, NZ), got {shape!r}")
@@ -73,10 +77,13 @@ class Grid:
         np.divide(1.0, self.k2, out=self.inv_k2, where=self.k2 > 0)
         # 2/3 rule: a product of modes |m| <= K does not alias back onto |m| <= K iff 3K < N
         self.trunc = tuple((n - 1) // 3 for n in self.shape)
-        masks = [(np.abs(mi) <= K).astype(float) for mi, K in zip(m, self.trunc)]
-        self.dealias = (masks[0].reshape(-1, 1, 1) * masks[1].reshape(1, -1, 1)
-                        * masks[2].reshape(1, 1, -1))
-        self.k_max = max(2.0 * np.pi * K / (n * self.dx) for K, n in zip(self.trunc, self.shape))
+        masks = [np.abs(mi) <= K for mi, K in zip(m, self.trunc)]
+        self.dealias = (masks[0].reshape(-1, 1, 1) & masks[1].reshape(1, -1, 1)
+                        & masks[2].reshape(1, 1, -1))
+        self.dealias_f = self.dealias.astype(float)
+        self.k_trunc = max(2.0 * np.pi * K / (n * self.dx) for K, n in zip(self.trunc, self.shape))
+        self.k_max = math.pi / self.dx
+        self.volume = float(np.prod(self.box))
 
         # rfft weights for Parseval sums over the half spectrum
         w = np.full(self.cshape[2], 2.0)
@@ -86,6 +93,8 @@ class Grid:
         self.half_weight = w.reshape(1, 1, -1)
 
         self.planner = planner
+        self._sfwd = self._sbwd = None
+        self._ptmp = None
         self._plans()
 
     # ------------------------------------------------------------------ FFT
@@ -170,6 +179,69 @@ class Grid:
             np.copyto(out, oi)
         return out
 
+    # public names (normalised pair: irfft(rfft(f)) == f; inputs preserved)
+    def rfft(self, real_vec, out=None):
+        """rfftn of a vector field (3, NX, NY, NZ) -> (3, cshape), unnormalised (k = 0 mode =
+        sum_x u).  ``out=None`` returns a new aligned array."""
+        if out is None:
+            out = self.empty_complex()
+        return self.forward(real_vec, out=out)
+
+    def irfft(self, complex_vec, out=None):
+        """Inverse of ``rfft`` (divides by N): (3, cshape) -> (3, NX, NY, NZ), input kept.
+        ``out=None`` returns a new aligned array."""
+        if out is None:
+            out = self.empty_real()
+        return self.backward(complex_vec, out=out)
+
+    def _scalar_plans(self):
+        if self._sfwd is not None or pyfftw is None:
+            return
+        self.real_buf_s = pyfftw.empty_aligned(self.shape, dtype="float64")
+        self.complex_buf_s = pyfftw.empty_aligned(self.cshape, dtype="complex128")
+        flags = (self.planner,)
+        self._sfwd = pyfftw.FFTW(self.real_buf_s, self.complex_buf_s, axes=(0, 1, 2),
+                                 direction="FFTW_FORWARD", flags=flags, threads=self.threads)
+        self._sbwd = pyfftw.FFTW(self.complex_buf_s, self.real_buf_s, axes=(0, 1, 2),
+                                 direction="FFTW_BACKWARD",
+                                 flags=flags + ("FFTW_DESTROY_INPUT",), threads=self.threads)
+
+    def rfft_scalar(self, f, out=None):
+        """rfftn of a scalar field (NX, NY, NZ) -> cshape (unnormalised); plans made on
+        first use."""
+        if out is None:
+            out = self.empty_complex(None)
+        if pyfftw is None:  # pragma: no cover
+            out[...] = np.fft.rfftn(f)
+            return out
+        self._scalar_plans()
+        fi = f if self._aligned(f, self.shape, np.float64) else None
+        if fi is None:
+            np.copyto(self.real_buf_s, f)
+            fi = self.real_buf_s
+        oi = out if self._aligned(out, self.cshape, np.complex128) else self.complex_buf_s
+        self._sfwd.update_arrays(fi, oi)
+        self._sfwd.execute()
+        if oi is not out:
+            np.copyto(out, oi)
+        return out
+
+    def irfft_scalar(self, f_hat, out=None):
+        """Inverse of ``rfft_scalar`` (divides by N), input kept."""
+        if out is None:
+            out = self.empty_real(None)
+        if pyfftw is None:  # pragma: no cover
+            out[...] = np.fft.irfftn(f_hat, s=self.shape)
+            return out
+        self._scalar_plans()
+        np.multiply(f_hat, 1.0 / self.size, out=self.complex_buf_s)
+        oi = out if self._aligned(out, self.shape, np.float64) else self.real_buf_s
+        self._sbwd.update_arrays(self.complex_buf_s, oi)
+        self._sbwd.execute()
+        if oi is not out:
+            np.copyto(out, oi)
+        return out
+
     def empty_real(self, n=3):
         """SIMD-aligned uninitialised (n, NX, NY, NZ) float64 array (n=None: scalar field)."""
         shape = self.shape if n is None else (n,) + self.shape
@@ -188,14 +260,16 @@ class Grid:
     def project(self, v_hat, out=None, tmp=None):
         """Solenoidal projection P v = v - k (k.v)/k^2 (in place unless ``out``); k = 0 kept.
 
-        ``tmp``: optional two complex (cshape) scratch arrays to avoid allocations.
+        ``tmp``: optional two complex (cshape) scratch arrays (default: two owned by the grid).
         """
         if out is None:
             out = v_hat
         elif out is not v_hat:
             np.copyto(out, v_hat)
         if tmp is None:
-            s, t = np.empty(self.cshape, complex), np.empty(self.cshape, complex)
+            if self._ptmp is None:
+                self._ptmp = (self.empty_complex(None), self.empty_complex(None))
+            s, t = self._ptmp
         else:
             s, t = tmp
         np.multiply(out[0], self.kx, out=s)
@@ -222,16 +296,10 @@ class Grid:
 
     # ------------------------------------------------------------------ time step
     def auto_dt(self, factor, rho, eta):
-        """Automatic time step (manual §5.5): dt = factor * T_dump, T_dump = RHO / (ETA k_max^2).
-
-        k_max is the largest wavenumber magnitude resolved along one axis after the 2/3-rule
-        dealiasing: k_max = max_a 2 pi K_a / (N_a DX) with K_a = (N_a - 1) // 3 (for a cube
-        N = 64: K = 21, k_max = 2.062 / DX, T_dump = 0.235 RHO DX^2 / ETA).  At factor 1 the
-        highest kept mode along an axis decays by e^{-1} per step (nu k_max^2 dt = 1).
-        """
-        if not self.k_max > 0:
-            raise ValueError(f"grid {self.shape} resolves no wavenumber (N < 4 on every axis)")
-        return float(factor) * float(rho) / (float(eta) * self.k_max ** 2)
+        """Automatic time step (manual §5.5), ``kapsel.timestep.auto_dt`` at this DX:
+        dt = factor RHO / (ETA k_max^2), k_max = pi / DX."""
+        from .timestep import auto_dt
+        return auto_dt(factor, rho, eta, self.dx)
 
     def __repr__(self):
         return f"Grid(shape={self.shape}, dx={self.dx}, threads={self.threads})"

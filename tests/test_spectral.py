@@ -4,6 +4,7 @@ import pytest
 
 from kapsel.fluid.spectral import SpectralNS, phi1, phi2
 from kapsel.grid import Grid
+from kapsel.timestep import auto_dt
 
 
 def taylor_green(grid, U=0.1):
@@ -32,26 +33,64 @@ def random_solenoidal(grid, kmax=3, amp=0.05, seed=0):
 def test_grid_transforms_roundtrip_and_normalisation():
     g = Grid((16, 8, 12), dx=0.5)
     u = np.random.default_rng(0).normal(size=(3,) + g.shape)
-    uh = g.forward(u, out=g.empty_complex())
+    u0 = u.copy()
+    uh = g.rfft(u)
+    np.testing.assert_array_equal(u, u0)  # input preserved
     np.testing.assert_allclose(uh, np.fft.rfftn(u, axes=(1, 2, 3)), atol=1e-12)
-    np.testing.assert_allclose(g.backward(uh), u, atol=1e-13)
-    np.testing.assert_allclose(g.backward(uh, out=np.zeros_like(u)), u, atol=1e-13)
+    np.testing.assert_allclose(g.irfft(uh), u, atol=1e-13)
+    np.testing.assert_allclose(g.irfft(uh, out=np.zeros_like(u)), u, atol=1e-13)
     before = uh.copy()
-    g.backward(uh)
+    g.irfft(uh)
     np.testing.assert_array_equal(uh, before)  # preserved
     assert uh[0, 0, 0, 0].real == pytest.approx(u[0].sum())
+    # non-contiguous input / out
+    o = np.zeros((3,) + g.cshape, complex)
+    g.rfft(np.ascontiguousarray(u[:, ::-1])[:, ::-1], out=o)
+    np.testing.assert_allclose(o, uh, atol=1e-12)
+    # scalars
+    f = u[1]
+    fh = g.rfft_scalar(f)
+    np.testing.assert_allclose(fh, np.fft.rfftn(f), atol=1e-12)
+    np.testing.assert_allclose(g.irfft_scalar(fh), f, atol=1e-13)
+    np.testing.assert_array_equal(fh, g.rfft_scalar(f, out=np.empty(g.cshape, complex)))
+    np.testing.assert_allclose(g.irfft_scalar(fh, out=np.empty(g.shape)), f, atol=1e-13)
 
 
-def test_grid_wavenumbers_dealias_kmax_autodt():
+def test_grid_wavenumbers_dealias_volume():
     g = Grid((32, 32, 32), dx=1.0)
+    assert g.cshape == (32, 32, 17)
     assert g.trunc == (10, 10, 10)
-    assert g.k_max == pytest.approx(2 * np.pi * 10 / 32)
-    assert g.auto_dt(1.0, 1.0, 1.0) == pytest.approx(1.0 / g.k_max ** 2)
-    assert g.auto_dt(0.5, 2.0, 4.0) == pytest.approx(0.25 / g.k_max ** 2)
-    assert g.dealias.sum() == 21 * 21 * 11
+    assert g.k_trunc == pytest.approx(2 * np.pi * 10 / 32)
+    assert g.dealias.dtype == bool and g.dealias.sum() == 21 * 21 * 11
     g2 = Grid((64, 32, 16), dx=2.0)
-    assert g2.k_max == pytest.approx(max(2 * np.pi * 21 / 128, 2 * np.pi * 10 / 64,
-                                         2 * np.pi * 5 / 32))
+    assert g2.volume == pytest.approx(128 * 64 * 32)
+    assert g2.kx.shape == (64, 1, 1) and g2.ky.shape == (1, 32, 1) and g2.kz.shape == (1, 1, 9)
+    assert g2.kx[1, 0, 0] == pytest.approx(2 * np.pi / 128)
+    assert g2.kz[0, 0, -1] == pytest.approx(np.pi / 2.0)  # Nyquist
+    np.testing.assert_allclose(g2.k2, g2.kx ** 2 + g2.ky ** 2 + g2.kz ** 2)
+
+
+def test_auto_dt():
+    assert auto_dt(1.0, 1.0, 1.0, 1.0) == pytest.approx(1 / np.pi ** 2)
+    assert auto_dt(0.5, 2.0, 4.0, 0.5) == pytest.approx(0.5 * 2.0 / (4.0 * (np.pi / 0.5) ** 2))
+    g = Grid((16, 16, 16), dx=0.5)
+    assert g.auto_dt(0.3, 1.2, 0.7) == auto_dt(0.3, 1.2, 0.7, 0.5)
+
+
+def test_projection_solenoidal():
+    g = Grid((16, 12, 10), dx=0.7)
+    rng = np.random.default_rng(3)
+    u = rng.normal(size=(3,) + g.shape) + np.array([1.0, 2.0, 3.0])[:, None, None, None]
+    uh = g.rfft(u)
+    k0 = uh[:, 0, 0, 0].copy()
+    g.project(uh)
+    div = g.kx * uh[0] + g.ky * uh[1] + g.kz * uh[2]
+    scale = np.sqrt(g.k2).max() * np.abs(uh).max()
+    assert np.abs(div).max() < 1e-13 * scale
+    np.testing.assert_array_equal(uh[:, 0, 0, 0], k0)  # k = 0 untouched
+    p2 = uh.copy()
+    g.project(p2)
+    np.testing.assert_allclose(p2, uh, atol=1e-12 * np.abs(uh).max())  # idempotent
 
 
 def test_phi_functions_series_continuity():
@@ -66,20 +105,97 @@ def test_phi_functions_series_continuity():
 
 @pytest.mark.parametrize("scheme", ["etd1", "etd2"])
 def test_taylor_green_decay(scheme):
+    """2D Taylor-Green in 3D: u x omega is a gradient, so u decays as exp(-2 nu k^2 t)."""
     g = Grid((16, 16, 8), dx=1.0)
     nu, rho = 0.7, 1.3
-    dt = g.auto_dt(1.0, rho, rho * nu)
+    dt = auto_dt(1.0, rho, rho * nu, g.dx)
     ns = SpectralNS(g, rho, rho * nu, dt, scheme=scheme)
     u0, k = taylor_green(g)
     ns.set_velocity(u0)
-    nsteps = 60
+    nsteps = 100
     ns.run(nsteps)
     t = nsteps * dt
     expect = u0 * np.exp(-2 * nu * k * k * t)
+    assert np.exp(-2 * nu * k * k * t) < 0.5  # a real decay
     err = np.abs(ns.velocity() - expect).max() / np.abs(expect).max()
     assert err < 1e-6, err
     assert ns.kinetic_energy() == pytest.approx(
         0.5 * rho * np.sum(expect ** 2), rel=1e-10)
+
+
+def test_taylor_green_3d_momentum_energy():
+    """3D Taylor-Green at small Re: zero momentum kept, energy decays monotonically."""
+    g = Grid((16, 16, 16), dx=1.0)
+    x, y, z = g.coordinates()
+    k = 2 * np.pi / 16
+    U = 0.05
+    u = np.zeros((3,) + g.shape)
+    u[0] = U * np.sin(k * x) * np.cos(k * y) * np.cos(k * z)
+    u[1] = -U * np.cos(k * x) * np.sin(k * y) * np.cos(k * z)
+    rho, eta = 1.0, 0.5
+    ns = SpectralNS(g, rho, eta, auto_dt(1.0, rho, eta, 1.0))
+    ns.set_velocity(u)
+    np.testing.assert_allclose(ns.velocity(), u, atol=1e-15)  # already solenoidal
+    assert ns.kinetic_energy() == pytest.approx(0.5 * rho * np.sum(u ** 2), rel=1e-12)
+    e = [ns.kinetic_energy()]
+    for _ in range(60):
+        ns.step()
+        e.append(ns.kinetic_energy())
+        assert np.abs(ns.momentum()).max() < 1e-15
+    e = np.array(e)
+    assert np.all(np.diff(e) < 0)
+    # nonlinear term active but weak: close to the Stokes decay exp(-2 nu 3 k^2 t)
+    t = 60 * ns.dt
+    assert e[-1] / e[0] == pytest.approx(np.exp(-2 * 0.5 * 3 * k * k * t), rel=1e-3)
+    assert ns.divergence_max() < 1e-14
+
+
+def test_step_force_kolmogorov_steady_state():
+    """f = F sin(k y) x: ETD1 has the exact steady state u = F/(nu k^2) sin(k y) x."""
+    g = Grid((8, 16, 8), dx=1.0)
+    _, y, _ = g.coordinates()
+    k = 2 * np.pi / 16
+    F = 1e-3
+    f = np.zeros((3,) + g.shape)
+    f[0] = F * np.sin(k * y)
+    nu = 2.0
+    ns = SpectralNS(g, 1.0, nu, 1.0)  # large dt: exact integration stays stable
+    for _ in range(200):
+        ns.step(f)
+    expect = np.zeros_like(f)
+    expect[0] = F / (nu * k * k) * np.sin(k * y)
+    np.testing.assert_allclose(ns.velocity(), expect, atol=1e-12 * F / (nu * k * k))
+    # a uniform force: momentum rises by RHO V f dt per step
+    p0 = ns.momentum()
+    fu = np.zeros_like(f)
+    fu[2] = 0.01
+    ns.step(fu)
+    np.testing.assert_allclose(ns.momentum() - p0, [0, 0, 0.01 * g.volume * 1.0], atol=1e-12)
+
+
+def test_add_solenoidal_gradient_only_changes_mean():
+    g = Grid((16, 16, 12), dx=0.5)
+    ns = SpectralNS(g, 2.0, 1.0, 0.01)
+    ns.set_velocity(random_solenoidal(g, kmax=3, amp=0.1))
+    before = ns.u_hat.copy()
+    x, y, z = g.coordinates()
+    L = g.box
+    a, b, c = 2 * np.pi / L[0], 4 * np.pi / L[1], 2 * np.pi / L[2]
+    # grad of sin(a x) cos(b y) + cos(c z) + mean
+    du = np.zeros((3,) + g.shape)
+    du[0] = a * np.cos(a * x) * np.cos(b * y) + 0 * z
+    du[1] = -b * np.sin(a * x) * np.sin(b * y) + 0 * z
+    du[2] = -c * np.sin(c * z) + 0 * x
+    mean = np.array([0.1, -0.2, 0.3])
+    du += mean[:, None, None, None]
+    p0 = ns.momentum()
+    ns.add_solenoidal(du)
+    d = ns.u_hat - before
+    d0 = d[:, 0, 0, 0].copy()
+    d[:, 0, 0, 0] = 0
+    assert np.abs(d).max() < 1e-12 * np.abs(before).max()
+    np.testing.assert_allclose(d0.real, mean * g.size, rtol=1e-12)
+    np.testing.assert_allclose(ns.momentum() - p0, 2.0 * g.volume * mean, rtol=1e-12)
 
 
 def test_projection_and_fix_cell():

@@ -20,11 +20,17 @@ State: u_hat (3, NX, NY, NZ//2+1), the unnormalised rfftn of u (``kapsel.grid``)
                                                                  - phi2 P[N^{n-1}]]
 
    phi1(z) = (e^z - 1)/z, phi2(z) = (e^z - 1 - z)/z^2 (Taylor series for |z| < 0.1: no
-   cancellation; phi1(0) = 1, phi2(0) = 1/2, so the k = 0 mode is Euler / AB2).  Both
-   integrate the viscous decay exactly for any dt and a constant force exactly; ETD2 is
-   second order for the nonlinear term (tests/test_spectral.py measures the orders) and is
-   the default (``scheme='etd2'``); its first step, and a step after ``set_velocity``, is
-   ETD1.  The stability of the advection term is bounded by the usual CFL-type limit.
+   cancellation; phi1(0) = 1, phi2(0) = 1/2, so the k = 0 mode is Euler / AB2), i.e.
+   dt phi1 = (1 - e^{-nu k^2 dt})/(nu k^2), and dt at k = 0.  Both integrate the viscous
+   decay exactly for any dt and a constant force exactly.  ETD1 is the default
+   (``scheme='etd1'``, the original's slaved Euler); ETD2 is second order for the nonlinear
+   term (tests/test_spectral.py measures the orders); its first step, and a step after
+   ``set_velocity``, is ETD1.  The stability of the advection term is bounded by the usual
+   CFL-type limit.
+
+   A body force (acceleration) f, ``step(force)`` per step or ``set_force`` constant, enters
+   as dt phi1(z) P[f_hat] (not truncated: it is not a product computed on the grid here; the
+   k = 0 mode, f's mean, changes the momentum by RHO V <f> dt).
 5. ``fix_cell`` (switch.FIX_CELL): the k = 0 mode of the flagged components is zeroed after
    the step (no mean flow along those axes).
 
@@ -75,14 +81,15 @@ def _factorial(n):
 class SpectralNS:
     """Pseudo-spectral NS solver (module docstring) on ``grid`` (a ``kapsel.grid.Grid``).
 
-    rho, eta : RHO, ETA;  dt : time step (``grid.auto_dt``);  fix_cell : switch.FIX_CELL,
-    (bool, bool, bool) per axis or one bool for all;  scheme : 'etd2' | 'etd1';
+    rho, eta : RHO, ETA;  dt : time step (``kapsel.timestep.auto_dt``);  fix_cell :
+    switch.FIX_CELL, (bool, bool, bool) per axis or one bool for all;  scheme : 'etd1'
+    (default, eq 8 by slaved Euler) | 'etd2';
     force : optional constant body
     force per unit mass (acceleration) f, real (3, NX, NY, NZ) or a 3-vector (uniform);
     advection : False drops u x omega (unsteady Stokes).
     """
 
-    def __init__(self, grid: Grid, rho, eta, dt, fix_cell=(False, False, False), scheme="etd2",
+    def __init__(self, grid: Grid, rho, eta, dt, fix_cell=(False, False, False), scheme="etd1",
                  force=None, advection=True):
         if scheme not in ("etd1", "etd2"):
             raise ValueError("scheme must be 'etd1' or 'etd2'")
@@ -117,7 +124,8 @@ class SpectralNS:
         z = -self.nu * g.k2 * self.dt
         self._E = np.exp(z)
         p1, p2 = phi1(z), phi2(z)
-        mask = g.dealias
+        mask = g.dealias_f
+        self._f1 = self.dt * p1                        # body force (not truncated)
         self._a1 = self.dt * p1 * mask                 # ETD1 / first step
         self._a2 = self.dt * (p1 + p2) * mask          # ETD2 weight of N^n
         self._b2 = self.dt * p2 * mask                 # ETD2 weight of N^{n-1}
@@ -201,8 +209,12 @@ class SpectralNS:
             nl[...] = 0.0
         return nl
 
-    def step(self):
-        """Advance u_hat by dt (module docstring, steps 1-5)."""
+    def step(self, force=None):
+        """Advance u_hat by dt (eq 8 without the particle term; module docstring, steps 1-5).
+
+        force : optional real-space acceleration (3, NX, NY, NZ) acting during this step,
+        added as dt phi1(z) P[FFT(force)] (on top of a constant ``set_force``).
+        """
         nl = self._nonlinear()
         uh = self.u_hat
         uh *= self._E
@@ -216,7 +228,13 @@ class SpectralNS:
             np.multiply(nl, self._a1, out=t)
             uh += t
         if self.force_hat is not None:  # constant force: exact, dt phi1(z) P f
-            np.multiply(self.force_hat, self._a1, out=t)
+            np.multiply(self.force_hat, self._f1, out=t)
+            uh += t
+        if force is not None:
+            fh = self._wh  # free after _nonlinear
+            self.grid.forward(force, out=fh)
+            self.grid.project(fh, tmp=(self._s, self._t))
+            np.multiply(fh, self._f1, out=t)
             uh += t
         if self.scheme == "etd2":
             self._nl, self._nl_old = self._nl_old, self._nl
