@@ -11,16 +11,17 @@ the k = 0 mode is sum_x u = N u_mean; ``backward`` divides by N = NX NY NZ, so t
 
 FFT plans: pyfftw.FFTW over the last three axes of aligned (3, ...) buffers, built once per
 Grid (FFTW keeps its wisdom for the process, so a second Grid of the same shape plans at
-once).  FFTW_MEASURE against FFTW_ESTIMATE, measured on this 2-core machine (3 components,
-forward + backward, 1 thread; planning time once per process):
+once); scalar plans (``rfft_scalar``) are built on first use.  FFTW_MEASURE against
+FFTW_ESTIMATE, measured on the shared 2-core machine (3 components, forward + backward,
+1 thread, the two plans timed interleaved; bench/bench_spectral.py --planners):
 
-    32^3:   MEASURE 0.40 ms / pair, plan 0.1 s;  ESTIMATE 0.36 ms, plan < 0.01 s
-    64^3:   MEASURE 5.4 ms / pair,  plan 0.3 s;  ESTIMATE 5.4 ms,  plan 0.01 s
-    128^3:  MEASURE 70 ms / pair,   plan 2.0 s;  ESTIMATE 118 ms,  plan 0.4 s
-    (FFTW_PATIENT: 128^3 83 ms, plan 97 s: no gain beyond the noise of the shared cores)
+    32^3:   MEASURE 0.31 ms / pair, plan 0.2 s;  ESTIMATE 0.29 ms, plan < 0.01 s
+    64^3:   MEASURE 5.8 ms / pair,  plan 0.4 s;  ESTIMATE 6.2 ms,  plan 0.05 s
+    128^3:  MEASURE 99 ms / pair,   plan 2.9 s;  ESTIMATE 129 ms,  plan 0.6 s
+    (an earlier quieter measurement: 128^3 MEASURE 70 ms, ESTIMATE 118 ms)
 
-Equal up to 64^3, MEASURE 40 % faster at 128^3 for a 2 s plan that a run repays within a
-few hundred steps: MEASURE is the default (``planner=``).
+Equal up to 64^3, MEASURE 25-40 % faster at 128^3 for a ~3 s plan that a run repays within
+~100 steps (a step is 9 component transforms): MEASURE is the default (``planner=``).
 """
 from __future__ import annotations
 
