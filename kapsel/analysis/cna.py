@@ -14,12 +14,17 @@ t_ij = (c, b, Bmax, Bmin) (eq 5), and
 otherwise OTHER.  UNKNOWN is given only to particles outside ``group`` (as LAMMPS gives
 to atoms outside the compute group).
 
-LAMMPS details kept: a particle with more than 16 neighbours keeps 16 (here the 16 nearest)
-and so, having n = 16, is OTHER, with one warning "too many neighbours ... for K particles";
-more than 8 common neighbours keep the first 8 in i's neighbour order (here: by distance
-from i) with one warning counting such (i, j) pairs; with no common neighbour
-Bmax = 0 and Bmin = MAXCOMMON.  Bonds among common neighbours use the images nearest to
-i (as LAMMPS does with ghost atoms); periodic boxes must be longer than 2 r_c.
+LAMMPS details kept: a particle with more than MAXNEAR = 16 neighbours keeps 16 (here
+the 16 nearest) and so, having n = 16, is OTHER (not UNKNOWN), with one warning "too many
+neighbours ... for K particles"; more than 8 common neighbours keep the first 8 in i's
+neighbour order (here: nearest to i first) with one warning counting such (i, j) pairs;
+with no common neighbour Bmax = 0 and Bmin = MAXCOMMON.  Bonds among common neighbours
+use the images nearest to i (as LAMMPS does with ghost atoms); periodic boxes must be
+longer than 2 r_c.  One deliberate difference: C_ij intersects N_i with j's *full*
+neighbour set (eq 2, as OVITO), whereas LAMMPS uses j's list truncated at 16 in its
+arbitrary neighbour-list order, so next to a particle with more than 16 neighbours LAMMPS
+can give OTHER where this gives FCC/HCP/BCC/ICOS (seen for ~0.1 % of the particles of a
+BCC crystal with 8 % noise; elsewhere LAMMPS 2025.7 agreed particle by particle).
 
 The work is whole-array numpy: a cKDTree neighbour table (N, 16), then for each particle
 the K x K bond matrix among its K = 12 or 14 neighbours as 16-bit masks; row a of that
@@ -193,18 +198,21 @@ def _signatures(pc, L, rc2, table, rows, K, work):
     # row a of the bond matrix is C_ij = N_i ∩ N_j (eq 2) for j = slot a
     ncommon = _popcount(bits)
     too_many = int((ncommon > MAXCOMMON).sum())
+    # arrays below are indexed [m, b, a]: b runs over candidate common neighbours of the
+    # pair (i, j = slot a); reducing over the middle axis is the fast direction in numpy
     if too_many:
         common = _first8(bits)                                # (M, K)
-        member = ((common[:, :, None] >> np.arange(K, dtype=np.uint16)) & 1).astype(bool)
+        member = ((common[:, None, :] >> np.arange(K, dtype=np.uint16)[:, None]) & 1
+                  ).astype(bool)
     else:
-        common, member = bits, A                              # member[m, a, b]: b in C_ij
+        common, member = bits, A                              # A is symmetric
     ncommon = np.minimum(ncommon, MAXCOMMON).astype(np.int32)
     # degree of common neighbour b inside C_ij: popcount(bond row b & C_ij)  (eq 4)
-    deg = _popcount(bits[:, None, :] & common[:, :, None])    # (M, K(a), K(b)) uint8
+    deg = _popcount(bits[:, :, None] & common[:, None, :])    # uint8
     degm = deg * member
-    nbond = degm.sum(axis=2, dtype=np.int32) // 2             # eq 3
-    bmax = degm.max(axis=2).astype(np.int32)
-    bmin = np.where(member, deg, np.uint8(MAXCOMMON)).min(axis=2).astype(np.int32)
+    nbond = degm.sum(axis=1, dtype=np.uint8).astype(np.int32) // 2      # eq 3
+    bmax = degm.max(axis=1).astype(np.int32)
+    bmin = np.where(member, deg, np.uint8(MAXCOMMON)).min(axis=1).astype(np.int32)
     return _code(ncommon, nbond, bmax, bmin), too_many
 
 
@@ -215,7 +223,8 @@ def cna(positions, box=None, cutoff=1.0, max_neighbors=MAXNEAR, *, periodic=None
     positions (N, 3); box (Lx, Ly, Lz) of an orthorhombic periodic box (None: open
     boundaries; ``periodic`` may make some axes open); cutoff r_c; group: optional (N,) bool,
     particles outside it are UNKNOWN (they still count as neighbours).  With
-    return_neighbors the neighbour counts n_i (N,) are returned too.
+    return_neighbors the neighbour counts n_i (N,), capped at max_neighbors, are returned
+    too.  Warns (CNAWarning) as LAMMPS about too many (common) neighbours.
     """
     if max_neighbors != MAXNEAR:
         if not 14 <= int(max_neighbors) <= 64:
