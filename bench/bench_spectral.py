@@ -4,7 +4,7 @@
                                              [--planners] [--profile N]
 
 Prints ms/step and ns per grid point per step for 32^3, 64^3 (128^3 with --big), 1 and 2
-FFT threads, a random small-amplitude solenoidal field, dt = auto_dt(1), FIX_CELL on.
+FFT threads, a random small-amplitude field, dt = auto_dt(1), FIX_CELL on, planner "auto".
 Times: median and best of the timed steps after 2 warm-up steps.  --planners compares
 FFTW_MEASURE and FFTW_ESTIMATE (plan time, one forward+backward vector pair), the
 measurement behind kapsel.grid's default.  --profile N: cProfile of 20 steps at N^3.
@@ -26,7 +26,7 @@ from kapsel.grid import Grid  # noqa: E402
 from kapsel.timestep import auto_dt  # noqa: E402
 
 
-def build(n, threads, scheme="etd1", planner="FFTW_MEASURE"):
+def build(n, threads, scheme="etd1", planner="auto"):
     g = Grid((n, n, n), 1.0, threads=threads, planner=planner)
     ns = SpectralNS(g, 1.0, 1.0, auto_dt(1.0, 1.0, 1.0, 1.0), fix_cell=True, scheme=scheme)
     ns.set_velocity(np.random.default_rng(0).normal(size=(3,) + g.shape) * 1e-3)

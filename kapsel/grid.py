@@ -21,7 +21,12 @@ FFTW_ESTIMATE, measured on the shared 2-core machine (3 components, forward + ba
     (an earlier quieter measurement: 128^3 MEASURE 70 ms, ESTIMATE 118 ms)
 
 Equal up to 64^3, MEASURE 25-40 % faster at 128^3 for a ~3 s plan that a run repays within
-~100 steps (a step is 9 component transforms): MEASURE is the default (``planner=``).
+~100 steps (a step is 9 component transforms).  But MEASURE picks its algorithm by timing,
+so two processes may get different plans and results that differ at round-off (seen at
+64^3: 2 hashes of u_hat after 3 steps in 3 runs; ESTIMATE always gave the same).  Hence the
+default ``planner='auto'``: FFTW_ESTIMATE (deterministic, no planning cost) up to 64^3 =
+262144 points, where MEASURE does not pay, FFTW_MEASURE above (not bitwise reproducible
+across processes; pass ``planner='FFTW_ESTIMATE'`` when that matters).
 """
 from __future__ import annotations
 
@@ -53,8 +58,11 @@ class Grid:
     volume : Lx Ly Lz
     """
 
-    def __init__(self, shape, dx=1.0, threads=1, planner="FFTW_MEASURE"):
-        """``planner``: FFTW planner flag (module docstring: MEASURE measured to pay)."""
+    MEASURE_ABOVE = 64 ** 3
+
+    def __init__(self, shape, dx=1.0, threads=1, planner="auto"):
+        """``planner``: an FFTW planner flag, or 'auto' (module docstring): ESTIMATE up to
+        64^3 points, MEASURE above."""
         self.shape = tuple(int(n) for n in shape)
         if len(self.shape) != 3 or min(self.shape) < 1:
             raise ValueError(f"shape must be (NX, NY, NZ), got {shape!r}")
@@ -93,6 +101,8 @@ class Grid:
             w[-1] = 1.0
         self.half_weight = w.reshape(1, 1, -1)
 
+        if planner == "auto":
+            planner = "FFTW_MEASURE" if self.size > self.MEASURE_ABOVE else "FFTW_ESTIMATE"
         self.planner = planner
         self._sfwd = self._sbwd = None
         self._ptmp = None

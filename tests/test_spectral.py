@@ -247,3 +247,22 @@ def test_time_order_etd1_etd2():
         e = [_error(scheme, T / n, n, g, u0, ref) for n in (16, 32)]
         rate = np.log2(e[0] / e[1])
         assert abs(rate - order) < 0.3, (scheme, e, rate)
+
+
+def test_deterministic_across_processes():
+    """Default planner ('auto' = ESTIMATE at this size): bitwise equal in two processes."""
+    import subprocess
+    import sys
+    code = (
+        "import sys, hashlib, numpy as np\n"
+        "from kapsel.grid import Grid\n"
+        "from kapsel.fluid.spectral import SpectralNS\n"
+        "g = Grid((32, 32, 32), 1.0)\n"
+        "ns = SpectralNS(g, 1.0, 1.0, 0.1)\n"
+        "ns.set_velocity(np.random.default_rng(0).normal(size=(3,) + g.shape) * 0.1)\n"
+        "ns.step(); ns.step()\n"
+        "print(g.planner, hashlib.md5(ns.u_hat.tobytes()).hexdigest())\n")
+    root = str(__import__("pathlib").Path(__file__).resolve().parents[1])
+    out = [subprocess.run([sys.executable, "-c", code], cwd=root, capture_output=True,
+                          text=True, check=True).stdout for _ in range(2)]
+    assert out[0].startswith("FFTW_ESTIMATE") and out[0] == out[1]
