@@ -9,6 +9,14 @@ Times: median and best of the timed steps after 2 warm-up steps.  --planners com
 FFTW_MEASURE and FFTW_ESTIMATE (plan time, one forward+backward vector pair), the
 measurement behind kapsel.grid's default.  --profile N: cProfile of 20 steps at N^3.
 (The benchmark with particles is bench/bench_spm.py.)
+
+Measured 2026-11-22 with both shared cores busy with other jobs (load ~3.5), etd1, medians:
+over two runs 32^3 0.9-1.3 ms/step (27-39 ns/pt), 64^3 20-28 ms (76-108 ns/pt), 128^3
+196-285 ms (94-136 ns/pt) on 1 thread; 2 threads were never faster and up to 50x slower in
+median (32^3 64 ms once: each of the 9 transforms waits for the busy second core), so use
+threads=1 on a loaded machine.  A 64^3 step is
+~half FFTs (9 component transforms, ~9 ms), half numpy element-wise work (curl, u x omega,
+projection, ETD update).
 """
 from __future__ import annotations
 

@@ -30,8 +30,9 @@ def random_solenoidal(grid, kmax=3, amp=0.05, seed=0):
     return amp * u / np.abs(u).max()
 
 
-def test_grid_transforms_roundtrip_and_normalisation():
-    g = Grid((16, 8, 12), dx=0.5)
+@pytest.mark.parametrize("threads", [1, 2])
+def test_grid_transforms_roundtrip_and_normalisation(threads):
+    g = Grid((16, 8, 12), dx=0.5, threads=threads)
     u = np.random.default_rng(0).normal(size=(3,) + g.shape)
     u0 = u.copy()
     uh = g.rfft(u)
