@@ -136,3 +136,18 @@ def kinetic_energy(rho, dx, u, phi, particles) -> float:
         e += 0.5 * float(np.sum(particles.mass * np.sum(particles.v ** 2, axis=1)))
         e += 0.5 * float(np.sum(particles.inertia * np.sum(particles.omega ** 2, axis=1)))
     return e
+
+
+def overlap_guard(forces, limit: float = 0.5):
+    """Wrap ``forces`` so that a deep overlap (closest pair below ``limit`` of the contact
+    distance) stops the run instead of launching particles across the box."""
+    if forces is None:
+        return None
+
+    def guarded(p):
+        F, T, ratio = forces(p)
+        if ratio < limit:
+            raise FloatingPointError(f"particles overlap deeply (closest pair at {ratio:.2f} "
+                                     f"of the contact distance)")
+        return F, T
+    return guarded
