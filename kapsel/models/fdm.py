@@ -22,8 +22,18 @@ import numpy as np
 
 from ..config import ConfigError, RunConfig
 from ..simulation import register
-from .common import (kinetic_energy, make_forces, make_noise, make_particles, random_seed,
-                     time_step)
+from ..particles.spm import SPM
+from .common import (kinetic_energy, make_forces, make_noise, make_particles, overlap_guard,
+                     random_seed, time_step)
+
+
+class _ModelH_SPM(SPM):
+    """SPM whose MAC fluid step takes the capillary force and the viscosity field (eq 15)."""
+    fluid_force = None
+    eta_field = None
+
+    def _fluid_step(self):
+        self.fluid.step(self.u, force=self.fluid_force, eta_field=self.eta_field)
 
 
 class FDMModel:
@@ -47,19 +57,15 @@ class FDMModel:
             self.mac.check_stability()
         except UnstableTimeStep as e:
             raise ConfigError(str(e), path="time_increment", value=self.dt) from None
-        self.u = np.zeros((3,) + shape)
 
-        # particles
+        # particles (SPM on the MAC grid; the step hook adds the Model-H force)
         self.particles = make_particles(cfg, self.rng)
-        self.rotation = cfg.switches.ROTATION
-        self.forces = make_forces(cfg, self.particles)
-        self.noise = make_noise(cfg, self.particles, seed)
-        self.phi = np.zeros(shape) if self.particles.n else None
-        if self.particles.n:
-            from ..particles.profile import Stencil
-            self.stencil = Stencil(cfg.particles.A, cfg.particles.A_XI, dx)
-            self._profiles()
-            self._impose_particle_velocity()
+        self.spm = _ModelH_SPM(self.mac, self.particles, cfg.particles.A, cfg.particles.A_XI,
+                               f.RHO, dx, self.dt, rotation=cfg.switches.ROTATION,
+                               forces=overlap_guard(make_forces(cfg, self.particles)),
+                               noise=make_noise(cfg, self.particles, seed))
+        self.u = self.spm.u
+        self.phi = self.spm.phi() if self.particles.n else None
 
         # phase field
         self.ch = None
@@ -92,41 +98,6 @@ class FDMModel:
                 self.eta_field = np.empty(shape)
                 self._update_viscosity()
 
-    # ------------------------------------------------------------------ particles
-    def _profiles(self):
-        from ..particles.profile import particle_profiles, total_phi
-        p = self.particles
-        self.idx, self.phi_i, self.r = particle_profiles(p.R, self.stencil, self.shape, self.dx)
-        self.phi[...] = total_phi(self.idx, self.phi_i, self.phi.size).reshape(self.shape)
-
-    def _impose_particle_velocity(self):
-        """Make the fluid move with the particles (rigidity increment, projected)."""
-        from ..particles.coupling import rigidity_increment
-        p = self.particles
-        self.u += rigidity_increment(self.u, self.idx, self.phi_i, self.r, p.v, p.omega,
-                                     self.phi.size)
-        self.mac.project(self.u)
-
-    def _particle_step(self):
-        from ..particles.coupling import hydro_force_torque
-        from ..particles.motion import update_positions, update_velocities
-        p = self.particles
-        F_H, T_H = hydro_force_torque(self.u, self.idx, self.phi_i, self.r, p.v, p.omega,
-                                      self.rho, self.dx, self.dt)
-        F_o = T_o = None
-        if self.forces is not None:
-            F_o, T_o, ratio = self.forces(p)
-            if ratio < 0.5:
-                raise FloatingPointError(f"particles overlap deeply (closest pair at "
-                                         f"{ratio:.2f} of contact distance)")
-        dP = dL = None
-        if self.noise is not None:
-            dP, dL = self.noise(p.n, self.dt)
-        update_velocities(p, F_H, T_H, F_o, T_o, self.dt, self.rotation, dP, dL)
-        self._impose_particle_velocity()
-        update_positions(p, self.dt, self.cfg.mesh.box, self.rotation)
-        self._profiles()
-
     # ------------------------------------------------------------------ phase field
     def _update_viscosity(self):
         fl = self.cfg.fluid
@@ -142,9 +113,10 @@ class FDMModel:
             mu = self.ch.chemical_potential(self.psi, self.phi)
             force = self.ch.capillary_force(self.psi, mu, self.rho)
         self.last_force = force
-        self.mac.step(self.u, force=force, eta_field=self.eta_field)
+        self.spm.fluid_force, self.spm.eta_field = force, self.eta_field
+        self.spm.step()
         if self.particles.n:
-            self._particle_step()
+            self.phi = self.spm.phi()
         if self.ch is not None:
             for _ in range(self.substeps):
                 self.ch.step(self.psi, self.u, self.phi)
