@@ -15,7 +15,7 @@ $(STAMP): pyproject.toml
 install: $(STAMP)
 
 run: $(STAMP)
-	cd samples && ../$(BIN)/kapsel-py -Iinput.udf -Ooutput.udf -Ddefine.udf -Rrestart.udf --overwrite
+	cd samples && ../$(BIN)/kapsel-py -Iinput.udf -Ooutput.udf -Ddefine.udf -Rrestart.udf --overwrite --seed 1
 	@echo "Output written to samples/: output.udf, restart.udf, *.h5 and *.xmf"
 
 test: $(STAMP)
@@ -23,6 +23,11 @@ test: $(STAMP)
 
 bench: $(STAMP)
 	$(BIN)/python bench/bench_udf.py
+	$(BIN)/python bench/bench_spectral.py
+	$(BIN)/python bench/bench_spm.py
+	$(BIN)/python bench/bench_mac.py
+	$(BIN)/python bench/bench_fdm.py
+	$(BIN)/python bench/bench_cna.py
 
 clean:
 	rm -rf $(VENV) build *.egg-info
