@@ -36,8 +36,9 @@ differences at the nodes, so total momentum is conserved to round-off by both sc
 import numpy as np
 import scipy.fft
 import scipy.sparse as sp
-from scipy.sparse.linalg import LinearOperator, bicgstab
+from scipy.sparse.linalg import LinearOperator
 
+from ..linalg import SolverDidNotConverge, UnstableTimeStep, solve_correction
 from . import operators as op
 
 try:  # pragma: no cover - import guard
@@ -46,22 +47,6 @@ except ImportError:  # pragma: no cover
     pyfftw = None
 
 __all__ = ["MACSolver", "SolverDidNotConverge", "UnstableTimeStep"]
-
-
-class SolverDidNotConverge(RuntimeError):
-    """BiCGSTAB did not reach ``tolerance`` within ``maximum_iteration`` (manual table 2)."""
-
-    def __init__(self, iterations, residual, message=None):
-        self.iterations = int(iterations)
-        self.residual = float(residual)
-        super().__init__(message or (
-            "implicit NS solver (BiCGSTAB) did not converge in %d iterations: relative residual "
-            "%.3e; reduce the time step or raise maximum_iteration" % (self.iterations,
-                                                                        self.residual)))
-
-
-class UnstableTimeStep(ValueError):
-    """dt above the explicit-scheme stability limit."""
 
 
 class _PoissonFFT:
@@ -282,36 +267,9 @@ class MACSolver:
         u[...] = x.reshape(u.shape)
 
     def _bicgstab(self, A, b, x0):
-        """Solve A x = b to ||b - A x|| <= tolerance ||b|| from x0 (unpreconditioned BiCGSTAB on
-        the correction, normalised so the breakdown thresholds are scale-free)."""
-        bn = np.linalg.norm(b)
-        if bn == 0.0:
-            self.iterations, self.residual = 0, 0.0
-            return np.zeros_like(b)
-        r0 = b - A @ x0
-        rn = np.linalg.norm(r0)
-        if rn <= self.tolerance * bn:
-            self.iterations, self.residual = 0, rn / bn
-            return x0
-        nmv = [0]
-
-        def mv(v):
-            nmv[0] += 1
-            return A @ v
-        r0 /= rn
-        d, info = bicgstab(LinearOperator(A.shape, matvec=mv, dtype=np.float64), r0,
-                           rtol=self.tolerance * bn / rn, atol=0.0,
-                           maxiter=self.maximum_iteration)
-        d *= rn
-        x = x0 + d
-        self.iterations = (nmv[0] + 1) // 2     # 2 matvecs per BiCGSTAB iteration
-        if info == 0:
-            self.residual = float("nan")         # below tolerance; not recomputed (1 matvec)
-        else:
-            res = np.linalg.norm(b - A @ x) / bn
-            self.residual = res
-            if not res <= self.tolerance:
-                raise SolverDidNotConverge(self.iterations, res)
+        x, self.iterations, self.residual = solve_correction(
+            A, b, x0, self.tolerance, self.maximum_iteration,
+            what="implicit Navier-Stokes solver (BiCGSTAB)")
         return x
 
     # ------------------------------------------------------------------ linear operator

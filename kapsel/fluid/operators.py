@@ -16,7 +16,7 @@ div∘grad pair since it maps cell arrays to cell arrays).
 import numpy as np
 
 __all__ = [
-    "shift_assign", "shift_add", "shift_sub",
+    "shift_assign", "shift_add", "shift_sub", "cdiff_acc",
     "laplacian", "grad_central", "div_central", "div_b", "grad_b",
     "advection", "advection_linear", "viscous_variable", "face_viscosities",
     "wavenumbers", "symbol_laplacian", "symbol_central", "symbol_div_grad_b",
@@ -95,11 +95,14 @@ def _bdiff(out, f, axis):
     return out
 
 
-def _cdiff_acc(out, f, axis):
+def cdiff_acc(out, f, axis):
     """out[i] += f[i+1] - f[i-1] (unscaled central difference, accumulated)."""
     shift_add(out, f, 1, axis)
     shift_sub(out, f, -1, axis)
     return out
+
+
+_cdiff_acc = cdiff_acc
 
 
 def _avg(out, f, s, axis):

@@ -39,85 +39,40 @@ import math
 
 import numpy as np
 import scipy.fft
-from scipy.sparse.linalg import LinearOperator, bicgstab
+from scipy.sparse.linalg import LinearOperator
 
 from .potentials import make_potential
 
-try:
-    from kapsel.fluid.mac import SolverDidNotConverge, UnstableTimeStep
-except ImportError:  # pragma: no cover - the fluid package is written separately
-    class SolverDidNotConverge(RuntimeError):
-        """BiCGSTAB did not reach ``tolerance`` within ``maximum_iteration``."""
-
-        def __init__(self, iterations, residual, message=None):
-            self.iterations, self.residual = int(iterations), float(residual)
-            super().__init__(message or "BiCGSTAB did not converge in %d iterations "
-                             "(relative residual %.3e)" % (iterations, residual))
-
-    class UnstableTimeStep(ValueError):
-        """dt above the explicit-scheme stability limit."""
+from ..fluid import operators as ops
+from ..linalg import SolverDidNotConverge, UnstableTimeStep, solve_correction  # noqa: F401
 
 __all__ = ["CahnHilliard", "chemical_potential", "free_energy", "capillary_force",
            "discrete_k2", "SolverDidNotConverge", "UnstableTimeStep"]
 
 
-# --------------------------------------------------------------------------- private FD helpers
-def _sl(axis, start, stop):
-    return (Ellipsis, slice(start, stop)) + (slice(None),) * (2 - axis)
-
-
-def _ix(axis, i):
-    return (Ellipsis, i) + (slice(None),) * (2 - axis)
-
-
-def _shift_add(out, f, s, axis, c=1.0):
-    """out[i] += c f[i+s] (periodic along grid axis 0, 1, 2; s = +-1)."""
-    if s == 1:
-        pairs = ((_sl(axis, None, -1), _sl(axis, 1, None)), (_ix(axis, -1), _ix(axis, 0)))
-    else:
-        pairs = ((_sl(axis, 1, None), _sl(axis, None, -1)), (_ix(axis, 0), _ix(axis, -1)))
-    for io, jf in pairs:
-        o = out[io]
-        if c == 1.0:
-            np.add(o, f[jf], out=o)
-        else:
-            o += c * f[jf]
-    return out
-
-
+# --------------------------------------------------------------------------- FD helpers
+# (the periodic shifts and the 7-point Laplacian are the MAC solver's: kapsel.fluid.operators)
 def _lap(f, dx, out):
     """7-point Laplacian (out must not alias f)."""
-    np.multiply(f, -6.0, out=out)
-    for ax in range(3):
-        _shift_add(out, f, 1, ax)
-        _shift_add(out, f, -1, ax)
-    out *= 1.0 / (dx * dx)
-    return out
-
-
-def _cdiff_add(out, f, axis, c):
-    """out += c (f[i+1] - f[i-1]) along ``axis``."""
-    _shift_add(out, f, 1, axis, c)
-    _shift_add(out, f, -1, axis, -c)
-    return out
+    return ops.laplacian(f, dx, out)
 
 
 def _div_flux(psi, u, dx, out, work):
     """div(psi u) with central differences of the flux (conservative)."""
     out[...] = 0.0
-    h = 0.5 / dx
     for ax in range(3):
         np.multiply(psi, u[ax], out=work)
-        _cdiff_add(out, work, ax, h)
+        ops.cdiff_acc(out, work, ax)
+    out *= 0.5 / dx
     return out
 
 
 def _grad(f, dx, out):
     """Central gradient (3, NX, NY, NZ) at the nodes."""
-    h = 0.5 / dx
     for ax in range(3):
         out[ax] = 0.0
-        _cdiff_add(out[ax], f, ax, h)
+        ops.cdiff_acc(out[ax], f, ax)
+    out *= 0.5 / dx
     return out
 
 
@@ -172,7 +127,7 @@ def free_energy(psi, phi, params, *, dx=1.0, xi=1.0, psi_bar=None, kBT=1.0, pote
     for ax in range(3):
         df = np.empty_like(dens)
         df[...] = -psi
-        _shift_add(df, psi, 1, ax)
+        ops.shift_add(df, psi, 1, ax)
         g2 += df * df
     dens += (0.5 * params.alpha / (dx * dx)) * g2
     if phi is not None:
@@ -459,34 +414,8 @@ class CahnHilliard:
         return LinearOperator((n, n), matvec=solve, dtype=np.float64)
 
     def _bicgstab(self, A, b, x0, c0, dphi):
-        """Solve A x = b to ||b - A x|| <= tolerance ||b|| from x0 (BiCGSTAB on the correction)."""
-        bn = float(np.linalg.norm(b))
-        if bn == 0.0:
-            self.iterations, self.residual = 0, 0.0
-            return np.zeros_like(b)
-        r0 = b - A @ x0
-        rn = float(np.linalg.norm(r0))
-        if rn <= self.tolerance * bn:
-            self.iterations, self.residual = 0, rn / bn
-            return x0
-        nmv = [0]
-
-        def mv(v):
-            nmv[0] += 1
-            return A @ v
-        r0 /= rn
-        d, info = bicgstab(LinearOperator(A.shape, matvec=mv, dtype=np.float64), r0,
-                           rtol=self.tolerance * bn / rn, atol=0.0,
-                           maxiter=self.maximum_iteration, M=self._precond(c0, dphi, b.size))
-        d *= rn
-        x = x0 + d
-        self.iterations = (nmv[0] + 1) // 2     # 2 matvecs per BiCGSTAB iteration
-        res = float(np.linalg.norm(b - A @ x)) / bn
-        self.residual = res
-        if info != 0 and not res <= self.tolerance:
-            raise SolverDidNotConverge(
-                self.iterations, res,
-                "implicit Cahn-Hilliard solver (BiCGSTAB) did not converge in %d iterations: "
-                "relative residual %.3e > tolerance %.1e; reduce the time step or raise "
-                "maximum_iteration" % (self.iterations, res, self.tolerance))
+        x, self.iterations, self.residual = solve_correction(
+            A, b, x0, self.tolerance, self.maximum_iteration,
+            M=self._precond(c0, dphi, b.size),
+            what="implicit Cahn-Hilliard solver (BiCGSTAB)")
         return x
