@@ -276,3 +276,33 @@ def test_get_with_unit_conversion():
         pytest.approx(mass / (L * tau), rel=1e-9)
     with pytest.raises(UDFError, match="different dimensions"):
         u.get("constitutive_eq.Navier_Stokes.DX", "[s]")
+
+
+def test_two_process_paths_give_identical_results(tmp_path, monkeypatch):
+    import udf.manager as M
+    import udf.parser as P
+    u = UDFManager(schema_from=DEFINE)
+    rng = np.random.default_rng(4)
+    for r in range(10):
+        u.newRecord(f"r{r}")
+        u.put(float(r), "t")
+        u.put(rng.standard_normal((50, 34)), "Particles[]")
+    u.write(str(tmp_path / "serial.udf"))
+    monkeypatch.setattr(M, "PARALLEL_WRITE_NUMBERS", 100)
+    u.write(str(tmp_path / "parallel.udf"))
+    assert (tmp_path / "serial.udf").read_bytes() == (tmp_path / "parallel.udf").read_bytes()
+    monkeypatch.setattr(P, "PARALLEL_BYTES", 1000)
+    v = UDFManager(str(tmp_path / "parallel.udf"))
+    assert v.totalRecord() == 10
+    for r in range(10):
+        v.jump(r)
+        assert np.array_equal(v.getArray("Particles[]"), u.records[r].values["Particles"])
+    # a malformed number in the half parsed by the forked child is still pinpointed
+    lines = (tmp_path / "parallel.udf").read_text().splitlines()
+    k = len(lines) - 5
+    lines[k] = lines[k].replace("e", "e+e", 1) if "e" in lines[k] else \
+        lines[k].replace(".", "..", 1)
+    (tmp_path / "bad.udf").write_text("\n".join(lines) + "\n")
+    with pytest.raises(UDFError) as e:
+        UDFManager(str(tmp_path / "bad.udf"))
+    assert f"bad.udf:{k + 1}:" in str(e.value)

@@ -401,12 +401,77 @@ class UDFManager:
         if not target:
             raise UDFError("write(): no file name given")
         try:
-            pieces = self.pieces(record)
+            if record is None and self._large():
+                _write_in_two_processes(self, target)
+            else:
+                atomic_write_text(target, self.pieces(record))
         except ValueError as e:
             raise UDFError(f"cannot write {target}: {e}") from None
-        atomic_write_text(target, pieces)
         if file:
             self.path = file
+
+    def _large(self) -> bool:
+        if len(self.records) < 8 or (os.cpu_count() or 1) < 2 or not hasattr(os, "fork"):
+            return False
+        n = 0
+        for rec in self.records:
+            for v in rec.values.values():
+                n += v.size if isinstance(v, np.ndarray) else 1
+        return n > PARALLEL_WRITE_NUMBERS
+
+
+PARALLEL_WRITE_NUMBERS = 4_000_000
+
+
+def _write_in_two_processes(doc: "UDFManager", target: str) -> None:
+    """Format the records in two processes: a forked child writes the second half to its own
+    temporary file, the parent the head and first half; the kernel then appends the child's
+    file (copy_file_range) and the result is renamed into place."""
+    d = os.path.dirname(os.path.abspath(target))
+    half = len(doc.records) // 2
+    fd_c, tmp_c = tempfile.mkstemp(prefix="." + os.path.basename(target) + ".", dir=d)
+    try:
+        pid = os.fork()
+        if pid == 0:
+            code = 0
+            try:
+                with os.fdopen(fd_c, "wb") as fh:
+                    for rec in doc.records[half:]:
+                        write_pieces(fh, doc.record_pieces(rec))
+            except BaseException:
+                code = 1
+            os._exit(code)
+        os.close(fd_c)
+        recs = doc.records
+        try:
+            doc.records = recs[:half]
+            head = doc.pieces()
+        finally:
+            doc.records = recs
+        fd, tmp = tempfile.mkstemp(prefix="." + os.path.basename(target) + ".", dir=d)
+        try:
+            with os.fdopen(fd, "wb") as fh:
+                write_pieces(fh, head)
+                fh.flush()
+                _, status = os.waitpid(pid, 0)
+                if status != 0:
+                    raise ValueError("formatting the second half of the records failed")
+                with open(tmp_c, "rb") as src:
+                    size = os.fstat(src.fileno()).st_size
+                    copied = 0
+                    while copied < size:
+                        n = os.copy_file_range(src.fileno(), fh.fileno(), size - copied)
+                        if n == 0:
+                            break
+                        copied += n
+            os.replace(tmp, target)
+        except BaseException:
+            if os.path.exists(tmp):
+                os.unlink(tmp)
+            raise
+    finally:
+        if os.path.exists(tmp_c):
+            os.unlink(tmp_c)
 
 
 def _split_args(args):

@@ -7,6 +7,7 @@ line and column of the rest of the file stays where it was.
 """
 from __future__ import annotations
 
+import mmap
 import os
 import re
 import warnings
@@ -120,20 +121,70 @@ def extract_bulk(data: bytes, file: str):
     if not spans:
         return data.decode("utf-8", errors="replace"), []
     pieces.append(data[pos:])
+    numbers = _parse_spans(data, spans)
     bulks = []
     line, lpos = 1, 0
-    for g0, g1, counts, newlines in spans:
+    for (g0, g1, counts, newlines), nums in zip(spans, numbers):
         line += data.count(b"\n", lpos, g0)
         lpos = g0
         column = g0 - (data.rfind(b"\n", 0, g0) + 1) + 1
-        span = data[g0:g1]   # one span at a time: its memory is reused for the next
-        nums = _parse_one(span)
         if nums is None:
-            raise _bad_number(span, file, line, column)
-        integral = not any(ch in span for ch in (b".", b"e", b"E"))
+            raise _bad_number(data[g0:g1], file, line, column)
+        integral = not any(ch in data[g0:g1] for ch in (b".", b"e", b"E"))
         bulks.append(Bulk(nums, counts, integral, line, column))
-        del span
     return b"".join(pieces).decode("utf-8", errors="replace"), bulks
+
+
+PARALLEL_BYTES = 32 << 20
+
+
+def _parse_spans(data: bytes, spans: list) -> list:
+    """The numbers of every span.  Large inputs are split over two processes: numpy's text
+    parser is the floor (about 0.1 us per number); the forked child writes its numbers
+    straight into shared memory, so nothing is pickled back."""
+    total = sum(g1 - g0 for g0, g1, *_ in spans)
+    if total < PARALLEL_BYTES or len(spans) < 2 or (os.cpu_count() or 1) < 2 \
+            or not hasattr(os, "fork"):
+        return [_parse_one(data[g0:g1]) for g0, g1, *_ in spans]
+    # split by bytes; the child takes the second half
+    sizes = np.cumsum([g1 - g0 for g0, g1, *_ in spans])
+    half = int(np.searchsorted(sizes, sizes[-1] / 2)) + 1
+    theirs = spans[half:]
+    # upper bound of the child's numbers: separators + 1 per span
+    bound = sum(data.count(b",", g0, g1) + data.count(b"\n", g0, g1) + data.count(b" ", g0, g1)
+                + 1 for g0, g1, *_ in theirs)
+    shared = mmap.mmap(-1, 8 * bound + 8 * (len(theirs) + 1))
+    counts = np.frombuffer(shared, dtype=np.int64, count=len(theirs) + 1)
+    values = np.frombuffer(shared, dtype=np.float64, offset=8 * (len(theirs) + 1))
+    pid = os.fork()
+    if pid == 0:  # child: parse, write into shared memory, exit without cleanup
+        code = 0
+        try:
+            at = 0
+            for k, (g0, g1, *_) in enumerate(theirs):
+                nums = _parse_one(data[g0:g1])
+                if nums is None:
+                    counts[k] = -1
+                    continue
+                values[at:at + nums.size] = nums
+                counts[k] = nums.size
+                at += nums.size
+        except BaseException:
+            code = 1
+        os._exit(code)
+    mine = [_parse_one(data[g0:g1]) for g0, g1, *_ in spans[:half]]
+    _, status = os.waitpid(pid, 0)
+    if status != 0:  # the child failed: parse its half here
+        return mine + [_parse_one(data[g0:g1]) for g0, g1, *_ in theirs]
+    out, at = [], 0
+    for k in range(len(theirs)):
+        n = int(counts[k])
+        if n < 0:
+            out.append(None)
+            continue
+        out.append(values[at:at + n].copy())
+        at += n
+    return mine + out
 
 
 def _parse_one(span: bytes):
