@@ -151,3 +151,22 @@ def overlap_guard(forces, limit: float = 0.5):
                                      f"of the contact distance)")
         return F, T
     return guarded
+
+
+class Model:
+    """What every model shares: the configuration, the clock (dt, time, step_index) and the
+    seeded random stream.  Subclasses implement ``advance`` by calling ``tick`` once a step."""
+
+    def __init__(self, cfg: RunConfig, args):
+        self.cfg = cfg
+        self.quiet = getattr(args, "quiet", False)
+        self.threads = getattr(args, "threads", 1)
+        self.dt = time_step(cfg)
+        self.time = 0.0
+        self.step_index = 0
+        self.seed = random_seed(args)
+        self.rng = np.random.default_rng(self.seed)
+
+    def tick(self) -> None:
+        self.step_index += 1
+        self.time = self.step_index * self.dt

@@ -23,8 +23,8 @@ import numpy as np
 from ..config import ConfigError, RunConfig
 from ..simulation import register
 from ..particles.spm import SPM
-from .common import (kinetic_energy, make_forces, make_noise, make_particles, overlap_guard,
-                     random_seed, time_step)
+from .common import (Model, kinetic_energy, make_forces, make_noise, make_particles,
+                     overlap_guard)
 
 
 class _ModelH_SPM(SPM):
@@ -36,19 +36,13 @@ class _ModelH_SPM(SPM):
         self.fluid.step(self.u, force=self.fluid_force, eta_field=self.eta_field)
 
 
-class FDMModel:
+class FDMModel(Model):
     def __init__(self, cfg: RunConfig, args):
         from ..fluid.mac import MACSolver, UnstableTimeStep
-        self.cfg = cfg
-        self.quiet = getattr(args, "quiet", False)
-        threads = getattr(args, "threads", 1)
+        super().__init__(cfg, args)
+        threads, seed = self.threads, self.seed
         shape, dx = cfg.mesh.shape, cfg.mesh.DX
         f = cfg.fluid
-        self.dt = time_step(cfg)
-        self.time = 0.0
-        self.step_index = 0
-        seed = random_seed(args)
-        self.rng = np.random.default_rng(seed)
         self.rho, self.dx, self.shape = f.RHO, dx, shape
         self.mac = MACSolver(shape, dx, f.RHO, f.ETA, self.dt, scheme=f.ns_solver,
                              tolerance=f.tolerance, maximum_iteration=f.maximum_iteration,
@@ -122,8 +116,7 @@ class FDMModel:
                 self.ch.step(self.psi, self.u, self.phi)
             if self.eta_field is not None:
                 self._update_viscosity()
-        self.step_index += 1
-        self.time = self.step_index * self.dt
+        self.tick()
 
     # ------------------------------------------------------------------ outputs
     def kinetic_energy(self) -> float:

@@ -4,27 +4,20 @@ kapsel.fluid.spectral.SpectralNS).  Writes output.udf records; no field files (t
 writes HDF5 fields only for the FDM types)."""
 from __future__ import annotations
 
-import numpy as np
-
 from ..config import RunConfig
 from ..simulation import register
-from .common import (kinetic_energy, make_forces, make_noise, make_particles, overlap_guard,
-                     random_seed, time_step)
+from .common import (Model, kinetic_energy, make_forces, make_noise, make_particles,
+                     overlap_guard)
 
 
-class SpectralModel:
+class SpectralModel(Model):
     def __init__(self, cfg: RunConfig, args):
         from ..fluid.spectral import SpectralNS
         from ..grid import Grid
         from ..particles.spm import SPM
-        self.cfg = cfg
-        f = cfg.fluid
-        self.dt = time_step(cfg)
-        self.time = 0.0
-        self.step_index = 0
-        seed = random_seed(args)
-        self.rng = np.random.default_rng(seed)
-        self.grid = Grid(cfg.mesh.shape, cfg.mesh.DX, threads=getattr(args, "threads", 1))
+        super().__init__(cfg, args)
+        f, seed = cfg.fluid, self.seed
+        self.grid = Grid(cfg.mesh.shape, cfg.mesh.DX, threads=self.threads)
         self.fluid = SpectralNS(self.grid, f.RHO, f.ETA, self.dt, fix_cell=cfg.switches.fix_cell)
         self.particles = make_particles(cfg, self.rng)
         self.spm = SPM(self.fluid, self.particles, cfg.particles.A, cfg.particles.A_XI, f.RHO,
@@ -34,8 +27,7 @@ class SpectralModel:
 
     def advance(self):
         self.spm.step()
-        self.step_index += 1
-        self.time = self.step_index * self.dt
+        self.tick()
 
     def kinetic_energy(self) -> float:
         phi = self.spm.phi() if self.particles.n else None
