@@ -87,14 +87,27 @@ def main(argv=None) -> int:
     if cfg.type not in SOLVERS:
         return fail(f"constitutive_eq.type {cfg.type!r} is not implemented yet in kapsel-py "
                     f"(implemented: {', '.join(sorted(SOLVERS)) or 'none'})")
-    for flag, path in (("-O", args.output), ("-R", args.restart)):
-        if os.path.exists(path) and not args.overwrite:
-            return fail(f"{flag}{path} exists; pass --overwrite to replace it")
+    resumed = cfg.resume.calculation != "NEW"
+    if not resumed:
+        for flag, path in (("-O", args.output), ("-R", args.restart)):
+            if os.path.exists(path) and not args.overwrite:
+                return fail(f"{flag}{path} exists; pass --overwrite to replace it (or "
+                            f"continue a run from its restart file)")
     try:
         model = SOLVERS[cfg.type](cfg, args, doc)
+        if resumed:
+            from .io.restart import read_restart
+            saved = read_restart(doc, args.input, cfg.resume.calculation)
+            model.load_restart(saved)
+            if saved.exact is None and not args.quiet:
+                print(f"#{args.input}: no matching state file; continuing from the restart "
+                      f"data alone (R_raw restarts at R, the noise stream at the seed)",
+                      file=sys.stderr)
     except config.ConfigError as e:
         return fail(str(e))
-    return run(cfg, args, doc, model)
+    except udf.UDFError as e:
+        return fail(str(e))
+    return run(cfg, args, doc, model, resumed=resumed)
 
 
 if __name__ == "__main__":

@@ -49,25 +49,43 @@ def restart_hint(step) -> str:
     return f"The restart file holds the last good state (step {step})."
 
 
-def run(cfg, args, input_doc, model) -> int:
-    """Run ``model`` for GTS * Num_snap steps, writing a record every GTS steps."""
+def run(cfg, args, input_doc, model, resumed: bool = False) -> int:
+    """Run ``model`` until step GTS * Num_snap, writing a record every GTS steps.
+
+    ``resumed``: the model continues a restart (its clock is past 0); output.udf then gets
+    the records of the continued run appended (later records of the earlier run, if any,
+    are dropped), unless --overwrite asks for a new file."""
     from .io.records import OutputUDF
     from .progress import Progress
 
     out_dir = os.path.dirname(os.path.abspath(args.output))
-    output = OutputUDF(args.output, args.define, input_doc) if cfg.output.UDF else None
+    append = resumed and os.path.exists(args.output) and not args.overwrite
+    output = None
+    record_now = True
+    if cfg.output.UDF:
+        output = OutputUDF(args.output, args.define, input_doc, append=append)
+        if append:
+            kept, dropped = output.truncate_after(model.time)
+            last = output.last_time()
+            record_now = last is None or abs(last - model.time) > 1e-6 * max(1.0, model.time)
+            if not args.quiet:
+                print(f"#continuing at step {model.step_index} (t = {model.time:g}): appending "
+                      f"to {args.output} ({kept} records kept"
+                      + (f", {dropped} later ones dropped" if dropped else "") + ")",
+                      file=sys.stderr)
     fields = None
     if model.fields():
         from .io.fields import FieldWriter
         fields = FieldWriter(out_dir, cfg.mesh.shape, cfg.mesh.DX,
-                             fields=tuple(model.fields()))
+                             fields=tuple(model.fields()), resume=resumed)
     total = cfg.output.total_steps
     progress = Progress(total, quiet=args.quiet)
+    start = model.step_index
 
-    def snapshot():
+    def snapshot(record=True):
         n = model.step_index // cfg.output.GTS
         check_finite(model)
-        if output is not None:
+        if output is not None and record:
             output.add_record(model.step_index, model.time, model.kinetic_energy(),
                               model.particles, model.record_items())
         if fields is not None:
@@ -77,12 +95,12 @@ def run(cfg, args, input_doc, model) -> int:
     saved = {"step": None}
 
     def save_restart():
-        if not hasattr(model, "restart_state"):
+        if model.restart_kind is None:
             return
         from .io.restart import write_restart
-        kind, data = model.restart_state()
+        kind, data, exact = model.restart_state()
         write_restart(args.restart, args.define, input_doc, kind, model.step_index, model.time,
-                      model.particles, data)
+                      model.particles, data, exact)
         saved["step"] = model.step_index
 
     stop = {"signal": None}
@@ -93,9 +111,12 @@ def run(cfg, args, input_doc, model) -> int:
     from .fluid.mac import SolverDidNotConverge
     old = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
     try:
-        snapshot()
-        first = model.step_index
-        for _ in range(first, total):
+        if not resumed:
+            snapshot()
+        elif model.step_index % cfg.output.GTS == 0:
+            check_finite(model)
+            snapshot(record=record_now)
+        for _ in range(start, total):
             try:
                 model.advance()
             except (SolverDidNotConverge, FloatingPointError, InstabilityError) as e:

@@ -118,7 +118,7 @@ def test_cli_flags_with_and_without_space(tmp_path, capsys, monkeypatch):
     seen = {}
     monkeypatch.setitem(simulation.SOLVERS, "Navier_Stokes_Cahn_Hilliard_FDM",
                         lambda cfg, args, doc: seen.setdefault("args", args))
-    monkeypatch.setattr(simulation, "run", lambda cfg, args, doc, model: 0)
+    monkeypatch.setattr(simulation, "run", lambda cfg, args, doc, model, resumed=False: 0)
     path = sample_copy(tmp_path)
     d = str(tmp_path / "define.udf")
     assert cli.main([f"-I{path}", f"-O{tmp_path / 'o.udf'}", f"-D{d}", "-R", "r.udf",

@@ -60,6 +60,37 @@ class OutputUDF:
         if not append or not os.path.exists(path):
             atomic_write_text(path, self.doc.pieces())
 
+    def truncate_after(self, time: float) -> tuple[int, int]:
+        """Drop the records later than ``time`` (those of a run being continued from an
+        earlier restart); returns (records kept, records dropped).  The kept bytes are not
+        rewritten except for the cut, which is atomic."""
+        old = UDFManager(self.path)
+        times = []
+        for n in range(old.totalRecord()):
+            old.jump(n)
+            times.append(float(old.get("t")))
+        tol = 1e-6 * max(1.0, abs(time))           # t is stored at single precision
+        keep = sum(1 for t in times if t <= time + tol)
+        if keep < len(times):
+            with open(self.path, "rb") as fh:
+                data = fh.read()
+            starts, i = [], data.find(b"\\begin{record}")
+            while i >= 0:
+                starts.append(i)
+                i = data.find(b"\\begin{record}", i + 1)
+            if len(starts) != len(times):
+                raise ValueError(f"{self.path}: cannot locate its records")
+            atomic_write_text(self.path, data[:starts[keep]].decode("utf-8"))
+        return keep, len(times) - keep
+
+    def last_time(self):
+        """Time of the last record of the file, or None."""
+        old = UDFManager(self.path)
+        if not old.totalRecord():
+            return None
+        old.jump(old.totalRecord() - 1)
+        return float(old.get("t"))
+
     def put(self, name: str, value) -> None:
         """Set a common (global) item, e.g. an updated resume section."""
         self.doc.put(value, name)

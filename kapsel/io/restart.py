@@ -1,17 +1,48 @@
-"""restart.udf: the input's data with ``resume.Calculation`` set and ``Saved_Data`` filled,
-in the define.udf ``resume`` schema (manual table 7).  Written atomically at every snapshot
-and at the end, so a failed or interrupted run leaves the last good state behind.
+"""restart.udf: write the state of a run, and read it back to continue the run.
 
+The restart file is the input's data with ``resume.Calculation`` set and ``Saved_Data``
+filled, in the define.udf ``resume`` schema (manual table 7), so it is itself a complete
+input: ``kapsel-py -Irestart.udf ...`` continues the run.
+
+    CONTINUE                        jikan, Particles[] (sParticle), Zeta, uk_dc, oblique
     CONTINUE_FDM                    jikan, Particles[] (sParticle), U, U_OLD
     CONTINUE_FDM_PHASE_SEPARATION   ... plus PSI, PSI_OLD, STRESS_OLD
+
+Floats are written in full (shortest round-trip) precision.  What the schema has no place
+for -- the unwrapped positions R_raw, the state of the thermal-noise generator, the
+spectral velocity u_hat itself, solver history flags -- goes to a companion file
+``<restart>.state.npz`` (written first; both atomically).  It carries a fingerprint of the
+schema data it belongs to; with it a continued run is bit-identical to an uninterrupted one.
+Without it (a restart.udf written by another program, or edited by hand), the run continues
+from the schema data alone: R_raw restarts at R, the noise stream at the run's seed.
+
+Zeta (CONTINUE) holds the vorticity components omega_x, omega_z of the velocity in Fourier
+space (forward transform normalised by 1/N, real and imaginary parts interleaved along z,
+NZ + 2 entries) and uk_dc its k = 0 part (the mean velocity).  That packing is our reading
+of the original's; as it cannot represent the ky = 0 plane completely, kapsel-py continues
+a CONTINUE restart only together with its state file.
 """
 from __future__ import annotations
+
+import hashlib
+import io
+import json
+import os
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from udf import UDFManager
 
-from .records import particle_table
+from .records import OUT_FIELDS, particle_table
+
+STATE_SUFFIX = ".state.npz"
+KINDS = ("CONTINUE", "CONTINUE_FDM", "CONTINUE_FDM_PHASE_SEPARATION")
+
+
+def state_path(restart_path: str) -> str:
+    """The companion file holding what the schema cannot (see module docstring)."""
+    return os.fspath(restart_path) + STATE_SUFFIX
 
 
 def vector_field(u: np.ndarray) -> np.ndarray:
@@ -19,8 +50,61 @@ def vector_field(u: np.ndarray) -> np.ndarray:
     return np.ascontiguousarray(np.moveaxis(u, 0, -1))
 
 
+def component_field(v: np.ndarray) -> np.ndarray:
+    """(NX, NY, NZ, 3) -> (3, NX, NY, NZ), the inverse of :func:`vector_field`."""
+    return np.ascontiguousarray(np.moveaxis(np.asarray(v, dtype=float), -1, 0))
+
+
+@dataclass
+class Saved:
+    """``resume.<kind>.Saved_Data`` as read: clock, particle table, fields by name."""
+    kind: str
+    step: int
+    time: float
+    particles: np.ndarray | None             # (N, leaves of sParticle) or None
+    fields: dict = field(default_factory=dict)
+    exact: dict | None = None                 # the state file's arrays, if it matches
+    particle_struct: object = None            # the sParticle class of the schema
+
+    def fingerprint(self) -> str:
+        return fingerprint(self.step, self.time, self.particles, self.fields)
+
+
+def fingerprint(step, time, particles, fields) -> str:
+    """SHA-256 of the schema data of a restart (as float64 bytes), pairing it with its
+    state file."""
+    h = hashlib.sha256()
+    h.update(repr((int(step), float(time))).encode())
+    if particles is not None:
+        h.update(np.ascontiguousarray(particles, dtype=np.float64).tobytes())
+    for name in sorted(fields):
+        h.update(name.encode())
+        h.update(np.ascontiguousarray(fields[name], dtype=np.float64).tobytes())
+    return h.hexdigest()
+
+
+def _sparticle_type(doc: UDFManager, kind: str):
+    m, _ = doc.schema.item("resume")
+    sd = m.type.members[m.type.index(kind)].type.members[0].type
+    return sd.members[sd.index("Particles")].type
+
+
+def _atomic_savez(path: str, arrays: dict) -> None:
+    buf = io.BytesIO()
+    np.savez(buf, **arrays)
+    tmp = f"{path}.tmp{os.getpid()}"
+    with open(tmp, "wb") as fh:
+        fh.write(buf.getvalue())
+        fh.flush()
+        os.fsync(fh.fileno())
+    os.replace(tmp, path)
+
+
 def write_restart(path: str, define_path: str, input_doc: UDFManager, kind: str, step: int,
-                  time: float, particles, fields: dict) -> None:
+                  time: float, particles, fields: dict, exact: dict | None = None) -> None:
+    """Write ``path`` (restart.udf) and its state file.  ``fields``: Saved_Data items by
+    name (``oblique`` etc. as plain values); ``exact``: arrays (or JSON-able values) the
+    schema has no place for."""
     doc = UDFManager(schema_from=define_path)
     for name, value in input_doc.common.items():
         if name in doc.schema.global_items:
@@ -28,11 +112,89 @@ def write_restart(path: str, define_path: str, input_doc: UDFManager, kind: str,
     doc.put(kind, "resume.Calculation")
     base = f"resume.{kind}.Saved_Data"
     doc.put([int(step), float(time)], f"{base}.jikan")
+    table = None
     if particles is not None and particles.n:
-        m, _ = doc.schema.item("resume")
-        sd = m.type.members[m.type.index(kind)].type.members[0].type
-        ptype = sd.members[sd.index("Particles")].type
-        doc.put(particle_table(particles, ptype), f"{base}.Particles[]")
-    for name, arr in fields.items():
-        doc.put(arr, f"{base}.{name}[]")
+        table = particle_table(particles, _sparticle_type(doc, kind))
+        doc.put(table, f"{base}.Particles[]")
+    arrays = {}
+    for name, value in fields.items():
+        if isinstance(value, np.ndarray):
+            doc.put(value, f"{base}.{name}[]")
+            arrays[name] = value
+        else:
+            doc.put(value, f"{base}.{name}")
+    state = {"fingerprint": np.array(fingerprint(step, time, table, arrays))}
+    for name, value in (exact or {}).items():
+        if isinstance(value, np.ndarray):
+            state[name] = value
+        else:
+            state[name] = np.array(json.dumps(value))
+    _atomic_savez(state_path(path), state)
     doc.write(path)
+
+
+def read_restart(doc: UDFManager, input_path: str, kind: str) -> Saved:
+    """``resume.<kind>.Saved_Data`` of an input document (a restart.udf), with the arrays
+    of its state file when that file exists and belongs to exactly this data."""
+    base = f"resume.{kind}.Saved_Data"
+    step, time = doc.get(f"{base}.jikan")
+    table = None
+    if doc.size(f"{base}.Particles[]"):
+        table = np.asarray(doc.getArray(f"{base}.Particles[]"), dtype=np.float64)
+    m, _ = doc.schema.item("resume")
+    sd = m.type.members[m.type.index(kind)].type.members[0].type
+    fields = {}
+    for member in sd.members:
+        name = member.name
+        if name in ("jikan", "Particles") or member.ndim == 0:
+            continue
+        if doc.size(f"{base}.{name}[]"):
+            arr = np.asarray(doc.getArray(f"{base}.{name}[]"), dtype=np.float64)
+            if arr.ndim == member.ndim + 1 and arr.shape[-1] == 1:
+                arr = arr[..., 0]                   # a one-member class, e.g. {psi: float}
+            fields[name] = arr
+    saved = Saved(kind, int(step), float(time), table, fields,
+                  particle_struct=_sparticle_type(doc, kind))
+    path = state_path(input_path)
+    if os.path.exists(path):
+        with np.load(path, allow_pickle=False) as z:
+            state = {k: z[k] for k in z.files}
+        if str(state.pop("fingerprint", "")) == saved.fingerprint():
+            saved.exact = {k: (json.loads(str(v)) if v.dtype.kind == "U" else v)
+                           for k, v in state.items()}
+    return saved
+
+
+def zeta_from_velocity(u: np.ndarray, dx: float):
+    """(Zeta (NX, NY, NZ + 2, 2), uk_dc (3,)) of a real velocity (3, NX, NY, NZ): the
+    vorticity components omega_x, omega_z of the 1/N-normalised r2c transform, (re, im)
+    interleaved along z; uk_dc the k = 0 part (see the module docstring)."""
+    shape = u.shape[1:]
+    uk = np.fft.rfftn(u, axes=(1, 2, 3)) / float(np.prod(shape))
+    k = [2 * np.pi * np.fft.fftfreq(n, dx) for n in shape[:2]]
+    k.append(2 * np.pi * np.fft.rfftfreq(shape[2], dx))
+    kx, ky, kz = np.meshgrid(*k, indexing="ij")
+    wx = 1j * (ky * uk[2] - kz * uk[1])
+    wz = 1j * (kx * uk[1] - ky * uk[0])
+    zeta = np.empty(shape[:2] + (2 * uk.shape[-1], 2))
+    for c, w in enumerate((wx, wz)):
+        zeta[:, :, 0::2, c] = w.real
+        zeta[:, :, 1::2, c] = w.imag
+    return zeta, uk[:, 0, 0, 0].real.copy()
+
+
+def particles_from_table(state, table: np.ndarray, struct) -> None:
+    """Fill a ParticleState from a (N, leaves) sParticle table (inverse of particle_table).
+    The table's rows must match the state's particle count."""
+    from udf.schema import leaf_slice
+    if table.shape[0] != state.n:
+        raise ValueError(f"the restart holds {table.shape[0]} particles, the input "
+                         f"describes {state.n}")
+    done = set()
+    for m in struct.members:
+        attr = OUT_FIELDS.get(m.name)
+        if attr is None or attr in done or m.name in ("f_hydro1", "torque_hydro1"):
+            continue
+        off, cnt, _ = leaf_slice(struct, [m.name])
+        getattr(state, attr)[:] = table[:, off:off + cnt]
+        done.add(attr)

@@ -167,6 +167,67 @@ class Model:
         self.seed = random_seed(args)
         self.rng = np.random.default_rng(self.seed)
 
+        self._clock0 = (0, 0.0)     # (step, time) the clock counts from
+
     def tick(self) -> None:
         self.step_index += 1
-        self.time = self.step_index * self.dt
+        s0, t0 = self._clock0
+        self.time = t0 + (self.step_index - s0) * self.dt
+
+    # ------------------------------------------------------------------ restart
+    restart_kind = None         # resume.Calculation of this model's restart file
+
+    def restart_fields(self) -> dict:
+        """Saved_Data items besides jikan and Particles (arrays by name)."""
+        return {}
+
+    def exact_state(self) -> dict:
+        """What a bit-exact continuation needs beyond the schema (arrays or JSON values)."""
+        return {}
+
+    def load_fields(self, fields: dict, exact: dict | None) -> None:
+        """Take the fields of a restart (see read_restart)."""
+
+    def restart_state(self):
+        """(kind, Saved_Data fields, exact state) of the current state."""
+        exact = dict(self.exact_state())
+        if self.particles is not None and self.particles.n:
+            exact["R_raw"] = self.particles.R_raw.copy()
+        gen = _noise_generator(self)
+        if gen is not None:
+            exact["noise"] = gen.get_state()
+        return self.restart_kind, self.restart_fields(), exact
+
+    def load_restart(self, saved) -> None:
+        """Continue from a restart (kapsel.io.restart.Saved): clock, particles, fields, and
+        with the state file the noise stream and R_raw."""
+        if saved.kind != self.restart_kind:
+            raise ConfigError(f"{self.cfg.type} continues from a {self.restart_kind} restart, "
+                              f"not {saved.kind}", path="resume.Calculation", value=saved.kind)
+        exact = saved.exact
+        self.step_index = saved.step
+        self.time = saved.time
+        if saved.time != saved.step * self.dt:
+            self._clock0 = (saved.step, saved.time)
+        p = self.particles
+        if p is not None and p.n:
+            from ..io.restart import particles_from_table
+            if saved.particles is None:
+                raise ConfigError(f"the restart holds no particles, the input describes {p.n}",
+                                  path=f"resume.{saved.kind}.Saved_Data.Particles[]", value=0)
+            try:
+                particles_from_table(p, saved.particles, saved.particle_struct)
+            except ValueError as e:
+                raise ConfigError(str(e), path=f"resume.{saved.kind}.Saved_Data.Particles[]",
+                                  value=saved.particles.shape[0]) from None
+            p.R_raw[:] = exact["R_raw"] if exact and "R_raw" in exact else p.R
+        gen = _noise_generator(self)
+        if gen is not None and exact and "noise" in exact:
+            gen.set_state(exact["noise"])
+        self.load_fields(saved.fields, exact)
+
+
+def _noise_generator(model):
+    spm = getattr(model, "spm", None)
+    noise = getattr(spm, "noise", None) if spm is not None else None
+    return getattr(noise, "generator", None)

@@ -125,17 +125,54 @@ class FDMModel(Model):
     def record_items(self) -> dict:
         return {"PSI": self.psi} if self.psi is not None else {}
 
-    def restart_state(self):
-        """(resume.Calculation, Saved_Data fields) of the current state."""
+    @property
+    def restart_kind(self):
+        return "CONTINUE_FDM_PHASE_SEPARATION" if self.ch is not None else "CONTINUE_FDM"
+
+    def restart_fields(self) -> dict:
+        """Saved_Data fields: U, U_OLD (+ PSI, PSI_OLD, STRESS_OLD with a phase field)."""
         from ..io.restart import vector_field
         fields = {"U": vector_field(self.u), "U_OLD": vector_field(self.mac.u_old)}
-        if self.ch is None:
-            return "CONTINUE_FDM", fields
-        psi_old = self.ch.psi_old if self.ch.psi_old is not None else self.psi
-        fields.update(PSI=self.psi, PSI_OLD=psi_old,
-                      STRESS_OLD=vector_field(self.last_force if self.last_force is not None
-                                              else np.zeros_like(self.u)))
-        return "CONTINUE_FDM_PHASE_SEPARATION", fields
+        if self.ch is not None:
+            psi_old = self.ch.psi_old if self.ch.psi_old is not None else self.psi
+            force = self.last_force if self.last_force is not None else np.zeros_like(self.u)
+            fields.update(PSI=self.psi, PSI_OLD=psi_old, STRESS_OLD=vector_field(force))
+        return fields
+
+    def exact_state(self) -> dict:
+        st = {"have_u_old": bool(self.mac._have_old)}
+        if self.ch is not None:
+            st.update(have_psi_old=self.ch.psi_old is not None, substeps=self.substeps)
+        return st
+
+    def load_fields(self, fields: dict, exact) -> None:
+        from ..io.restart import component_field
+        base = f"resume.{self.restart_kind}.Saved_Data"
+        exact = exact or {}
+        for name in ("U", "U_OLD") + (("PSI", "PSI_OLD") if self.ch is not None else ()):
+            want = self.shape + ((3,) if name.startswith("U") else ())
+            if name not in fields or fields[name].shape != want:
+                got = fields[name].shape if name in fields else "nothing"
+                raise ConfigError(f"{name} of the restart has shape {got}, the mesh needs "
+                                  f"{want}", path=f"{base}.{name}[]", value=got)
+        self.u[...] = component_field(fields["U"])
+        if exact.get("have_u_old", self.step_index > 0):
+            self.mac.u_old = component_field(fields["U_OLD"])
+        if self.particles.n:
+            self.spm.refresh()
+            self.phi = self.spm.phi()
+        if self.ch is not None:
+            subs = int(exact.get("substeps", self.substeps))
+            if subs != self.substeps:
+                from ..phase import CahnHilliard
+                self.substeps = subs
+                self.ch = CahnHilliard(self.shape, self.dx, self.cfg.phase, self.dt / subs,
+                                       **self.ch_kwargs)
+            self.psi[...] = fields["PSI"]
+            if exact.get("have_psi_old", self.step_index > 0):
+                self.ch.psi_old = fields["PSI_OLD"].copy()
+            if self.eta_field is not None:
+                self._update_viscosity()
 
     def fields(self) -> dict:
         out = {"u": self.u}

@@ -4,7 +4,7 @@ kapsel.fluid.spectral.SpectralNS).  Writes output.udf records; no field files (t
 writes HDF5 fields only for the FDM types)."""
 from __future__ import annotations
 
-from ..config import RunConfig
+from ..config import ConfigError, RunConfig
 from ..simulation import register
 from .common import (Model, kinetic_energy, make_forces, make_noise, make_particles,
                      overlap_guard)
@@ -36,6 +36,33 @@ class SpectralModel(Model):
 
     def record_items(self) -> dict:
         return {}
+
+    # ------------------------------------------------------------------ restart
+    restart_kind = "CONTINUE"
+
+    def restart_fields(self) -> dict:
+        """Zeta (omega_x, omega_z in Fourier space) and uk_dc (kapsel.io.restart)."""
+        from ..io.restart import zeta_from_velocity
+        zeta, dc = zeta_from_velocity(self.spm.velocity(), self.cfg.mesh.DX)
+        return {"Zeta": zeta, "uk_dc": [float(c) for c in dc], "oblique": [0.0]}
+
+    def exact_state(self) -> dict:
+        return {"u_hat": self.fluid.u_hat.copy()}
+
+    def load_fields(self, fields: dict, exact) -> None:
+        if not exact or "u_hat" not in exact:
+            from ..io.restart import state_path
+            raise ConfigError(
+                f"a CONTINUE restart is continued together with its state file "
+                f"{state_path(self.cfg.input_path)} (missing, or written for other data): "
+                f"the Zeta packing alone does not determine the velocity",
+                path="resume.CONTINUE.Saved_Data.Zeta[]", value="(without state file)")
+        if exact["u_hat"].shape != self.fluid.u_hat.shape:
+            raise ConfigError(f"the restart's velocity has shape {exact['u_hat'].shape}, the "
+                              f"mesh needs {self.fluid.u_hat.shape}",
+                              path="resume.CONTINUE.Saved_Data.Zeta[]", value="shape")
+        self.fluid.set_velocity_hat(exact["u_hat"])
+        self.spm.refresh()
 
     def fields(self) -> dict:
         return {}

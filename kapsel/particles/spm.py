@@ -131,6 +131,11 @@ class SPM:
         else:
             self.mass, self.inertia = p.mass, p.inertia
 
+    def refresh(self):
+        """Recompute the profiles after the positions were set from outside (a restart)."""
+        if self.p.n:
+            self._profiles()
+
     def phi(self):
         """Total profile phi (eq 4), (NX, NY, NZ)."""
         if not self.p.n:
