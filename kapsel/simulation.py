@@ -43,10 +43,26 @@ def check_finite(model) -> None:
         raise InstabilityError("particle positions or velocities are not finite")
 
 
-def restart_hint(step) -> str:
+def check_step(model) -> None:
+    """Cheap checks between snapshots: finite velocities and the scheme's CFL limit
+    (Model.stability); InstabilityError names the quantity."""
+    import numpy as np
+    ratio, what = model.stability()
+    if not np.isfinite(ratio):
+        raise InstabilityError("the fluid or particle velocities are not finite "
+                               "(NaN or infinity)")
+    if ratio > 1.0:
+        raise InstabilityError(what)
+
+
+def restart_hint(step, args=None) -> str:
     if step is None:
-        return "No restart file was written."
-    return f"The restart file holds the last good state (step {step})."
+        return "No restart file was written"
+    how = ""
+    if args is not None:
+        how = (f" Continue with: kapsel-py -I{args.restart} -O{args.output} -D{args.define} "
+               f"-R{args.restart}")
+    return f"{args.restart if args else 'The restart file'} holds the last good state (step {step}).{how}"
 
 
 def run(cfg, args, input_doc, model, resumed: bool = False) -> int:
@@ -82,9 +98,12 @@ def run(cfg, args, input_doc, model, resumed: bool = False) -> int:
     progress = Progress(total, quiet=args.quiet)
     start = model.step_index
 
+    check_every = min(cfg.output.GTS, 10)
+
     def snapshot(record=True):
         n = model.step_index // cfg.output.GTS
         check_finite(model)
+        check_step(model)
         if output is not None and record:
             output.add_record(model.step_index, model.time, model.kinetic_energy(),
                               model.particles, model.record_items())
@@ -111,19 +130,29 @@ def run(cfg, args, input_doc, model, resumed: bool = False) -> int:
     from .fluid.mac import SolverDidNotConverge
     old = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
     try:
-        if not resumed:
-            snapshot()
-        elif model.step_index % cfg.output.GTS == 0:
-            check_finite(model)
-            snapshot(record=record_now)
+        try:
+            if not resumed:
+                snapshot()
+            elif model.step_index % cfg.output.GTS == 0:
+                snapshot(record=record_now)
+        except InstabilityError as e:
+            print(f"kapsel-py: error: {e} in the initial state (step {model.step_index})",
+                  file=sys.stderr)
+            return 1
         for _ in range(start, total):
+            before = model.step_index
             try:
-                model.advance()
+                try:
+                    model.advance()
+                except (ValueError, IndexError, OverflowError):
+                    check_step(model)   # NaN that broke the step: say so; else a real bug
+                    raise
+                if model.step_index % check_every == 0:
+                    check_step(model)
             except (SolverDidNotConverge, FloatingPointError, InstabilityError) as e:
-                print(f"kapsel-py: error: the run stopped at step {model.step_index + 1} "
-                      f"(t = {model.time + model.dt:g}): {e}. {restart_hint(saved['step'])} "
-                      f"Try a smaller time_increment factor (or delta_t), or the "
-                      f"implicit_scheme.", file=sys.stderr)
+                print(f"kapsel-py: error: the run stopped at step {before + 1}: {e}. "
+                      f"{restart_hint(saved['step'], args)}. Try a smaller time_increment "
+                      f"factor (or delta_t), or the implicit_scheme.", file=sys.stderr)
                 return 1
             progress.step(model.step_index, model.time)
             if model.step_index % cfg.output.GTS == 0:
@@ -131,14 +160,16 @@ def run(cfg, args, input_doc, model, resumed: bool = False) -> int:
                     snapshot()
                 except InstabilityError as e:
                     print(f"kapsel-py: error: {e} at step {model.step_index}. "
-                          f"{restart_hint(saved['step'])} Try a smaller time_increment "
+                          f"{restart_hint(saved['step'], args)}. Try a smaller time_increment "
                           f"factor (or delta_t).", file=sys.stderr)
                     return 1
             if stop["signal"] is not None:
+                check_finite(model)
                 save_restart()
                 print(f"kapsel-py: interrupted at step {model.step_index} (t = {model.time:g}); "
-                      f"output.udf holds every snapshot so far and {args.restart} this step",
-                      file=sys.stderr)
+                      f"{args.output} holds every snapshot so far and {args.restart} this "
+                      f"step. Continue with: kapsel-py -I{args.restart} -O{args.output} "
+                      f"-D{args.define} -R{args.restart}", file=sys.stderr)
                 return 1
         if saved["step"] != model.step_index:
             save_restart()

@@ -174,6 +174,26 @@ class Model:
         s0, t0 = self._clock0
         self.time = t0 + (self.step_index - s0) * self.dt
 
+    # ------------------------------------------------------------------ stability
+    cfl_limit = 1.0             # largest max|u| dt / DX the explicit advection takes
+
+    def velocity_field(self) -> np.ndarray:
+        """The current fluid velocity (3, NX, NY, NZ)."""
+        return self.spm.velocity()
+
+    def stability(self) -> tuple[float, str]:
+        """(ratio, what): ratio > 1 means the step is past the scheme's limit; NaN when the
+        velocities are not finite.  The CFL number max|u| dt / DX over the fluid and the
+        particles, against ``cfl_limit``."""
+        u = self.velocity_field()
+        umax2 = float(np.max(np.einsum("i...,i...->...", u, u)))
+        p = self.particles
+        if p is not None and p.n:
+            umax2 = max(umax2, float(np.max(np.einsum("ij,ij->i", p.v, p.v))))
+        cfl = np.sqrt(umax2) * self.dt / self.cfg.mesh.DX
+        return cfl / self.cfl_limit, (f"the CFL number max|u| dt/DX = {cfl:.3g} exceeds "
+                                      f"{self.cfl_limit:g}")
+
     # ------------------------------------------------------------------ restart
     restart_kind = None         # resume.Calculation of this model's restart file
 

@@ -118,6 +118,18 @@ class FDMModel(Model):
                 self._update_viscosity()
         self.tick()
 
+    def stability(self):
+        """The CFL number, and for the explicit MAC scheme its advection-diffusion bound
+        dt <= 2 nu / max|u|^2 (kapsel.fluid.mac.MACSolver.stable_dt)."""
+        ratio, what = super().stability()
+        if self.cfg.fluid.ns_solver == "explicit_scheme" and np.isfinite(ratio):
+            lim = self.mac.stable_dt(self.u, self.eta_field)
+            if self.dt / lim > ratio:
+                ratio, what = self.dt / lim, (f"dt = {self.dt:.4g} exceeds {lim:.4g}, the "
+                                              f"advection-diffusion limit 2 nu / max|u|^2 of "
+                                              f"the explicit MAC scheme")
+        return ratio, what
+
     # ------------------------------------------------------------------ outputs
     def kinetic_energy(self) -> float:
         return kinetic_energy(self.rho, self.dx, self.u, self.phi, self.particles)
