@@ -88,11 +88,16 @@ def main(argv=None) -> int:
         return fail(f"constitutive_eq.type {cfg.type!r} is not implemented yet in kapsel-py "
                     f"(implemented: {', '.join(sorted(SOLVERS)) or 'none'})")
     resumed = cfg.resume.calculation != "NEW"
-    if not resumed:
-        for flag, path in (("-O", args.output), ("-R", args.restart)):
-            if os.path.exists(path) and not args.overwrite:
-                return fail(f"{flag}{path} exists; pass --overwrite to replace it (or "
-                            f"continue a run from its restart file)")
+    if not resumed and not args.overwrite:
+        targets = [(f"-O{args.output}", args.output), (f"-R{args.restart}", args.restart)]
+        if cfg.is_fdm:
+            out_dir = os.path.dirname(os.path.abspath(args.output))
+            targets += [(f"the field series {name}", os.path.join(out_dir, name))
+                        for name in ("orderparam.xmf", "particle.xmf", "velocity.xmf")]
+        for what, path in targets:
+            if os.path.exists(path):
+                return fail(f"{what} exists; pass --overwrite to replace it (or continue a "
+                            f"run from its restart file)")
     try:
         model = SOLVERS[cfg.type](cfg, args, doc)
         if resumed:

@@ -107,3 +107,20 @@ def test_check_step_names_the_quantity():
             return 2.5, "the CFL number max|u| dt/DX = 2.5 exceeds 1"
     with pytest.raises(simulation.InstabilityError, match="CFL number"):
         simulation.check_step(Fake())
+
+
+def test_a_new_run_does_not_overwrite_outputs(tmp_path, capsys):
+    """Existing output.udf, restart.udf or field series are kept unless --overwrite."""
+    d = tmp_path / "ow"
+    inp = make_input(d, "Navier_Stokes_FDM", ns="explicit_scheme", nsnap=1, kBT=0.0)
+    assert cli(d, inp) == 0
+    before = {p.name: p.stat().st_mtime_ns for p in d.iterdir()}
+    assert cli(d, inp) == 2
+    assert "-Ooutput.udf exists; pass --overwrite" in capsys.readouterr().err
+    os.remove(d / "output.udf")
+    os.remove(d / "restart.udf")
+    assert cli(d, inp) == 2
+    assert "velocity.xmf exists; pass --overwrite" in capsys.readouterr().err
+    after = {p.name: p.stat().st_mtime_ns for p in d.iterdir()}
+    assert all(after[k] == before[k] for k in after)
+    assert cli(d, inp, "--overwrite") == 0
