@@ -252,3 +252,15 @@ def test_force_magnitude_is_minus_dV_dr(powers, truncate):
     f = F.pair_force_magnitude(r, sigma, powers, 0.7, truncate)
     far = np.abs(r - rc) > 2 * h
     assert np.allclose(f[far], num[far], rtol=1e-6, atol=1e-8 * np.abs(f).max())
+
+
+def test_temperature_alphas_of_the_memory_langevin_prediction():
+    """alpha = 1 / ratio; a heavier particle keeps more of its kicks (ratio -> 1 as
+    MASS_RATIO grows, the fluid's share vanishing)."""
+    from kapsel.particles.noise import kinetic_temperature_ratios, temperature_alphas
+    rv, ro = kinetic_temperature_ratios(4.0)
+    assert rv == pytest.approx(0.2063, abs=1e-3) and ro == pytest.approx(0.4602, abs=1e-3)
+    av, ao = temperature_alphas(4.0)
+    assert av * rv == pytest.approx(1.0) and ao * ro == pytest.approx(1.0)
+    heavy = kinetic_temperature_ratios(4.0, mass_ratio=100.0)
+    assert rv < heavy[0] < 1.0 and ro < heavy[1] < 1.0

@@ -207,26 +207,9 @@ def brownian_temperature(L=32, n=4, kBT=1.0, t_total=1000.0, t_eq=50.0, seed=7, 
 
 
 def memory_langevin_ratios(a=A, rho=1.0, eta=1.0):
-    """<M V^2>/3kT and <I W^2>/3kT of a sphere (mass 4/3 pi a^3 rho, I = 2/5 M a^2) driven by
-    white noise of strength 2 kT gamma_0 (gamma_0 = 6 pi eta a, 8 pi eta a^3, as ThermalNoise
-    with alpha = 1) in an unbounded non-fluctuating fluid: frequency-dependent friction with
-    added mass and Basset term (translation), the rotational kernel (rotation).  The fluid
-    of the SPM takes the kicks as such a fluid does, so these, not 1, are the expected values.
-    """
-    from scipy.integrate import quad
-    nu = eta / rho
-    M = rho * 4 / 3 * np.pi * a ** 3
-    I = 0.4 * M * a * a
-    g0, g1 = 6 * np.pi * eta * a, 8 * np.pi * eta * a ** 3
-
-    def ft(w):
-        lam = np.sqrt(-1j * w / nu)
-        return 2 * g0 / abs(-1j * w * 1.5 * M + g0 * (1 + a * lam)) ** 2 / np.pi
-
-    def fr(w):
-        la = np.sqrt(-1j * w / nu) * a
-        return 2 * g1 / abs(-1j * w * I + g1 * (1 + la ** 2 / (3 * (1 + la)))) ** 2 / np.pi
-    return M * quad(ft, 0, np.inf, limit=500)[0], I * quad(fr, 0, np.inf, limit=500)[0]
+    """kapsel.particles.noise.kinetic_temperature_ratios (memory-Langevin prediction)."""
+    from kapsel.particles.noise import kinetic_temperature_ratios
+    return kinetic_temperature_ratios(a, rho, eta)
 
 
 @pytest.mark.slow
