@@ -50,9 +50,7 @@ def test_sample_config():
 
 
 def test_shear_fixture_config():
-    path = os.path.join(SHARED, "ex11", "fdm_4096p_shear_1e-2.udf")
-    if not os.path.exists(path):
-        pytest.skip("shared fixtures not beside the checkout")
+    path = os.path.join(HERE, "..", "samples", "kapsel-udf", "ex11", "fdm_4096p_shear_1e-2.udf")
     cfg = config.load(path)
     assert cfg.type == "Shear_NS_LE_CH_FDM" and cfg.shear.kind == "DC"
     assert cfg.shear.shear_rate == 0.01 and cfg.mesh.shape == (128, 128, 128)

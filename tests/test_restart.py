@@ -181,3 +181,26 @@ def test_restart_of_another_type_is_refused(tmp_path, capsys):
     assert cli(d, "cont.udf") == 2
     err = capsys.readouterr().err
     assert "resume.Calculation" in err and "CONTINUE_FDM_PHASE_SEPARATION" in err
+
+
+def test_spectral_restart_in_a_define_that_calls_it_continue_original(tmp_path):
+    """ex11's define.udf names the spectral restart CONTINUE_ORIGINAL (the manual's name)."""
+    d = tmp_path / "orig"
+    inp = make_input(d, "Navier_Stokes", nsnap=1)
+    ex11 = os.path.join(SAMPLES, "kapsel-udf", "ex11", "define.udf")   # fixture copy
+    shutil.copy(ex11, d / "define11.udf")
+    cwd = os.getcwd()
+    os.chdir(d)
+    try:
+        assert main([f"-I{inp}", "-Ooutput.udf", "-Ddefine11.udf", "-Rrestart.udf", "--seed",
+                     "1", "--quiet"]) == 0
+        rs = UDFManager("restart.udf")
+        assert rs.get("resume.Calculation") == "CONTINUE_ORIGINAL"
+        rs.put(2, "output.Num_snap")
+        rs.write("cont.udf")
+        shutil.copy(state_path("restart.udf"), state_path("cont.udf"))
+        assert main(["-Icont.udf", "-Ooutput.udf", "-Ddefine11.udf", "-Rrestart.udf",
+                     "--quiet"]) == 0
+        assert UDFManager("restart.udf").get("resume.CONTINUE_ORIGINAL.Saved_Data.jikan")[0] == 4
+    finally:
+        os.chdir(cwd)

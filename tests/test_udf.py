@@ -13,7 +13,8 @@ HERE = os.path.dirname(__file__)
 SHARED = os.path.join(HERE, "..", "..", "shared", "kapsel-udf")
 SAMPLES = os.path.join(HERE, "..", "samples")
 FIXTURES = sorted(glob.glob(os.path.join(SHARED, "*", "*.udf"))) or \
-    sorted(glob.glob(os.path.join(SAMPLES, "*.udf")))
+    sorted(glob.glob(os.path.join(SAMPLES, "*.udf"))
+           + glob.glob(os.path.join(SAMPLES, "kapsel-udf", "*", "*.udf")))  # fixture copies
 DEFINE = os.path.join(SAMPLES, "define.udf")
 
 

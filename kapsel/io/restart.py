@@ -4,7 +4,7 @@ The restart file is the input's data with ``resume.Calculation`` set and ``Saved
 filled, in the define.udf ``resume`` schema (manual table 7), so it is itself a complete
 input: ``kapsel-py -Irestart.udf ...`` continues the run.
 
-    CONTINUE                        jikan, Particles[] (sParticle), Zeta, uk_dc, oblique
+    CONTINUE (or CONTINUE_ORIGINAL) jikan, Particles[] (sParticle), Zeta, uk_dc, oblique
     CONTINUE_FDM                    jikan, Particles[] (sParticle), U, U_OLD
     CONTINUE_FDM_PHASE_SEPARATION   ... plus PSI, PSI_OLD, STRESS_OLD
 
@@ -37,7 +37,24 @@ from udf import UDFManager
 from .records import OUT_FIELDS, particle_table
 
 STATE_SUFFIX = ".state.npz"
-KINDS = ("CONTINUE", "CONTINUE_FDM", "CONTINUE_FDM_PHASE_SEPARATION")
+KINDS = ("CONTINUE", "CONTINUE_ORIGINAL", "CONTINUE_FDM", "CONTINUE_FDM_PHASE_SEPARATION")
+
+
+def schema_kind(doc: UDFManager, kind: str) -> str:
+    """The name the schema uses for ``kind``: the spectral restart is ``CONTINUE`` in some
+    define.udf versions and ``CONTINUE_ORIGINAL`` (the manual's name) in others."""
+    m, _ = doc.schema.item("resume")
+    names = [mem.name for mem in m.type.members]
+    if kind in ("CONTINUE", "CONTINUE_ORIGINAL"):
+        for k in ("CONTINUE", "CONTINUE_ORIGINAL"):
+            if k in names:
+                return k
+    return kind
+
+
+def same_kind(a: str, b: str) -> bool:
+    alias = {"CONTINUE_ORIGINAL": "CONTINUE"}
+    return alias.get(a, a) == alias.get(b, b)
 
 
 def state_path(restart_path: str) -> str:
@@ -109,6 +126,7 @@ def write_restart(path: str, define_path: str, input_doc: UDFManager, kind: str,
     for name, value in input_doc.common.items():
         if name in doc.schema.global_items:
             doc.common[name] = value
+    kind = schema_kind(doc, kind)
     doc.put(kind, "resume.Calculation")
     base = f"resume.{kind}.Saved_Data"
     doc.put([int(step), float(time)], f"{base}.jikan")

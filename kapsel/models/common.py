@@ -221,7 +221,8 @@ class Model:
     def load_restart(self, saved) -> None:
         """Continue from a restart (kapsel.io.restart.Saved): clock, particles, fields, and
         with the state file the noise stream and R_raw."""
-        if saved.kind != self.restart_kind:
+        from ..io.restart import same_kind
+        if not same_kind(saved.kind, self.restart_kind):
             raise ConfigError(f"{self.cfg.type} continues from a {self.restart_kind} restart, "
                               f"not {saved.kind}", path="resume.Calculation", value=saved.kind)
         exact = saved.exact

@@ -56,11 +56,11 @@ class SpectralModel(Model):
                 f"a CONTINUE restart is continued together with its state file "
                 f"{state_path(self.cfg.input_path)} (missing, or written for other data): "
                 f"the Zeta packing alone does not determine the velocity",
-                path="resume.CONTINUE.Saved_Data.Zeta[]", value="(without state file)")
+                path=f"resume.{self.cfg.resume.calculation}.Saved_Data.Zeta[]", value="(without state file)")
         if exact["u_hat"].shape != self.fluid.u_hat.shape:
             raise ConfigError(f"the restart's velocity has shape {exact['u_hat'].shape}, the "
                               f"mesh needs {self.fluid.u_hat.shape}",
-                              path="resume.CONTINUE.Saved_Data.Zeta[]", value="shape")
+                              path=f"resume.{self.cfg.resume.calculation}.Saved_Data.Zeta[]", value="shape")
         self.fluid.set_velocity_hat(exact["u_hat"])
         self.spm.refresh()
 
