@@ -104,7 +104,7 @@ def test_cli_unknown_select_choice(tmp_path):
 
 
 def test_cli_unimplemented_type_is_named(tmp_path, monkeypatch):
-    from kapsel import simulation
+    from kapsel import models, simulation  # noqa: F401  (register the types first)
     monkeypatch.setattr(simulation, "SOLVERS", {})
     path = sample_copy(tmp_path)
     code = cli.main([f"-I{path}", "-D", str(tmp_path / "define.udf")])
