@@ -364,6 +364,10 @@ def from_document(doc: udf.UDFManager, input_path: str = "") -> RunConfig:
             nb, nc = r.get(f"{p}.Beads_number"), r.get(f"{p}.Chain_number")
             if nb < 1 or nc < 0:
                 r.fail(f"{p}", [nb, nc], "Beads_number must be >= 1 and Chain_number >= 0")
+            if r.has(f"{p}.janus_axis") and r.get(f"{p}.janus_axis") != "NONE" and nc > 0:
+                r.fail(f"{p}.janus_axis", r.get(f"{p}.janus_axis"),
+                       "self-propelled (janus) chain beads are not supported by kapsel-py; "
+                       "set it to NONE")
             species.append(Species(nc, nb, r.positive(f"{p}.MASS_RATIO"),
                                    r.get(f"{p}.Surface_charge")))
     else:
@@ -394,6 +398,14 @@ def from_document(doc: udf.UDFManager, input_path: str = "") -> RunConfig:
     inter = Interactions(EPSILON=r.non_negative("EPSILON"), LJ_powers=r.get("LJ_powers"),
                          LJ_truncate=r.get("switch.LJ_truncate"), G=r.finite("gravity.G"),
                          G_direction=r.get("gravity.G_direction"))
+    if obj == "chain" and particles.count:
+        # FENE bonds (kapsel.particles.chains) scale with EPSILON and need the LJ repulsion
+        if inter.EPSILON <= 0:
+            r.fail("EPSILON", inter.EPSILON, "chains need EPSILON > 0 (the FENE bond constant "
+                                             "is 30 EPSILON / (2 A)^2)")
+        if inter.LJ_truncate == "NONE":
+            r.fail("switch.LJ_truncate", "NONE", "chains need the excluded volume of the LJ "
+                                                 "forces (ON or OFF)")
 
     # ---- switches ----------------------------------------------------------------------
     dist = r.get("switch.INIT_distribution.type")
@@ -402,6 +414,10 @@ def from_document(doc: udf.UDFManager, input_path: str = "") -> RunConfig:
         r.fail("switch.INIT_distribution.random_walk.iteration", rw, "must be zero or positive")
     user = np.asarray(doc.getArray("switch.INIT_distribution.user_specify.Particles[]"),
                       dtype=float).reshape(-1, 13)
+    if obj != "spherical_particle" and dist in ("FCC", "BCC") and particles.count:
+        r.fail("switch.INIT_distribution.type", dist,
+               f"lattice placement is for spherical particles; {obj} objects are placed by "
+               f"uniform_random / random_walk (random, non-overlapping) or user_specify")
     if dist == "user_specify" and particles.count and len(user) < particles.count:
         r.fail("switch.INIT_distribution.user_specify.Particles[]", len(user),
                f"user_specify needs one entry per particle ({particles.count} particles)")
@@ -413,11 +429,21 @@ def from_document(doc: udf.UDFManager, input_path: str = "") -> RunConfig:
             bad = [i for i in ids if not 0 <= i < max(particles.count, 1)]
             if bad:
                 r.fail(p_, bad, f"particle ids must lie in 0..{particles.count - 1}")
+        if obj == "rigid" and (pin or pin_rot):
+            r.fail("switch.pin.type", "YES", "pinning is for spherical particles and chain "
+                                             "beads; hold rigid bodies with Rigid_motion fix "
+                                             "or switch.free_rigid")
     free_rigid = ()
     if r.has("switch.free_rigid.type") and r.get("switch.free_rigid.type") == "YES":
+        if obj != "rigid":
+            r.fail("switch.free_rigid.type", "YES", "free_rigid applies to object_type rigid "
+                                                    "only; set it to NO")
         rows = []
-        for dof in r.get("switch.free_rigid.YES.DOF[]"):
+        for k, dof in enumerate(r.get("switch.free_rigid.YES.DOF[]")):
             sid, vel, om = dof
+            if not 0 <= sid < len(species):
+                r.fail(f"switch.free_rigid.YES.DOF[{k}].spec_id", sid,
+                       f"must be a Rigid_spec index, 0..{len(species) - 1}")
             rows.append((sid, tuple(x == "YES" for x in vel), tuple(x == "YES" for x in om)))
         free_rigid = tuple(rows)
     for opt, off in (("switch.wall.type", "NONE"), ("switch.quincke.type", "OFF"),

@@ -2,7 +2,11 @@
 
 Each record holds ``E`` (total kinetic energy of fluid and particles), ``t`` (time, in units
 of tau) and ``Particles[]`` with every ``outParticle`` member the define.udf lists (R, R_raw,
-v, q, omega, f_hydro, torque_hydro, f_r, torque_r, f_slip, torque_slip).  ``float`` values
+v, q, omega, f_hydro, torque_hydro, f_r, torque_r, f_slip, torque_slip); with rigid bodies
+(object_type rigid) also ``RigidParticles[]``, one entry per body: centre of mass R, R_raw,
+V, q, Omega, and the bead forces / torques summed about the centre (kapsel.particles.rigid).
+The schema has no item for the bodies' rotational energy (it is part of ``E``; ``kapsel-py
+analyze erotate`` computes it per body from the records).  ``float`` values
 are written at single precision, as OCTA stores them.
 
 The header and common part are written once (atomically); each record is then appended with
@@ -57,6 +61,8 @@ class OutputUDF:
                 self.doc.common[name] = value
         m, _ = self.doc.schema.item("Particles")
         self.particle_type = m.type if m is not None else None
+        m, _ = self.doc.schema.item("RigidParticles")
+        self.rigid_type = m.type if m is not None else None
         if not append or not os.path.exists(path):
             atomic_write_text(path, self.doc.pieces())
 
@@ -104,6 +110,9 @@ class OutputUDF:
         self.doc.put(float(time), "t")
         if particles is not None and particles.n and self.particle_type is not None:
             self.doc.put(particle_table(particles, self.particle_type), "Particles[]")
+        bodies = getattr(getattr(particles, "constraints", None), "state", None)
+        if bodies is not None and bodies.n and self.rigid_type is not None:
+            self.doc.put(particle_table(bodies, self.rigid_type), "RigidParticles[]")
         for name, value in (extra or {}).items():
             self.doc.put(value, name)
         text = "".join(map(str, self.doc.record_pieces(self.doc.records[0])))

@@ -34,11 +34,10 @@ def random_seed(args) -> int:
 
 
 def make_particles(cfg: RunConfig, rng: np.random.Generator) -> ParticleState:
-    """Spherical particles of every species, placed and oriented as the input asks."""
-    if cfg.particles.object_type != "spherical_particle" and cfg.particles.count:
-        raise ConfigError(f"object_type {cfg.particles.object_type!r} is not implemented yet "
-                          f"in kapsel-py (spherical_particle is)", path="object_type.type",
-                          value=cfg.particles.object_type)
+    """Spheres, chain beads (kapsel.particles.chains) or rigid-body beads
+    (kapsel.particles.rigid) of every species, placed and oriented as the input asks;
+    ``constraints`` set for rigid bodies and pinned particles."""
+    obj = cfg.particles.object_type
     species, ratio = [], []
     for k, s in enumerate(cfg.particles.species):
         species += [k] * s.particles
@@ -54,7 +53,15 @@ def make_particles(cfg: RunConfig, rng: np.random.Generator) -> ParticleState:
     kind = cfg.switches.init_distribution
     user = cfg.switches.user_particles
     try:
-        if kind == "uniform_random":
+        if obj == "rigid":
+            from ..particles.rigid import build_bodies
+            p.constraints = build_bodies(cfg, p, rng)
+            return p
+        if obj == "chain" and kind != "user_specify":
+            from ..particles.chains import random_walk_chains
+            per_chain = [s.beads for s in cfg.particles.species for _ in range(s.number)]
+            R = random_walk_chains(per_chain, A, box, rng)
+        elif kind == "uniform_random":
             R = placement.uniform_random(n, radius, box, rng)
         elif kind == "random_walk":
             R = placement.random_walk(n, radius, box, cfg.switches.random_walk_iterations, rng)
@@ -76,16 +83,22 @@ def make_particles(cfg: RunConfig, rng: np.random.Generator) -> ParticleState:
     user_q = user[:n, 6:10] if okind == "user_specify" else None
     p.q[:] = placement.orientations(okind, n, rng, user_q)
     p.q_old[:] = p.q
+    if cfg.switches.pin or cfg.switches.pin_rot:
+        from ..particles.motion import Pinned
+        p.constraints = Pinned(cfg.switches.pin, cfg.switches.pin_rot)
+        p.constraints.hold(p)
     return p
 
 
 def make_forces(cfg: RunConfig, particles: ParticleState):
-    """``forces(p) -> (F, T, min_ratio)``: pair interactions (skipped for LJ_truncate NONE)
-    and net gravity; None when a scene has neither."""
+    """``forces(p) -> (F, T, min_ratio)``: pair interactions (skipped for LJ_truncate NONE;
+    not between beads of one rigid body), FENE bonds of chains (kapsel.particles.chains)
+    and net gravity; None when a scene has none of them."""
     inter = cfg.interactions
     pairs = inter.LJ_truncate != "NONE" and particles.n > 1 and inter.EPSILON > 0
     gravity = inter.G != 0 and particles.n > 0
-    if not (pairs or gravity):
+    chain = cfg.particles.object_type == "chain" and particles.n > 1
+    if not (pairs or gravity or chain):
         return None
     from ..particles import forces as pf
     box = cfg.mesh.box
@@ -94,15 +107,27 @@ def make_forces(cfg: RunConfig, particles: ParticleState):
         ratio = np.array([cfg.particles.species[s].MASS_RATIO for s in particles.species])
         g = pf.gravity_force(particles.radius, ratio, cfg.fluid.RHO, inter.G, inter.G_direction)
     zeros = np.zeros((particles.n, 3))
+    group = getattr(particles.constraints, "body", None)     # beads of one rigid body
+    bonds = None
+    if cfg.particles.object_type == "chain":
+        from ..particles import chains
+        bonds = chains.chain_bonds([s.beads for s in cfg.particles.species
+                                    for _ in range(s.number)])
 
     def forces(p):
         if pairs:
             F, _, ratio_min = pf.pair_forces(p.R, box, p.radius, inter.LJ_powers, inter.EPSILON,
-                                             inter.LJ_truncate)
+                                             inter.LJ_truncate, group=group)
         else:
             F, ratio_min = zeros.copy(), np.inf
         if g is not None:
             F = F + g
+        if bonds is not None:
+            Fb, stretch = chains.fene_forces(p.R, box, p.radius, *bonds, inter.EPSILON)
+            if stretch >= chains.BOND_BREAK:
+                raise FloatingPointError(f"a chain bond stretched to {stretch:.3f} of the FENE "
+                                         f"maximum R0 = {chains.FENE_R0} (2 A)")
+            F = F + Fb
         return F, zeros, ratio_min
     return forces
 

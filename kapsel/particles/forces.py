@@ -141,7 +141,7 @@ def pair_dVdr(r, sigma, kind="12:6", epsilon=1.0, truncate="ON"):
     return -pair_force_magnitude(r, sigma, kind, epsilon, truncate)
 
 
-def pair_forces(R, box, radius, kind="12:6", epsilon=1.0, truncate="ON"):
+def pair_forces(R, box, radius, kind="12:6", epsilon=1.0, truncate="ON", group=None):
     """Pair forces F_i^other (eq 9) -> (F (N, 3), U_total, min_ratio).
 
     kind is LJ_powers ('12:6', '24:12', '36:18', 'macro_vdw'), epsilon is EPSILON
@@ -151,7 +151,8 @@ def pair_forces(R, box, radius, kind="12:6", epsilon=1.0, truncate="ON"):
     R_j - R_i.  Nothing is capped (as in KAPSEL); instead min_ratio, the smallest
     r/sigma among the pairs inside the cutoff (inf if none), is returned so the
     caller can stop on deep overlap, e.g. min_ratio < DEEP_OVERLAP_RATIO
-    (coincident particles give non-finite F).
+    (coincident particles give non-finite F).  ``group`` (N,) ints: pairs i, j with
+    group[i] == group[j] >= 0 do not interact (the beads of one rigid body).
     """
     R = np.asarray(R, dtype=float).reshape(-1, 3)
     n = len(R)
@@ -167,6 +168,9 @@ def pair_forces(R, box, radius, kind="12:6", epsilon=1.0, truncate="ON"):
     r = np.sqrt(np.einsum("ij,ij->i", dr, dr))
     sigma = radius[i] + radius[j]
     keep = r < rc * sigma
+    if group is not None:
+        group = np.asarray(group)
+        keep &= (group[i] != group[j]) | (group[i] < 0)
     i, j, dr, r, sigma = i[keep], j[keep], dr[keep], r[keep], sigma[keep]
     if len(i) == 0:
         return F, 0.0, np.inf

@@ -7,6 +7,12 @@ Velocities by an explicit step with the momentum-exchange force of the step (plu
 impulses dP = ∫G^V dt, dL = ∫G^Omega dt); positions by Crank-Nicolson,
 R^{n+1} = R^n + dt (V^n + V^{n+1}) / 2 (§5.2, as the original); orientations by
 kapsel.particles.quaternion.integrate with the mean angular velocity of the step.
+
+``Pinned`` (switch.pin): the motion of free particles with the velocities of the ``pin[]``
+particles and the angular velocities of the ``pin_rot[]`` particles held at zero, so they
+neither move nor turn (their hydrodynamic force and torque are still computed and recorded).
+spm.SPM uses ``ParticleState.constraints`` (a Pinned, a rigid.RigidBodies, or None for
+these free-particle functions) for the velocity and position updates.
 """
 from __future__ import annotations
 
@@ -17,7 +23,7 @@ try:
 except ImportError:  # pragma: no cover - the quaternion module is in the repo
     _integrate_q = None
 
-__all__ = ["update_velocities", "update_positions"]
+__all__ = ["update_velocities", "update_positions", "Pinned"]
 
 
 def _q_integrate(q, omega, dt):
@@ -84,3 +90,23 @@ def update_positions(p, dt, box, rotation):
         p.q_old[...] = p.q
         p.q[...] = _q_integrate(p.q, 0.5 * (p.omega_old + p.omega), dt)
     return p
+
+
+class Pinned:
+    """Free particles except that pin[] velocities and pin_rot[] angular velocities are 0."""
+
+    def __init__(self, pin=(), pin_rot=()):
+        self.pin = np.asarray(pin, dtype=np.int64)
+        self.pin_rot = np.asarray(pin_rot, dtype=np.int64)
+
+    def hold(self, p):
+        p.v[self.pin] = 0.0
+        p.omega[self.pin_rot] = 0.0
+
+    def update_velocities(self, p, *args, **kwargs):
+        update_velocities(p, *args, **kwargs)
+        self.hold(p)
+        return p
+
+    def update_positions(self, p, dt, box, rotation):
+        return update_positions(p, dt, box, rotation)

@@ -19,6 +19,10 @@ One ``step()``:
    the k = 0 mean of du), MAC ``u += du; project(u)`` (the projection keeps the mean);
 5. R, q by Crank-Nicolson (§5.2), new profiles.
 
+Steps 3 and 5 are those of free particles (motion.update_velocities / update_positions) or,
+when ``particles.constraints`` is set, its own (motion.Pinned: pinned particles;
+rigid.RigidBodies: beads moving as rigid bodies).
+
 Conserved momentum
 ------------------
 Write V_p,i = DX^3 sum_x phi_i (grid volume) and take r about the discrete centroid of each
@@ -56,7 +60,7 @@ from __future__ import annotations
 import numpy as np
 
 from .coupling import hydro_force_torque, particle_velocity_field, rigidity_increment
-from .motion import update_positions, update_velocities
+from . import motion as _free_motion
 from .profile import Stencil, particle_profiles, total_phi
 
 __all__ = ["SPM"]
@@ -106,6 +110,7 @@ class SPM:
         self.excess_mass = particles.mass - self.rho * vol
         self.excess_inertia = particles.inertia - 0.4 * self.rho * vol * a ** 2
         self.step_index = 0
+        self.motion = getattr(particles, "constraints", None) or _free_motion
         if particles.n:
             self._profiles()
             if impose:
@@ -195,12 +200,12 @@ class SPM:
             dP = dL = None
             if self.noise is not None:
                 dP, dL = self.noise(p.n, self.dt)
-            update_velocities(p, F_H, T_H, F_o, T_o, self.dt, self.rotation, dP, dL,
-                              mass=self.mass, inertia=self.inertia)
+            self.motion.update_velocities(p, F_H, T_H, F_o, T_o, self.dt, self.rotation, dP,
+                                          dL, mass=self.mass, inertia=self.inertia)
             du = rigidity_increment(u, self.idx, self.phi_i, self.r, p.v, p.omega, self.size,
                                     out=self._du)
             self._add_solenoidal(du)
-            update_positions(p, self.dt, self.box, self.rotation)
+            self.motion.update_positions(p, self.dt, self.box, self.rotation)
             self._profiles()
         self.step_index += 1
 

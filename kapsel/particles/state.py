@@ -23,6 +23,8 @@ class ParticleState:
 
     species[i] indexes the Particle_spec / Chain_spec / Rigid_spec entry of particle i.
     radius, mass and inertia are per particle (M = MASS_RATIO RHO 4/3 pi A^3, I = 2/5 M A^2).
+    constraints: None for free particles, else the object whose update_velocities /
+    update_positions replace the free ones (motion.Pinned, rigid.RigidBodies).
     """
     n: int
     species: np.ndarray
@@ -49,6 +51,7 @@ class ParticleState:
     torque_r_previous: np.ndarray = field(default=None)
     torque_slip: np.ndarray = field(default=None)
     torque_slip_previous: np.ndarray = field(default=None)
+    constraints: object = field(default=None, compare=False)
 
     def __post_init__(self):
         for name in VECTOR_FIELDS:
@@ -71,5 +74,7 @@ class ParticleState:
 
     def copy(self) -> "ParticleState":
         kw = {name: getattr(self, name).copy() for name in VECTOR_FIELDS + ("q", "q_old")}
+        import copy
         return ParticleState(n=self.n, species=self.species.copy(), radius=self.radius.copy(),
-                             mass=self.mass.copy(), inertia=self.inertia.copy(), **kw)
+                             mass=self.mass.copy(), inertia=self.inertia.copy(),
+                             constraints=copy.deepcopy(self.constraints), **kw)
