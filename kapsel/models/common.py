@@ -236,12 +236,17 @@ class Model:
     def restart_state(self):
         """(kind, Saved_Data fields, exact state) of the current state."""
         exact = dict(self.exact_state())
+        fields = self.restart_fields()
         if self.particles is not None and self.particles.n:
             exact["R_raw"] = self.particles.R_raw.copy()
+            bodies = self.particles.constraints
+            if hasattr(bodies, "restart_items"):          # rigid bodies: GR_* and body state
+                fields = {**fields, **bodies.restart_items()}
+                exact.update(bodies.exact_items())
         gen = _noise_generator(self)
         if gen is not None:
             exact["noise"] = gen.get_state()
-        return self.restart_kind, self.restart_fields(), exact
+        return self.restart_kind, fields, exact
 
     def load_restart(self, saved) -> None:
         """Continue from a restart (kapsel.io.restart.Saved): clock, particles, fields, and
@@ -267,6 +272,8 @@ class Model:
                 raise ConfigError(str(e), path=f"resume.{saved.kind}.Saved_Data.Particles[]",
                                   value=saved.particles.shape[0]) from None
             p.R_raw[:] = exact["R_raw"] if exact and "R_raw" in exact else p.R
+            if hasattr(p.constraints, "restore"):            # rigid bodies from their beads
+                p.constraints.restore(p, exact)
         gen = _noise_generator(self)
         if gen is not None and exact and "noise" in exact:
             gen.set_state(exact["noise"])

@@ -48,7 +48,7 @@ import numpy as np
 from . import quaternion as quat
 from .cells import minimum_image
 from .motion import update_velocities as _free_velocities
-from .state import ParticleState
+from .state import VECTOR_FIELDS, ParticleState
 
 __all__ = ["RigidBodies", "rod_shape", "place_bodies", "inertia_tensors", "build_bodies"]
 
@@ -231,6 +231,45 @@ class RigidBodies:
         s.q[...] = quat.integrate(s.q, 0.5 * (s.omega_old + s.omega), dt)
         self.place_beads(p)
         return p
+
+    # ------------------------------------------------------------------ restart
+    def restart_items(self) -> dict:
+        """The restart schema's GR_body[] (N, 3), GR_masses[] (B,), GR_moments_body[] (B, 9)."""
+        return {"GR_body": self.body_positions.copy(), "GR_masses": self.masses.copy(),
+                "GR_moments_body": self.moments_body.reshape(-1, 9).copy()}
+
+    def exact_items(self) -> dict:
+        """The body state by name ('rigid_<field>'), for a bit-identical continuation."""
+        s = self.state
+        return {f"rigid_{k}": getattr(s, k).copy() for k in VECTOR_FIELDS + ("q", "q_old")}
+
+    def restore(self, p, exact=None):
+        """Body state after the beads ``p`` were read back from a restart: from
+        ``exact_items`` when given, else from the beads (q and Omega of each body's first
+        bead, V the mass-weighted mean bead velocity, R_g the centre of the beads)."""
+        s = self.state
+        if exact and all(k in exact for k in self.exact_items()):
+            for k, v in self.exact_items().items():
+                getattr(s, k[len("rigid_"):])[...] = exact[k]
+            return
+        first = np.full(self.nb, len(self.body))
+        np.minimum.at(first, self.body, np.arange(len(self.body)))
+        m, b, nb = self.bead_mass, self.body, self.nb
+        s.q[:] = quat.normalise(p.q[first])
+        s.q_old[:] = quat.normalise(p.q_old[first])
+        s.omega[:] = p.omega[first]
+        s.omega_old[:] = p.omega_old[first]
+        for k in ("v", "v_old"):
+            getattr(s, k)[:] = _sum(b, m[:, None] * getattr(p, k), nb) / self.masses[:, None]
+        est = p.R_raw - self.offsets()                 # each bead's idea of its centre
+        est = est[first][b] + minimum_image(est - est[first][b], self.box)
+        s.R_raw[:] = _sum(b, m[:, None] * est, nb) / self.masses[:, None]
+        s.R[:] = np.mod(s.R_raw, self.box)
+        r = self.offsets()
+        s.f_hydro[:] = _sum(b, p.f_hydro, nb)
+        s.f_r[:] = _sum(b, p.f_r, nb)
+        s.torque_hydro[:] = _sum(b, np.cross(r, p.f_hydro) + p.torque_hydro, nb)
+        s.torque_r[:] = _sum(b, np.cross(r, p.f_r) + p.torque_r, nb)
 
     # ------------------------------------------------------------------ diagnostics
     def inertia_space(self) -> np.ndarray:
