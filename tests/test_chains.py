@@ -163,3 +163,22 @@ def test_kapsel_py_runs_chains(tmp_path, eq):
         assert u.size("Particles[]") == 11 and u.size("RigidParticles[]") == 0
         b = chains.bond_lengths(np.array(u.getArray("Particles[].R")), BOX, i, j) / (2 * A)
         assert np.all((b > 0.9) & (b < 1.1))
+
+
+def test_user_specified_chains_need_bonds_shorter_than_r0(tmp_path):
+    from kapsel.models.common import make_particles
+    X = [[4.0, 4, 4], [12.0, 4, 4], [12.0, 12, 4], [20.0, 12, 4], [20.0, 20, 4], [20.0, 20, 12],
+         [4.0, 20, 20], [12.0, 20, 20], [12.0, 28, 20], [20.0, 28, 20], [20.0, 28, 28],
+         [28.0, 28, 28]]
+    parts = np.array([x + [0.0, 0, 0, 1, 0, 0, 0, 0, 0, 0] for x in X])
+    path = chain_input(tmp_path, switch__INIT_distribution__type="user_specify")
+    u = UDFManager(path)
+    u.put(parts, "switch.INIT_distribution.user_specify.Particles[]")
+    u.write(path)
+    p = make_particles(config.load(path), np.random.default_rng(0))
+    assert np.allclose(p.R, X)
+    parts[7, :3] = [16.0, 20, 20]                                # bond 6-7 of length 12
+    u.put(parts, "switch.INIT_distribution.user_specify.Particles[]")
+    u.write(path)
+    with pytest.raises(config.ConfigError, match="beads 6 and 7 is 12 long"):
+        make_particles(config.load(path), np.random.default_rng(0))

@@ -89,6 +89,18 @@ def test_rod_inertia_and_rotational_energy():
     assert b.rotational_energies()[0] == pytest.approx(0.5 * p.inertia[0] * 0.14, rel=1e-12)
 
 
+def test_record_energy_holds_body_translation_and_rotation():
+    """E (common.kinetic_energy) sums the beads: 1/2 M V^2 + E_rot of every body."""
+    from kapsel.models.common import kinetic_energy
+    q = quat.from_axis_angle([[0.3, -1.0, 0.5]], np.array([1.1]))
+    p, b = one_body(rod_shape(3, A), free=(False, False), v_fixed=(0.01, -0.02, 0.005),
+                    o_fixed=(0.003, 0.001, -0.002), q=q)
+    e = kinetic_energy(1.0, 1.0, np.zeros((3, 4, 4, 4)), None, p)
+    V = b.state.v[0]
+    assert e == pytest.approx(0.5 * b.masses[0] * V @ V + b.rotational_energies()[0],
+                              rel=1e-12)
+
+
 def test_force_and_torque_summed_about_the_centre():
     p, b = one_body(rod_shape(3, A))
     F = np.zeros((3, 3))

@@ -57,10 +57,16 @@ def make_particles(cfg: RunConfig, rng: np.random.Generator) -> ParticleState:
             from ..particles.rigid import build_bodies
             p.constraints = build_bodies(cfg, p, rng)
             return p
-        if obj == "chain" and kind != "user_specify":
-            from ..particles.chains import random_walk_chains
+        if obj == "chain":
+            from ..particles import chains
             per_chain = [s.beads for s in cfg.particles.species for _ in range(s.number)]
-            R = random_walk_chains(per_chain, A, box, rng)
+            if kind != "user_specify":
+                R = chains.random_walk_chains(per_chain, A, box, rng)
+            else:
+                R = user[:n, 0:3].copy()
+                chains.check_bonds(R, box, A, per_chain)
+                p.v[:] = user[:n, 3:6]
+                p.omega[:] = user[:n, 10:13]
         elif kind == "uniform_random":
             R = placement.uniform_random(n, radius, box, rng)
         elif kind == "random_walk":

@@ -18,7 +18,8 @@ Tolerance: for kBT <= EPSILON the bonds stay within 0.9 .. 1.1 sigma (measured 0
 1.016 sigma over 500 steps at kBT = EPSILON = 1, A = 4; tests/test_chains.py).
 
 Initial placement: every chain a self-avoiding random walk of bond length sigma (beads closer
-than sigma to any placed bead are rejected), in the periodic box.
+than sigma to any placed bead are rejected), in the periodic box; or the user_specify
+positions, whose bonds must be shorter than R0 (``check_bonds``).
 """
 from __future__ import annotations
 
@@ -27,7 +28,7 @@ import numpy as np
 from .cells import minimum_image
 
 __all__ = ["FENE_K", "FENE_R0", "BOND_BREAK", "chain_bonds", "fene_forces", "fene_energy",
-           "random_walk_chains", "bond_lengths"]
+           "random_walk_chains", "bond_lengths", "check_bonds"]
 
 FENE_K = 30.0      # K sigma^2 / EPSILON
 FENE_R0 = 1.5      # R0 / sigma
@@ -77,6 +78,19 @@ def fene_energy(r, sigma, epsilon) -> np.ndarray:
     x2 = (r / R0) ** 2
     with np.errstate(divide="ignore", invalid="ignore"):
         return np.where(x2 < 1.0, -0.5 * K * R0 ** 2 * np.log1p(-np.minimum(x2, 1.0)), np.inf)
+
+
+def check_bonds(R, box, radius, beads_per_chain):
+    """ValueError naming the first bond of given positions that is at least BOND_BREAK R0
+    long (the FENE spring could not hold it)."""
+    i, j = chain_bonds(beads_per_chain)
+    r = bond_lengths(R, box, i, j)
+    bad = np.flatnonzero(r >= BOND_BREAK * FENE_R0 * 2.0 * float(radius))
+    if len(bad):
+        k = bad[0]
+        raise ValueError(f"the bond between beads {i[k]} and {j[k]} is {r[k]:g} long; FENE "
+                         f"bonds must be shorter than R0 = {FENE_R0 * 2.0 * float(radius):g} "
+                         f"(1.5 x 2 A)")
 
 
 def _random_units(rng, m):
