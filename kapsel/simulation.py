@@ -94,6 +94,10 @@ def run(cfg, args, input_doc, model, resumed: bool = False) -> int:
         from .io.fields import FieldWriter
         fields = FieldWriter(out_dir, cfg.mesh.shape, cfg.mesh.DX,
                              fields=tuple(model.fields()), resume=resumed)
+    shear_log = None
+    if hasattr(model, "shear_record"):
+        from .io.records import ShearLog
+        shear_log = ShearLog(os.path.join(out_dir, "shear_stress.dat"), append=resumed)
     total = cfg.output.total_steps
     progress = Progress(total, quiet=args.quiet)
     start = model.step_index
@@ -104,9 +108,15 @@ def run(cfg, args, input_doc, model, resumed: bool = False) -> int:
         n = model.step_index // cfg.output.GTS
         check_finite(model)
         check_step(model)
+        items = model.record_items()
+        if shear_log is not None:
+            shear = model.shear_record()
+            shear_log.write(model.step_index, model.time, shear)
+            if output is not None:
+                items.update({k: v for k, v in shear.items() if output.has_record_item(k)})
         if output is not None and record:
             output.add_record(model.step_index, model.time, model.kinetic_energy(),
-                              model.particles, model.record_items())
+                              model.particles, items)
         if fields is not None:
             fields.write(n, model.time, **model.fields())
         save_restart()

@@ -97,6 +97,11 @@ class OutputUDF:
         old.jump(old.totalRecord() - 1)
         return float(old.get("t"))
 
+    def has_record_item(self, name: str) -> bool:
+        """Whether the define file declares ``name`` as a record item."""
+        m, is_global = self.doc.schema.item(name)
+        return m is not None and not is_global
+
     def put(self, name: str, value) -> None:
         """Set a common (global) item, e.g. an updated resume section."""
         self.doc.put(value, name)
@@ -121,3 +126,21 @@ class OutputUDF:
             fh.flush()
             os.fsync(fh.fileno())
         self.doc.records = []
+
+
+class ShearLog:
+    """``shear_stress.dat``: one line per snapshot of a sheared type (step, t, applied strain,
+    shear rate, shear stress sigma_xy), flushed at once."""
+
+    HEADER = "# step t Shear_strain Shear_rate Shear_stress\n"
+
+    def __init__(self, path: str, append: bool = False):
+        self.path = path
+        if not append or not os.path.exists(path):
+            with open(path, "w", encoding="utf-8") as fh:
+                fh.write(self.HEADER)
+
+    def write(self, step: int, time: float, items: dict) -> None:
+        with open(self.path, "a", encoding="utf-8") as fh:
+            fh.write(f"{step} {time:.10g} {items['Shear_strain']:.10g} "
+                     f"{items['Shear_rate']:.10g} {items['Shear_stress']:.10g}\n")

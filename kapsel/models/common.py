@@ -96,10 +96,11 @@ def make_particles(cfg: RunConfig, rng: np.random.Generator) -> ParticleState:
     return p
 
 
-def make_forces(cfg: RunConfig, particles: ParticleState):
+def make_forces(cfg: RunConfig, particles: ParticleState, strain=None):
     """``forces(p) -> (F, T, min_ratio)``: pair interactions (skipped for LJ_truncate NONE;
     not between beads of one rigid body), FENE bonds of chains (kapsel.particles.chains)
-    and net gravity; None when a scene has none of them."""
+    and net gravity; None when a scene has none of them.  ``strain()``: the Lees-Edwards frame strain of the
+    sheared types (pairs by the Lees-Edwards minimum image)."""
     inter = cfg.interactions
     pairs = inter.LJ_truncate != "NONE" and particles.n > 1 and inter.EPSILON > 0
     gravity = inter.G != 0 and particles.n > 0
@@ -123,7 +124,8 @@ def make_forces(cfg: RunConfig, particles: ParticleState):
     def forces(p):
         if pairs:
             F, _, ratio_min = pf.pair_forces(p.R, box, p.radius, inter.LJ_powers, inter.EPSILON,
-                                             inter.LJ_truncate, group=group)
+                                             inter.LJ_truncate, group=group,
+                                             strain=strain() if strain is not None else 0.0)
         else:
             F, ratio_min = zeros.copy(), np.inf
         if g is not None:

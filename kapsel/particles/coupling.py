@@ -9,6 +9,11 @@
   phi f_p dt of eq 8 before the pressure (solenoidal) projection.
 
 idx (N, S) flat indices, phi (N, S), r (N, S, 3); u is (3, NX, NY, NZ) (or (3, size)).
+
+``shear`` (gamma_dot, default 0): u is the deviation from an imposed shear flow
+gamma_dot (y - y0) e_x and V the particle velocity minus that flow at its centre; the rigid
+motion then deviates from the imposed flow by V + Omega x r - gamma_dot r_y e_x
+(kapsel.fluid.oblique, the Lees-Edwards types).
 """
 from __future__ import annotations
 
@@ -77,8 +82,9 @@ def particle_velocity_field(idx, phi, r, V, Omega, size, shape=None):
     return _scatter(w, idx, size, shape)
 
 
-def _slip(u, idx, phi, r, V, Omega):
-    """phi_i (u - V_i - Omega_i x r) at the stencil points, (3, N, S) scratch buffer."""
+def _slip(u, idx, phi, r, V, Omega, shear=0.0):
+    """phi_i (u - V_i - Omega_i x r [+ shear r_y e_x]) at the stencil points, (3, N, S)
+    scratch buffer."""
     V = np.asarray(V, dtype=float)
     W = np.asarray(Omega, dtype=float)
     w = sample(u, idx, out=_buf("w", (3,) + idx.shape))
@@ -90,6 +96,8 @@ def _slip(u, idx, phi, r, V, Omega):
         np.multiply(r[..., a], W[:, b:b + 1], out=t)
         wc += t
         wc -= V[:, c:c + 1]
+        if c == 0 and shear:
+            wc += shear * r[..., 1]
         wc *= phi
     return w
 
@@ -103,23 +111,29 @@ def _force_torque(w, r, scale):
     return F, T
 
 
-def hydro_force_torque(u, idx, phi, r, V, Omega, rho, dx, dt):
+def hydro_force_torque(u, idx, phi, r, V, Omega, rho, dx, dt, shear=0.0):
     """Eqs 11-12 by momentum exchange: (F_H (N, 3), N_H (N, 3)) from u* (after the fluid step).
 
     F_i = RHO DX^3 / dt sum phi_i (u* - V_i - Omega_i x r), N_i = same with r x (...).
     """
-    w = _slip(u, idx, phi, r, V, Omega)
+    w = _slip(u, idx, phi, r, V, Omega, shear)
     return _force_torque(w, r, rho * dx ** 3 / dt)
 
 
-def rigidity_increment(u, idx, phi, r, V, Omega, size=None, out=None):
+def rigidity_increment(u, idx, phi, r, V, Omega, size=None, out=None, shear=0.0, moment=None):
     """du = sum_i phi_i (V_i + Omega_i x r) - phi u (eq 6 imposed; phi f_p dt of eq 8).
 
     Shaped like u (written into ``out`` if given).  Still to be made solenoidal by the
     caller (SpectralNS.add_solenoidal, or u += du followed by MACSolver.project(u)).
     Computed only at the stencil points: du = -sum_i phi_i (u - V_i - Omega_i x r).
+    ``moment`` (3, 3) array: receives sum_i sum_x du_a r_b, the first moment of the increment
+    about each particle (the particle stress, kapsel.models.shear).
     """
     size = u[0].size if size is None else size
-    w = _slip(u, idx, phi, r, V, Omega)
+    w = _slip(u, idx, phi, r, V, Omega, shear)
     w *= -1.0
+    if moment is not None:
+        for a in range(3):
+            for b in range(3):
+                moment[a, b] = float(np.einsum("ns,ns->", w[a], r[..., b]))
     return _scatter(w, idx, size, u.shape[1:], out=out)

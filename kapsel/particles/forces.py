@@ -141,7 +141,8 @@ def pair_dVdr(r, sigma, kind="12:6", epsilon=1.0, truncate="ON"):
     return -pair_force_magnitude(r, sigma, kind, epsilon, truncate)
 
 
-def pair_forces(R, box, radius, kind="12:6", epsilon=1.0, truncate="ON", group=None):
+def pair_forces(R, box, radius, kind="12:6", epsilon=1.0, truncate="ON", group=None,
+                strain=0.0):
     """Pair forces F_i^other (eq 9) -> (F (N, 3), U_total, min_ratio).
 
     kind is LJ_powers ('12:6', '24:12', '36:18', 'macro_vdw'), epsilon is EPSILON
@@ -153,6 +154,9 @@ def pair_forces(R, box, radius, kind="12:6", epsilon=1.0, truncate="ON", group=N
     caller can stop on deep overlap, e.g. min_ratio < DEEP_OVERLAP_RATIO
     (coincident particles give non-finite F).  ``group`` (N,) ints: pairs i, j with
     group[i] == group[j] >= 0 do not interact (the beads of one rigid body).
+    ``strain`` g: Lees-Edwards images (the image across y = Ly displaced by g Ly along x):
+    the pairs are found in the oblique coordinates x - g y, where the images are periodic
+    (valid while the cutoff (1 + |g|) stays below half the box).
     """
     R = np.asarray(R, dtype=float).reshape(-1, 3)
     n = len(R)
@@ -162,7 +166,17 @@ def pair_forces(R, box, radius, kind="12:6", epsilon=1.0, truncate="ON", group=N
         return F, 0.0, np.inf
     radius = np.broadcast_to(np.asarray(radius, dtype=float), (n,))
     rc = interaction_range(p, t)
-    i, j, dr = pairs_within(R, box, rc * 2.0 * float(radius.max()))
+    rcut = rc * 2.0 * float(radius.max())
+    if strain:
+        L = np.asarray(box, dtype=float)
+        Ro = R.copy()
+        Ro[:, 0] = np.mod(R[:, 0] - strain * R[:, 1], L[0])
+        Ro[Ro[:, 0] >= L[0], 0] = 0.0
+        i, j, dr = pairs_within(Ro, box, rcut * (1.0 + abs(strain)))
+        dr = np.array(dr, dtype=float).reshape(-1, 3)
+        dr[:, 0] += strain * dr[:, 1]
+    else:
+        i, j, dr = pairs_within(R, box, rcut)
     if len(i) == 0:
         return F, 0.0, np.inf
     r = np.sqrt(np.einsum("ij,ij->i", dr, dr))

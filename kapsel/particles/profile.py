@@ -43,15 +43,27 @@ def g(x, A, xi, dx=1.0):
 
 
 @lru_cache(maxsize=32)
-def _offsets(A, xi, dx):
-    """Integer offsets o for which |o - f| DX < A + xi/2 for some f in [0, 1)^3."""
+def _offsets(A, xi, dx, strain_max=0.0):
+    """Integer offsets o for which |o - f| DX < A + xi/2 for some f in [0, 1)^3.
+
+    ``strain_max`` > 0: offsets of an oblique grid (x^ = x - g y, |g| <= strain_max), whose
+    x offset o_x - f_x + g (o_y - f_y) is bounded conservatively."""
     rc = (A + 0.5 * xi) / dx
     m = int(np.ceil(rc)) + 1
     o = np.arange(-m, m + 2)
     # closest approach of o - f, f in [0, 1): 0 for o in {0, 1}, o - 1 for o > 1, -o for o < 0
     d1 = np.where(o >= 1, o - 1, np.where(o <= 0, -o, 0)).astype(float)
-    ox, oy, oz = np.meshgrid(o, o, o, indexing="ij")
-    dmin2 = (d1[ox + m] ** 2 + d1[oy + m] ** 2 + d1[oz + m] ** 2)
+    if strain_max > 0:
+        mx = m + int(np.ceil(strain_max * (m + 1)))
+        ox1 = np.arange(-mx, mx + 2)
+        ox, oy, oz = np.meshgrid(ox1, o, o, indexing="ij")
+        spread = strain_max * np.maximum(np.abs(oy), np.abs(oy - 1))
+        lo, hi = ox - 1 - spread, ox + spread           # range of the physical x offset
+        dx_min = np.where((lo <= 0) & (hi >= 0), 0.0, np.minimum(np.abs(lo), np.abs(hi)))
+        dmin2 = dx_min ** 2 + d1[oy + m] ** 2 + d1[oz + m] ** 2
+    else:
+        ox, oy, oz = np.meshgrid(o, o, o, indexing="ij")
+        dmin2 = (d1[ox + m] ** 2 + d1[oy + m] ** 2 + d1[oz + m] ** 2)
     keep = dmin2 < rc * rc
     off = np.stack([ox[keep], oy[keep], oz[keep]], axis=1).astype(np.int64)
     off.setflags(write=False)
@@ -64,13 +76,14 @@ class Stencil:
     ``offsets`` (S, 3) int64, computed once per (A, xi, DX) (cached).
     """
 
-    def __init__(self, A, xi, dx):
+    def __init__(self, A, xi, dx, strain_max=0.0):
         self.A = float(A)
         self.xi = float(xi)
         self.dx = float(dx)
         if self.xi <= 0 or self.A <= 0.5 * self.xi:
             raise ValueError("need A > xi/2 > 0 for the profile of eqs 1-3")
-        self.offsets = _offsets(self.A, self.xi, self.dx)
+        self.strain_max = float(strain_max)
+        self.offsets = _offsets(self.A, self.xi, self.dx, self.strain_max)
         self.offsets_f = self.offsets.astype(float)
         # contiguous per-component copies for the vectorised index / vector arithmetic
         self.o = [np.ascontiguousarray(self.offsets[:, c]) for c in range(3)]
@@ -84,8 +97,12 @@ class Stencil:
         return f"Stencil(A={self.A}, xi={self.xi}, dx={self.dx}, S={self.size})"
 
 
-def particle_profiles(R, stencil, shape, dx):
+def particle_profiles(R, stencil, shape, dx, strain=0.0, origin=0.0):
     """Profiles of all particles (eq 1) on their stencil points.
+
+    ``strain`` g != 0: the grid is the oblique grid of kapsel.fluid.oblique (point (i, j, k)
+    at (i DX + g (j DX - origin), j DX, k DX)); ``r`` is then the physical (Cartesian)
+    x - R_i, with the Lees-Edwards images; the stencil must be built with strain_max >= |g|.
 
     Returns ``idx`` (N, S) int64 flat indices into a C-ordered (NX, NY, NZ) field,
     ``phi`` (N, S) phi_i at those points, ``r`` (N, S, 3) minimum-image x - R_i (a view of a
@@ -95,6 +112,10 @@ def particle_profiles(R, stencil, shape, dx):
     R = np.asarray(R, dtype=float).reshape(-1, 3)
     n, S = len(R), stencil.size
     s = R / dx
+    if strain:
+        if abs(strain) > stencil.strain_max:
+            raise ValueError(f"frame strain {strain} beyond the stencil's {stencil.strain_max}")
+        s[:, 0] = (R[:, 0] - strain * (R[:, 1] - origin)) / dx   # oblique index coordinates
     base = np.floor(s)
     frac = s - base
     b = base.astype(np.int64)
@@ -111,6 +132,8 @@ def particle_profiles(R, stencil, shape, dx):
         if c:
             idx *= shape[c]
         idx += tmp
+    if strain:
+        rc[0] += strain * rc[1]                          # physical x offset
     dist = rc[0] * rc[0]
     dist += rc[1] * rc[1]
     dist += rc[2] * rc[2]

@@ -104,7 +104,12 @@ class SPM:
         self.size = int(np.prod(self.shape))
         self._du = np.empty((3,) + self.shape) if particles.n else None
         self.box = np.array(self.shape, dtype=float) * self.dx
-        self.stencil = Stencil(A, xi, dx) if particles.n else None
+        # oblique fluid (kapsel.fluid.oblique, Lees-Edwards): profiles on the sheared grid,
+        # velocities relative to the imposed shear flow, Lees-Edwards images
+        self.oblique = getattr(fluid, "oblique", False)
+        smax = fluid.max_frame_strain if self.oblique else 0.0
+        self.stencil = Stencil(A, xi, dx, strain_max=smax) if particles.n else None
+        self.moment = np.zeros((3, 3))    # sum du_a r_b of the last step (particle stress)
         a = np.asarray(particles.radius, dtype=float)
         vol = 4.0 / 3.0 * np.pi * a ** 3
         self.excess_mass = particles.mass - self.rho * vol
@@ -120,7 +125,9 @@ class SPM:
     def _profiles(self):
         """phi_i, r at the current positions; grid volumes, centroid-corrected r, masses."""
         p = self.p
-        self.idx, self.phi_i, r = particle_profiles(p.R, self.stencil, self.shape, self.dx)
+        g, y0 = (self.fluid.frame_strain, self.fluid.y0) if self.oblique else (0.0, 0.0)
+        self.idx, self.phi_i, r = particle_profiles(p.R, self.stencil, self.shape, self.dx, g,
+                                                    y0)
         w = self.phi_i.sum(axis=1)
         self.grid_volume = w * self.dx ** 3
         if self.center:
@@ -164,6 +171,8 @@ class SPM:
         if self.mode == "spectral":
             self.fluid.step()
             if self.p.n:
+                if self.oblique:
+                    self._profiles()          # the grid moved with the frame
                 self.fluid.velocity(out=self.u)
         else:
             self.fluid.step(self.u)
@@ -181,8 +190,16 @@ class SPM:
             return
         u = self.fluid.velocity(out=self.u) if self.mode == "spectral" else self.u
         p = self.p
-        self._add_solenoidal(rigidity_increment(u, self.idx, self.phi_i, self.r, p.v,
-                                                p.omega, self.size))
+        v, shear = self._relative_velocity()
+        self._add_solenoidal(rigidity_increment(u, self.idx, self.phi_i, self.r, v,
+                                                p.omega, self.size, shear=shear))
+
+    def _relative_velocity(self):
+        """(V relative to the imposed flow at the centres, gamma_dot) for an oblique fluid,
+        else (V, 0)."""
+        if not self.oblique:
+            return self.p.v, 0.0
+        return self.p.v - self.fluid.background(self.p.R), self.fluid.shear_rate_now
 
     # ------------------------------------------------------------------ step
     def step(self):
@@ -191,8 +208,9 @@ class SPM:
         p = self.p
         if p.n:
             u = self.u
-            F_H, T_H = hydro_force_torque(u, self.idx, self.phi_i, self.r, p.v, p.omega,
-                                          self.rho, self.dx, self.dt)
+            v, shear = self._relative_velocity()
+            F_H, T_H = hydro_force_torque(u, self.idx, self.phi_i, self.r, v, p.omega,
+                                          self.rho, self.dx, self.dt, shear=shear)
             F_o = T_o = None
             if self.forces is not None:
                 res = self.forces(p)
@@ -202,10 +220,17 @@ class SPM:
                 dP, dL = self.noise(p.n, self.dt)
             self.motion.update_velocities(p, F_H, T_H, F_o, T_o, self.dt, self.rotation, dP,
                                           dL, mass=self.mass, inertia=self.inertia)
-            du = rigidity_increment(u, self.idx, self.phi_i, self.r, p.v, p.omega, self.size,
-                                    out=self._du)
+            v, shear = self._relative_velocity()
+            du = rigidity_increment(u, self.idx, self.phi_i, self.r, v, p.omega, self.size,
+                                    out=self._du, shear=shear,
+                                    moment=self.moment if self.oblique else None)
             self._add_solenoidal(du)
+            if self.oblique:
+                R0, raw0 = p.R.copy(), p.R_raw.copy()
             self.motion.update_positions(p, self.dt, self.box, self.rotation)
+            if self.oblique:       # Lees-Edwards images instead of the periodic wrap
+                p.R[:] = R0 + (p.R_raw - raw0)
+                self.fluid.wrap_particles(p)
             self._profiles()
         self.step_index += 1
 

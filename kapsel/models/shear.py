@@ -1,0 +1,142 @@
+"""The sheared types (manual table 1, table 4; §5.1 eqs 27-29).
+
+``Shear_Navier_Stokes_Lees_Edwards``: the pseudo-spectral SPM model (kapsel.models.spectral)
+on the oblique-frame solver kapsel.fluid.oblique.ObliqueSpectralNS: the fluid holds the
+deviation from U = gamma_dot(t) (y - Ly/2) e_x, particles see Lees-Edwards images (profiles on
+the sheared grid, positions and x velocities shifted across the y boundary, R_raw unwrapped,
+pair forces by the Lees-Edwards minimum image).
+
+Shear stress (each record, and the text log ``shear_stress.dat`` next to output.udf):
+
+    sigma_xy = ETA gamma_dot + sigma^p_xy,
+    sigma^p_ab = -(RHO DX^3 / (dt V)) 1/2 sum_i sum_x (du_a r_b + du_b r_a)
+
+the viscous stress of the whole (periodic-deviation) flow plus the first moment of the SPM
+force density RHO du / dt the particles exert on the fluid (du the rigidity increment of a
+step, r = x - R_i; Batchelor's particle stress).  The value of a record is the mean over the
+steps since the previous record (the instantaneous ETA gamma_dot at step 0).  The Reynolds
+stress of the deviation is not included.  The applied strain is int gamma_dot dt.
+
+The define.udf of the original has no record item for these; they go into a record only
+when the define file declares record items ``Shear_stress`` / ``Shear_strain`` /
+``Shear_rate`` (floats), and always into ``shear_stress.dat`` (t, strain, rate, stress).
+"""
+from __future__ import annotations
+
+from ..config import ConfigError, RunConfig
+from ..simulation import register
+from .common import Model, make_forces, make_noise, make_particles, overlap_guard
+from .spectral import SpectralModel
+
+
+def shear_flow(cfg: RunConfig):
+    from ..fluid.oblique import ShearFlow
+    return ShearFlow.from_config(cfg.shear)
+
+
+def check_interpolation(cfg: RunConfig) -> str:
+    from ..fluid.oblique import INTERPOLATIONS
+    m = cfg.switches.OBL_INT
+    if m not in INTERPOLATIONS:
+        raise ConfigError(f"must be one of {', '.join(INTERPOLATIONS)}",
+                          path="switch.ns_solver.OBL_INT", value=m)
+    return m
+
+
+class ShearStress:
+    """Accumulates the particle stress moment of the SPM steps between records."""
+
+    def __init__(self, volume, rho, dx, dt, eta):
+        self.scale = -rho * dx ** 3 / (dt * volume)
+        self.eta = eta
+        self.sum = 0.0
+        self.rate_sum = 0.0
+        self.n = 0
+
+    def add(self, moment, rate):
+        self.sum += 0.5 * self.scale * (moment[0, 1] + moment[1, 0])
+        self.rate_sum += rate
+        self.n += 1
+
+    def take(self, rate_now):
+        """Mean sigma_xy since the last call (ETA gamma_dot now if no step was made)."""
+        if self.n == 0:
+            return self.eta * rate_now
+        s = self.eta * self.rate_sum / self.n + self.sum / self.n
+        self.sum, self.rate_sum, self.n = 0.0, 0.0, 0
+        return s
+
+
+class ShearLEModel(SpectralModel):
+    """Shear_Navier_Stokes_Lees_Edwards (module docstring)."""
+
+    def __init__(self, cfg: RunConfig, args):
+        from ..fluid.oblique import ObliqueSpectralNS
+        from ..grid import Grid
+        from ..particles.spm import SPM
+        Model.__init__(self, cfg, args)
+        f, seed = cfg.fluid, self.seed
+        self.interpolation = check_interpolation(cfg)
+        self.grid = Grid(cfg.mesh.shape, cfg.mesh.DX, threads=self.threads)
+        self.fluid = ObliqueSpectralNS(self.grid, f.RHO, f.ETA, self.dt, shear_flow(cfg),
+                                       fix_cell=cfg.switches.fix_cell)
+        self.particles = make_particles(cfg, self.rng)
+        fluid = self.fluid
+        forces = make_forces(cfg, self.particles, strain=lambda: fluid.frame_strain)
+        self.spm = SPM(self.fluid, self.particles, cfg.particles.A, cfg.particles.A_XI, f.RHO,
+                       cfg.mesh.DX, self.dt, rotation=cfg.switches.ROTATION,
+                       forces=overlap_guard(forces), noise=make_noise(cfg, self.particles, seed))
+        self.stress = ShearStress(self.grid.volume, f.RHO, cfg.mesh.DX, self.dt, f.ETA)
+
+    def advance(self):
+        self.spm.step()
+        self.stress.add(self.spm.moment, self.fluid.shear.rate(self.fluid.time - self.dt))
+        self.tick()
+
+    def kinetic_energy(self) -> float:
+        """E of the full flow U + u^ (fluid outside the particles) plus the particles."""
+        from .common import kinetic_energy
+        u = self.spm.velocity()
+        y = self.grid.coordinates()[1]
+        u[0] += self.fluid.shear_rate_now * (y - self.fluid.y0)
+        phi = self.spm.phi() if self.particles.n else None
+        return kinetic_energy(self.cfg.fluid.RHO, self.cfg.mesh.DX, u, phi, self.particles)
+
+    def shear_record(self) -> dict:
+        """Shear_stress (mean since the last record), Shear_strain, Shear_rate."""
+        rate = self.fluid.shear_rate_now
+        return {"Shear_stress": self.stress.take(rate),
+                "Shear_strain": self.fluid.applied_strain, "Shear_rate": rate}
+
+    # ------------------------------------------------------------------ restart
+    def restart_fields(self) -> dict:
+        d = super().restart_fields()
+        d["oblique"] = [float(self.fluid.frame_strain)]
+        return d
+
+    def exact_state(self) -> dict:
+        return {"u_hat": self.fluid.u_hat.copy(), "remaps": int(self.fluid.remaps)}
+
+    def load_fields(self, fields: dict, exact) -> None:
+        if not exact or "u_hat" not in exact:
+            from ..io.restart import state_path
+            raise ConfigError(
+                f"a CONTINUE restart of the sheared type is continued together with its state "
+                f"file {state_path(self.cfg.input_path)} (missing, or written for other data)",
+                path="resume.CONTINUE.Saved_Data.Zeta[]", value="(without state file)")
+        if exact["u_hat"].shape != self.fluid.u_hat.shape:
+            raise ConfigError(f"the restart's velocity has shape {exact['u_hat'].shape}, the "
+                              f"mesh needs {self.fluid.u_hat.shape}",
+                              path="resume.CONTINUE.Saved_Data.Zeta[]", value="shape")
+        self.fluid.time = self.time
+        self.fluid.remaps = int(exact.get("remaps", 0))
+        self.fluid.set_contravariant_hat(exact["u_hat"])
+        self.spm.refresh()
+
+
+@register("Shear_Navier_Stokes_Lees_Edwards")
+def make_shear_le(cfg, args, doc):
+    return ShearLEModel(cfg, args)
+
+
+__all__ = ["ShearLEModel", "ShearStress", "shear_flow", "check_interpolation"]
