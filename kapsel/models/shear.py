@@ -46,6 +46,14 @@ def check_interpolation(cfg: RunConfig) -> str:
     return m
 
 
+def check_spheres(cfg: RunConfig) -> None:
+    """Chains and rigid bodies would need Lees-Edwards bond vectors and body images."""
+    if cfg.particles.object_type != "spherical_particle" and cfg.particles.count:
+        raise ConfigError(f"{cfg.type} supports spherical particles only in kapsel-py (chains "
+                          f"and rigid bodies under Lees-Edwards images are not implemented)",
+                          path="object_type.type", value=cfg.particles.object_type)
+
+
 class ShearStress:
     """Accumulates the particle stress moment of the SPM steps between records."""
 
@@ -80,6 +88,7 @@ class ShearLEModel(SpectralModel):
         Model.__init__(self, cfg, args)
         f, seed = cfg.fluid, self.seed
         self.interpolation = check_interpolation(cfg)
+        check_spheres(cfg)
         self.grid = Grid(cfg.mesh.shape, cfg.mesh.DX, threads=self.threads)
         self.fluid = ObliqueSpectralNS(self.grid, f.RHO, f.ETA, self.dt, shear_flow(cfg),
                                        fix_cell=cfg.switches.fix_cell)
