@@ -178,10 +178,15 @@ class MACSolver:
         op.div_b(u, self.dx, out=self._poisson.rhs, work=self._w2)
         return self._poisson.solve()
 
+    def _grad_p(self, phi):
+        """The pressure-gradient term G phi (B grid) into an internal buffer (the oblique
+        solver raises its index with the metric)."""
+        return op.grad_b(phi, self.dx, out=self._v1, work=self._w2)
+
     def project(self, u):
         """Make u discretely divergence-free on the B grid in place (eq 22); keeps the mean."""
         phi = self._solve_phi(u)
-        g = op.grad_b(phi, self.dx, out=self._v1, work=self._w2)
+        g = self._grad_p(phi)
         u -= g
         return u
 
@@ -234,7 +239,7 @@ class MACSolver:
         u += rhs                                 # u^n + dt(...): eq 21's rhs is D of this
         phi = self._solve_phi(u)
         np.multiply(phi, self.rho / self.dt, out=self.pressure)
-        u -= op.grad_b(phi, self.dx, out=self._v1, work=self._w2)   # eq 20
+        u -= self._grad_p(phi)                   # eq 20
 
     # ------------------------------------------------------------------ implicit
     def _step_implicit(self, u, force, eta_field):
@@ -254,7 +259,7 @@ class MACSolver:
             w += dt * force
         phi = self._solve_phi(w)
         np.multiply(phi, self.rho / dt, out=self.pressure)
-        gp = op.grad_b(phi, self.dx, out=self._v1, work=self._w2)
+        gp = self._grad_p(phi)
         w -= gp                                  # projected predictor: initial guess
         # eq 23 right-hand side
         b = (A @ u.ravel()).reshape(u.shape)

@@ -53,9 +53,10 @@ import math
 import numpy as np
 
 from ..grid import Grid
+from .mac import MACSolver
 from .spectral import SpectralNS, phi1
 
-__all__ = ["ShearFlow", "ObliqueSpectralNS", "shift_rows", "to_rectangular", "to_oblique",
+__all__ = ["ShearFlow", "ObliqueSpectralNS", "ObliqueMAC", "shift_rows", "to_rectangular", "to_oblique",
            "contravariant", "cartesian", "lees_edwards_wrap", "lees_edwards_displacement",
            "INTERPOLATIONS"]
 
@@ -194,48 +195,38 @@ def lees_edwards_displacement(dr, box, offset):
     return dr
 
 
-# ---------------------------------------------------------------------------- fluid
-class ObliqueSpectralNS(SpectralNS):
-    """Deviation from the imposed shear flow in the oblique frame (module docstring).
-
-    ``u_hat`` holds the rfftn of the contravariant components u^i on the oblique grid.
-    shear : ShearFlow;  t0 : time of the initial state;  frame_strain0 : the frame strain at
-    t0 (restart: oblique.degree_oblique), by default Gamma(t0) reduced into [-s/2, s/2).
-    """
+# ---------------------------------------------------------------------------- frame
+class _ObliqueFrame:
+    """Clock and frame of a sheared solver: ``time``, the re-mapping count, the frame strain
+    g and what the SPM driver asks of an oblique fluid."""
 
     oblique = True
 
-    def __init__(self, grid: Grid, rho, eta, dt, shear: ShearFlow, fix_cell=(False,) * 3,
-                 advection=True, t0=0.0, frame_strain0=None):
-        super().__init__(grid, rho, eta, dt, fix_cell=fix_cell, scheme="etd1",
-                         advection=advection)
+    def _init_frame(self, shear, box, dt, t0=0.0, frame_strain0=None):
         self.shear = shear
         self.time = float(t0)
-        Lx, Ly = grid.box[0], grid.box[1]
+        Lx, Ly = float(box[0]), float(box[1])
         self.s = Lx / Ly                       # strain of one re-mapping
         self.y0 = 0.5 * Ly
+        self.Ly = Ly
+        self.frame_box = np.array(box, dtype=float)
         self.max_frame_strain = 0.5 * self.s + abs(shear.rate0) * dt * 2 + 1e-12
         g = shear.strain(self.time)
         if frame_strain0 is None:
             frame_strain0 = g - self.s * math.floor(g / self.s + 0.5)
+        if abs(frame_strain0) > self.max_frame_strain:
+            raise ValueError(f"frame strain {frame_strain0} outside [-s/2, s/2] (s = {self.s})")
         self.remaps = int(round((g - frame_strain0) / self.s))
-        self._check_frame(frame_strain0)
         self.remap_count = 0
-        k = grid
-        self._k11 = k.kx * k.kx
-        self._k12 = k.kx * k.ky
-        self._k22 = k.ky * k.ky + k.kz * k.kz      # k2^2 + k3^2
-        self._m1 = np.rint(k.kx.ravel() * grid.box[0] / (2 * np.pi)).astype(np.int64)
-        self._m2 = np.rint(k.ky.ravel() * grid.box[1] / (2 * np.pi)).astype(np.int64)
-        self._K2 = np.empty(grid.cshape)
-        self._invK2 = np.empty(grid.cshape)
-        self._gK = None
 
-    def _check_frame(self, g):
-        if abs(g) > self.max_frame_strain:
-            raise ValueError(f"frame strain {g} outside [-s/2, s/2] (s = {self.s})")
+    def set_time(self, t, remaps=None):
+        """Continue at time t (a restart): the frame of t as a run from 0 reaches it."""
+        self.time = float(t)
+        if remaps is None:
+            g = self.shear.strain(self.time)
+            remaps = int(math.floor(g / self.s + 0.5))
+        self.remaps = int(remaps)
 
-    # ------------------------------------------------------------------ frame
     @property
     def frame_strain(self) -> float:
         """g of the current oblique grid (the restart's oblique.degree_oblique)."""
@@ -252,7 +243,7 @@ class ObliqueSpectralNS(SpectralNS):
     @property
     def image_offset(self) -> float:
         """x displacement of the image across the y boundary, g Ly."""
-        return self.frame_strain * self.grid.box[1]
+        return self.frame_strain * self.Ly
 
     def background(self, R):
         """U at the positions R (N, 3): gamma_dot (y - y0) e_x."""
@@ -263,8 +254,40 @@ class ObliqueSpectralNS(SpectralNS):
     def wrap_particles(self, p):
         """Positions p.R (moved by one step from inside the box) into the box through the
         Lees-Edwards images; x velocities shifted for a crossing of the y boundary."""
-        lees_edwards_wrap(p.R, p.v, self.grid.box, self.image_offset, self.shear_rate_now,
-                          p.v_old)
+        lees_edwards_wrap(p.R, p.v, self.frame_box, self.image_offset,
+                          self.shear_rate_now, p.v_old)
+
+    def _frames_to_drop(self):
+        g = self.frame_strain
+        half = 0.5 * self.s
+        if -half <= g < half:
+            return 0
+        return int(math.floor(g / self.s + 0.5))
+
+
+# ---------------------------------------------------------------------------- fluid
+class ObliqueSpectralNS(_ObliqueFrame, SpectralNS):
+    """Deviation from the imposed shear flow in the oblique frame (module docstring).
+
+    ``u_hat`` holds the rfftn of the contravariant components u^i on the oblique grid.
+    shear : ShearFlow;  t0 : time of the initial state;  frame_strain0 : the frame strain at
+    t0 (restart: oblique.degree_oblique), by default Gamma(t0) reduced into [-s/2, s/2).
+    """
+
+    def __init__(self, grid: Grid, rho, eta, dt, shear: ShearFlow, fix_cell=(False,) * 3,
+                 advection=True, t0=0.0, frame_strain0=None):
+        super().__init__(grid, rho, eta, dt, fix_cell=fix_cell, scheme="etd1",
+                         advection=advection)
+        self._init_frame(shear, grid.box, dt, t0, frame_strain0)
+        k = grid
+        self._k11 = k.kx * k.kx
+        self._k12 = k.kx * k.ky
+        self._k22 = k.ky * k.ky + k.kz * k.kz      # k2^2 + k3^2
+        self._m1 = np.rint(k.kx.ravel() * grid.box[0] / (2 * np.pi)).astype(np.int64)
+        self._m2 = np.rint(k.ky.ravel() * grid.box[1] / (2 * np.pi)).astype(np.int64)
+        self._K2 = np.empty(grid.cshape)
+        self._invK2 = np.empty(grid.cshape)
+        self._gK = None
 
     def _metric(self, g):
         """|K|^2 and 1/|K|^2 (0 at k = 0) of the frame strain g into _K2, _invK2."""
@@ -416,12 +439,9 @@ class ObliqueSpectralNS(SpectralNS):
             m[0] = -g * m[1]          # u_x mean = u^1 + g u^2 = 0
 
     def _maybe_remap(self):
-        g = self.frame_strain
-        half = 0.5 * self.s
-        if -half <= g < half:
-            return
-        n = int(math.floor(g / self.s + 0.5))         # frames to drop
-        self.remap_fourier(n)
+        n = self._frames_to_drop()
+        if n:
+            self.remap_fourier(n)
 
     def remap_fourier(self, n):
         """Replace the frame g by g - n s (module docstring): contravariant components
@@ -476,3 +496,262 @@ class ObliqueSpectralNS(SpectralNS):
         """Mean viscous shear stress ETA <d_y u_x + d_x u_y> of the full flow: ETA gamma_dot
         (the deviation is periodic, its mean gradient vanishes)."""
         return self.eta * self.shear_rate_now
+
+
+# ---------------------------------------------------------------------------- MAC
+def _d11(f, dx, out):
+    """Second difference along x (periodic), f[i+1] - 2 f[i] + f[i-1] over DX^2."""
+    np.multiply(f, -2.0, out=out)
+    out += np.roll(f, 1, axis=-3)
+    out += np.roll(f, -1, axis=-3)
+    out *= 1.0 / (dx * dx)
+    return out
+
+
+def _d12(f, dx, out):
+    """Mixed central difference d^2 f / dx dy on the nodes (4 diagonal neighbours)."""
+    a = np.roll(f, -1, axis=-3)
+    b = np.roll(f, 1, axis=-3)
+    np.subtract(np.roll(a, -1, axis=-2), np.roll(a, 1, axis=-2), out=out)
+    out -= np.roll(b, -1, axis=-2)
+    out += np.roll(b, 1, axis=-2)
+    out *= 1.0 / (4.0 * dx * dx)
+    return out
+
+
+class ObliqueMAC(_ObliqueFrame, MACSolver):
+    """The MAC schemes (explicit eqs 20-21, implicit eqs 23-26) in the oblique frame: eq 27
+    on the B grid for the contravariant deviation u^i.
+
+    * advection in divergence form d^_j (u^j u^i) (the oblique coordinates are affine: no
+      Christoffel terms), the unchanged ``operators.advection`` on contravariant components;
+    * viscous term nu G^jk d^_j d^_k u^i = nu (lap + g^2 D_xx - 2 g D_xy) u^i (7-point
+      Laplacian, second and mixed central differences);
+    * -2 gamma_dot u^2 delta_i1 with the known u^n (explicit in both schemes);
+    * with a viscosity field (viscosity_change) the full div(eta (grad u + grad u^T)) / RHO
+      of the deviation (physical central differences) plus the force of the imposed flow
+      gamma_dot (d_y eta, d_x eta, 0) / RHO, which vanishes only for a uniform eta;
+    * pressure: contravariant gradient G^ij d^_j p (B-grid gradient, index raised by the
+      metric) and the Poisson equation D_j G^jk G_k phi = D_j w^j solved by FFT with the
+      B-grid symbol -sum G^jk S_j conj(S_k) (S the div_b symbols; same null modes);
+    * the implicit scheme's linear operator is applied matrix-free (``linear='matfree'``:
+      the mixed derivative would widen the assembled stencil), with the metric at mid-step.
+
+    The driver passes Cartesian deviation velocities on the oblique grid (as for the
+    rectangular MACSolver: ``step(u)``, ``project(u)``); they are converted to contravariant
+    components here.  The frame is re-mapped after a step when |g| > s/2: a row shift on the
+    grid (exact for Nx a multiple of Ny, else ``interpolation`` = OBL_INT along x) of u,
+    u^{n-1} and the pressure; ``remap_fields`` tells the caller which scalar fields (psi,
+    psi_old) to shift alike (``shift_scalar``).
+    """
+
+    def __init__(self, shape, dx, rho, eta, dt, shear: ShearFlow, scheme="explicit_scheme",
+                 tolerance=1e-9, maximum_iteration=1000, threads=1, interpolation="linear",
+                 t0=0.0, frame_strain0=None):
+        MACSolver.__init__(self, shape, dx, rho, eta, dt, scheme=scheme, tolerance=tolerance,
+                           maximum_iteration=maximum_iteration, threads=threads,
+                           linear="matfree")
+        if interpolation not in INTERPOLATIONS:
+            raise ValueError(f"OBL_INT must be one of {INTERPOLATIONS}")
+        self.interpolation = interpolation
+        box = np.array(self.shape, dtype=float) * self.dx
+        self._init_frame(shear, box, dt, t0, frame_strain0)
+        from . import operators as op
+        S = op.symbol_div_b(self.shape, self.dx)
+        self._SS = {(a, b): np.real(S[a] * np.conj(S[b])) for a in range(3) for b in range(a, 3)}
+        self._null = op.b_grid_null_modes(self.shape)
+        self._g_op = self.frame_strain
+        self._g_inv = None
+        self._w = np.empty((3,) + self.shape)
+        self._t1 = np.empty(self.shape)
+        self.remap_fields = 0
+
+    # ------------------------------------------------------------------ metric pieces
+    def _poisson_inverse(self, g):
+        if self._g_inv == g:
+            return
+        SS = self._SS
+        sym = -((1 + g * g) * SS[0, 0] + SS[1, 1] + SS[2, 2] - 2 * g * SS[0, 1])
+        sym = np.where(self._null, 1.0, sym)
+        inv = 1.0 / sym
+        inv[self._null] = 0.0
+        self._poisson.inv = inv
+        self._g_inv = g
+
+    def _solve_phi(self, u):
+        self._poisson_inverse(self._g_op)
+        return MACSolver._solve_phi(self, u)
+
+    def _grad_p(self, phi):
+        gp = MACSolver._grad_p(self, phi)
+        g = self._g_op
+        t = self._t1
+        np.multiply(gp[1], -g, out=t)           # (G grad)^1 = (1 + g^2) G1 - g G2
+        gp[1] -= g * gp[0]                      # (G grad)^2 = G2 - g G1
+        gp[0] *= 1 + g * g
+        gp[0] += t
+        return gp
+
+    def _viscous(self, u, eta_field, out):
+        g = self._g_op
+        if eta_field is not None:     # contravariant u -> Cartesian, div(eta (...)), back
+            v = oblique_viscous_variable(cartesian(u, g), eta_field, self.dx, g)
+            contravariant(v, g, out=out)
+            out *= 1.0 / self.rho
+            return out
+        MACSolver._viscous(self, u, None, out)   # nu lap u
+        if g:
+            t = self._v2 if out is not self._v2 else np.empty_like(out)
+            _d11(u, self.dx, t)
+            out += (self.nu * g * g) * t
+            _d12(u, self.dx, t)
+            out -= (2.0 * self.nu * g) * t
+        return out
+
+    # ------------------------------------------------------------------ driver interface
+    def project(self, u):
+        """Cartesian u on the oblique grid made divergence-free (metric projection)."""
+        g = self.frame_strain
+        self._g_op = g
+        w = contravariant(u, g, out=self._w)
+        phi = self._solve_phi(w)
+        w -= self._grad_p(phi)
+        cartesian(w, g, out=u)
+        return u
+
+    def divergence(self, u, out=None):
+        return MACSolver.divergence(self, contravariant(u, self.frame_strain), out)
+
+    def stable_dt(self, u=None, eta_field=None):
+        """The rectangular limit with the largest metric factor of the frame: explicit
+        diffusion nu (1 + g^2/2 + |g|) ... bounded by nu (2 + s^2 / 4) / DX^2 per axis pair."""
+        lim = MACSolver.stable_dt(self, u, eta_field)
+        g = self.max_frame_strain
+        return lim / (1.0 + (g * g + 2 * g) / 3.0)
+
+    def step(self, u, force=None, eta_field=None):
+        """Advance the Cartesian deviation u (on the oblique grid) by dt in place."""
+        t0, dt = self.time, self.dt
+        g0 = self.frame_strain
+        rate = self.shear.rate(t0)
+        w = contravariant(u, g0, out=self._w)
+        if eta_field is not None and rate:
+            # the imposed flow is not force-free where eta varies: div(eta (grad U + grad U^T))
+            # = gamma_dot (d_y eta, d_x eta, 0)
+            ge = oblique_gradient(eta_field, self.dx, g0, np.empty((3,) + self.shape))
+            fu = np.zeros_like(w)
+            fu[0] = ge[1]
+            fu[1] = ge[0]
+            fu *= rate / self.rho
+            force = fu if force is None else force + fu
+        f = np.zeros_like(w) if force is None else contravariant(force, g0)
+        f[0] -= 2.0 * rate * w[1]
+        if self.scheme == "implicit_scheme":
+            self._g_op = self.shear.strain(t0 + 0.5 * dt) - self.remaps * self.s
+        else:
+            self._g_op = g0
+        MACSolver.step(self, w, f, eta_field)
+        self.time = t0 + dt
+        cartesian(w, self.frame_strain, out=u)
+        n = self._frames_to_drop()
+        if n:
+            self._remap(u, n)
+        return u
+
+    # ------------------------------------------------------------------ re-mapping
+    def row_shift(self, n):
+        """Row shifts (grid points) taking a field on the frame g to the frame g - n s."""
+        ny = self.shape[1]
+        return n * self.s * (np.arange(ny) - self.y0 / self.dx)
+
+    def shift_scalar(self, f, n):
+        return shift_rows(f, self.row_shift(n), self.interpolation)
+
+    def _remap(self, u, n):
+        g_old = self.frame_strain + n * self.s
+        g_new = self.frame_strain
+        sh = self.row_shift(n)
+        u[...] = shift_rows(u, sh, self.interpolation)
+        uo = cartesian(self._u_old, g_old)
+        self._u_old[...] = contravariant(shift_rows(uo, sh, self.interpolation), g_new)
+        self.pressure[...] = shift_rows(self.pressure, sh + 0.5 * n * self.s,
+                                        self.interpolation)      # cell centres
+        self.remaps += n
+        self.remap_count += 1
+        self.remap_fields = n
+
+
+def oblique_laplacian(f, dx, g, out, work=None):
+    """G^jk d^_j d^_k f = (lap + g^2 D_xx - 2 g D_xy) f on the oblique grid (sums to zero)."""
+    from .operators import laplacian
+    laplacian(f, dx, out)
+    if g:
+        t = np.empty_like(f) if work is None else work
+        _d11(f, dx, t)
+        out += (g * g) * t
+        _d12(f, dx, t)
+        out -= (2.0 * g) * t
+    return out
+
+
+def oblique_gradient(f, dx, g, out):
+    """Physical (Cartesian) central gradient on the oblique grid: d_x = D_1,
+    d_y = D_2 - g D_1, d_z = D_3."""
+    from .operators import cdiff_acc
+    for ax in range(3):
+        out[ax] = 0.0
+        cdiff_acc(out[ax], f, ax)
+    out *= 0.5 / dx
+    if g:
+        out[1] -= g * out[0]
+    return out
+
+
+def oblique_viscous_variable(u, eta, dx, g):
+    """div(eta (grad u + grad u^T)) of the Cartesian u on the oblique grid with the physical
+    central gradient (``oblique_gradient``), Cartesian result."""
+    grads = np.empty((3, 3) + u.shape[1:])
+    for a in range(3):
+        oblique_gradient(u[a], dx, g, grads[a])      # grads[a, b] = d_b u_a
+    out = np.zeros_like(u)
+    t = np.empty((3,) + u.shape[1:])
+    for a in range(3):
+        for b in range(3):
+            tau = eta * (grads[a, b] + grads[b, a])
+            oblique_gradient(tau, dx, g, t)
+            out[a] += t[b]
+    return out
+
+
+class ObliqueCahnHilliard:
+    """Mixin of the Cahn-Hilliard solver in the oblique frame (eq 32):
+    d_t psi + d^_i (xi^i psi) = kappa G^ij d^_i d^_j mu, xi^i the contravariant deviation
+    velocity, mu with the metric Laplacian and the physical |grad phi|^2; the capillary force
+    uses the physical gradient (Cartesian components, converted by the MAC solver).
+    ``frame()`` returns the current frame strain g."""
+
+    def _lap(self, f, out):
+        return oblique_laplacian(f, self.dx, self.frame(), out)
+
+    def _grad(self, f, out):
+        return oblique_gradient(f, self.dx, self.frame(), out)
+
+    def _grad_sq(self, f):
+        gr = self._grad(f, np.empty((3,) + f.shape))
+        return np.einsum("i...,i...->...", gr, gr)
+
+    def _div_flux(self, psi, u, out, work):
+        from ..phase.cahn_hilliard import _div_flux
+        return _div_flux(psi, contravariant(u, self.frame()), self.dx, out, work)
+
+
+def make_oblique_cahn_hilliard(frame, *args, **kwargs):
+    """A CahnHilliard (kapsel.phase.cahn_hilliard) with the oblique operators; its stability
+    estimate uses the largest metric Laplacian of the frame (|g| <= s/2)."""
+    from ..phase.cahn_hilliard import CahnHilliard
+
+    class _OCH(ObliqueCahnHilliard, CahnHilliard):
+        pass
+    ch = _OCH(*args, **kwargs)
+    ch.frame = frame
+    return ch

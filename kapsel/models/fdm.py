@@ -38,15 +38,13 @@ class _ModelH_SPM(SPM):
 
 class FDMModel(Model):
     def __init__(self, cfg: RunConfig, args):
-        from ..fluid.mac import MACSolver, UnstableTimeStep
+        from ..fluid.mac import UnstableTimeStep
         super().__init__(cfg, args)
         threads, seed = self.threads, self.seed
         shape, dx = cfg.mesh.shape, cfg.mesh.DX
         f = cfg.fluid
         self.rho, self.dx, self.shape = f.RHO, dx, shape
-        self.mac = MACSolver(shape, dx, f.RHO, f.ETA, self.dt, scheme=f.ns_solver,
-                             tolerance=f.tolerance, maximum_iteration=f.maximum_iteration,
-                             threads=threads)
+        self.mac = self._make_fluid(cfg)
         try:
             self.mac.check_stability()
         except UnstableTimeStep as e:
@@ -56,7 +54,8 @@ class FDMModel(Model):
         self.particles = make_particles(cfg, self.rng)
         self.spm = _ModelH_SPM(self.mac, self.particles, cfg.particles.A, cfg.particles.A_XI,
                                f.RHO, dx, self.dt, rotation=cfg.switches.ROTATION,
-                               forces=overlap_guard(make_forces(cfg, self.particles)),
+                               forces=overlap_guard(make_forces(
+                                   cfg, self.particles, strain=self._pair_strain())),
                                noise=make_noise(cfg, self.particles, seed))
         self.u = self.spm.u
         self.phi = self.spm.phi() if self.particles.n else None
@@ -67,20 +66,19 @@ class FDMModel(Model):
         self.last_force = None
         self.eta_field = None
         if cfg.has_phase_field:
-            from ..phase import CahnHilliard, make_potential
+            from ..phase import make_potential
             ph = cfg.phase
             # FFT preconditioner: exact inverse of the linear part; 3-5x fewer BiCGSTAB
             # iterations than none (the original's choice) at the same tolerance
             self.ch_kwargs = dict(threads=threads, xi=cfg.particles.A_XI, preconditioner="fft")
-            self.ch = CahnHilliard(shape, dx, ph, self.dt, **self.ch_kwargs)
+            self.ch = self._make_ch(self.dt)
             self.psi = self.ch.initial_field(self.rng)
             self.substeps = 1
             if ph.ch_solver == "explicit_scheme":
                 limit = self.ch.stable_dt(self.psi, self.phi)
                 if self.dt > 0.9 * limit:
                     self.substeps = math.ceil(self.dt / (0.9 * limit))
-                    self.ch = CahnHilliard(shape, dx, ph, self.dt / self.substeps,
-                                           **self.ch_kwargs)
+                    self.ch = self._make_ch(self.dt / self.substeps)
                     if not self.quiet:
                         print(f"#explicit Cahn-Hilliard: dt = {self.dt:.4g} exceeds its "
                               f"stability limit {limit:.4g}; psi advances in {self.substeps} "
@@ -91,6 +89,28 @@ class FDMModel(Model):
                 self.comp_range = (lo, hi)
                 self.eta_field = np.empty(shape)
                 self._update_viscosity()
+
+    def _make_fluid(self, cfg):
+        """The MAC solver of the type (the sheared types: kapsel.fluid.oblique.ObliqueMAC)."""
+        from ..fluid.mac import MACSolver
+        f = cfg.fluid
+        return MACSolver(cfg.mesh.shape, cfg.mesh.DX, f.RHO, f.ETA, self.dt, scheme=f.ns_solver,
+                         tolerance=f.tolerance, maximum_iteration=f.maximum_iteration,
+                         threads=self.threads)
+
+    def _make_ch(self, dt):
+        """The Cahn-Hilliard solver of the type with time step dt."""
+        from ..phase import CahnHilliard
+        return CahnHilliard(self.shape, self.dx, self.cfg.phase, dt, **self.ch_kwargs)
+
+    def _after_fluid(self):
+        """Hook between the fluid-particle step and the Cahn-Hilliard step."""
+
+    def _pair_strain(self):
+        """Lees-Edwards strain for the pair forces of a sheared fluid, else None."""
+        if getattr(self.mac, "oblique", False):
+            return lambda: self.mac.frame_strain
+        return None
 
     # ------------------------------------------------------------------ phase field
     def _update_viscosity(self):
@@ -109,6 +129,7 @@ class FDMModel(Model):
         self.last_force = force
         self.spm.fluid_force, self.spm.eta_field = force, self.eta_field
         self.spm.step()
+        self._after_fluid()
         if self.particles.n:
             self.phi = self.spm.phi()
         if self.ch is not None:
@@ -176,10 +197,8 @@ class FDMModel(Model):
         if self.ch is not None:
             subs = int(exact.get("substeps", self.substeps))
             if subs != self.substeps:
-                from ..phase import CahnHilliard
                 self.substeps = subs
-                self.ch = CahnHilliard(self.shape, self.dx, self.cfg.phase, self.dt / subs,
-                                       **self.ch_kwargs)
+                self.ch = self._make_ch(self.dt / subs)
             self.psi[...] = fields["PSI"]
             if exact.get("have_psi_old", self.step_index > 0):
                 self.ch.psi_old = fields["PSI_OLD"].copy()

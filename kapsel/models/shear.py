@@ -54,6 +54,16 @@ def check_spheres(cfg: RunConfig) -> None:
                           path="object_type.type", value=cfg.particles.object_type)
 
 
+def start_with_flow(cfg: RunConfig, particles, fluid) -> bool:
+    """Particles placed by the program (not user_specify) start moving with the imposed flow
+    at their centre, so that the start injects no momentum; user_specify velocities are
+    taken as given (laboratory frame)."""
+    if not particles.n or cfg.switches.init_distribution == "user_specify":
+        return False
+    particles.v[:] += fluid.background(particles.R)
+    return True
+
+
 class ShearStress:
     """Accumulates the particle stress moment of the SPM steps between records."""
 
@@ -94,6 +104,7 @@ class ShearLEModel(SpectralModel):
                                        fix_cell=cfg.switches.fix_cell)
         self.particles = make_particles(cfg, self.rng)
         fluid = self.fluid
+        start_with_flow(cfg, self.particles, fluid)
         forces = make_forces(cfg, self.particles, strain=lambda: fluid.frame_strain)
         self.spm = SPM(self.fluid, self.particles, cfg.particles.A, cfg.particles.A_XI, f.RHO,
                        cfg.mesh.DX, self.dt, rotation=cfg.switches.ROTATION,
@@ -140,8 +151,7 @@ class ShearLEModel(SpectralModel):
             raise ConfigError(f"the restart's velocity has shape {exact['u_hat'].shape}, the "
                               f"mesh needs {self.fluid.u_hat.shape}",
                               path="resume.CONTINUE.Saved_Data.Zeta[]", value="shape")
-        self.fluid.time = self.time
-        self.fluid.remaps = int(exact.get("remaps", 0))
+        self.fluid.set_time(self.time, exact.get("remaps"))
         self.fluid.set_contravariant_hat(exact["u_hat"])
         self.spm.refresh()
 
@@ -246,5 +256,152 @@ def make_zigzag(cfg, args, doc):
     return ZigzagModel(cfg, args)
 
 
-__all__ = ["ShearLEModel", "ShearStress", "ZigzagModel", "ZigzagShear", "shear_flow",
+# ----------------------------------------------------------------------------- FDM types
+from .fdm import FDMModel  # noqa: E402
+
+
+class ShearFDMModel(FDMModel):
+    """Shear_Navier_Stokes_Lees_Edwards_FDM and Shear_NS_LE_CH_FDM: the FDM model (MAC
+    explicit / implicit, Model H with both Cahn-Hilliard schemes and viscosity_change) in the
+    oblique frame (kapsel.fluid.oblique.ObliqueMAC, eq 32 by ObliqueCahnHilliard).
+
+    u (and psi, phi) live on the oblique grid: u is the Cartesian deviation from
+    U = gamma_dot (y - Ly/2) e_x.  A re-mapping of the frame shifts psi and psi^{n-1} with u.
+    Field files and the PSI record are in the rectangular frame (OBL_INT interpolation along
+    x; the velocity with U added).  The restart holds the oblique-frame state (U, U_OLD,
+    PSI, ...: deviation on the oblique grid) and oblique.degree_oblique, the frame strain.
+
+    Shear stress (mean over the steps since the previous record):
+    sigma_xy = <eta (d_y u_x + d_x u_y)> of the full flow (eta the local viscosity with
+    viscosity_change; central differences, so a periodic deviation adds nothing for constant
+    eta) - alpha <d_x psi d_y psi> (interfacial stress of the phase field) + the particle
+    stress of kapsel.models.shear (first moment of the SPM force density).
+    """
+
+    def __init__(self, cfg: RunConfig, args):
+        self.interpolation = check_interpolation(cfg)
+        check_spheres(cfg)
+        super().__init__(cfg, args)
+        if start_with_flow(cfg, self.particles, self.mac):
+            self.u[...] = 0.0
+            self.spm.impose_particle_velocity()
+        self.stress = ShearStress(float(np.prod(cfg.mesh.box)), cfg.fluid.RHO, cfg.mesh.DX,
+                                  self.dt, cfg.fluid.ETA)
+        self.field_stress_sum = 0.0
+
+    def _make_fluid(self, cfg):
+        from ..fluid.oblique import ObliqueMAC
+        f = cfg.fluid
+        return ObliqueMAC(cfg.mesh.shape, cfg.mesh.DX, f.RHO, f.ETA, self.dt, shear_flow(cfg),
+                          scheme=f.ns_solver, tolerance=f.tolerance,
+                          maximum_iteration=f.maximum_iteration, threads=self.threads,
+                          interpolation=self.interpolation)
+
+    def _make_ch(self, dt):
+        from ..fluid.oblique import make_oblique_cahn_hilliard
+        mac = self.mac
+        ch = make_oblique_cahn_hilliard(lambda: mac.frame_strain, self.shape, self.dx,
+                                        self.cfg.phase, dt, **self.ch_kwargs)
+        g = mac.max_frame_strain
+        ch._k2 = ch._k2 * (1.0 + (4 * g * g + 2 * g) / 12.0)   # metric Laplacian bound
+        return ch
+
+    def _after_fluid(self):
+        n = self.mac.remap_fields
+        if n:
+            self.mac.remap_fields = 0
+            if self.psi is not None:
+                self.psi[...] = self.mac.shift_scalar(self.psi, n)
+                if self.ch.psi_old is not None:
+                    self.ch.psi_old = self.mac.shift_scalar(self.ch.psi_old, n)
+                if self.eta_field is not None:
+                    self._update_viscosity()
+        self.stress.add(self.spm.moment, 0.0)
+        self.field_stress_sum += self._field_stress()
+
+    def _field_stress(self) -> float:
+        """Viscous + interfacial sigma_xy of the current fields (module docstring)."""
+        from ..fluid.oblique import oblique_gradient
+        mac, dx = self.mac, self.dx
+        g = mac.frame_strain
+        rate = mac.shear_rate_now
+        gr = np.empty((3,) + self.shape)
+        oblique_gradient(self.u[0], dx, g, gr)
+        s = gr[1].copy()                                  # d_y u_x
+        oblique_gradient(self.u[1], dx, g, gr)
+        s += gr[0]                                        # + d_x u_y
+        s += rate                                         # + gamma_dot (imposed flow)
+        eta = self.eta_field if self.eta_field is not None else self.cfg.fluid.ETA
+        sig = float(np.mean(eta * s))
+        if self.psi is not None:
+            oblique_gradient(self.psi, dx, g, gr)
+            sig -= self.cfg.phase.alpha * float(np.mean(gr[0] * gr[1]))
+        return sig
+
+    def shear_record(self) -> dict:
+        rate = self.mac.shear_rate_now
+        n = self.stress.n
+        if n:
+            stress = self.field_stress_sum / n + self.stress.sum / n
+        else:
+            stress = self._field_stress()
+        self.stress.take(rate)
+        self.field_stress_sum = 0.0
+        return {"Shear_stress": stress, "Shear_strain": self.mac.applied_strain,
+                "Shear_rate": rate}
+
+    # ------------------------------------------------------------------ rectangular output
+    def _rect(self, f):
+        from ..fluid.oblique import to_rectangular
+        return to_rectangular(f, self.mac.frame_strain, self.interpolation,
+                              self.mac.y0 / self.dx)
+
+    def record_items(self) -> dict:
+        return {"PSI": self._rect(self.psi)} if self.psi is not None else {}
+
+    def fields(self) -> dict:
+        u = self._rect(self.u)
+        y = (np.arange(self.shape[1]) * self.dx)[None, :, None]
+        u[0] += self.mac.shear_rate_now * (y - self.mac.y0)
+        out = {"u": u}
+        if self.psi is not None:
+            out["psi"] = self._rect(self.psi)
+        if self.phi is not None:
+            out["phi"] = self._rect(self.phi)
+        return out
+
+    def kinetic_energy(self) -> float:
+        from .common import kinetic_energy
+        u = self.u.copy()
+        y = (np.arange(self.shape[1]) * self.dx)[None, :, None]
+        u[0] += self.mac.shear_rate_now * (y - self.mac.y0)
+        return kinetic_energy(self.rho, self.dx, u, self.phi, self.particles)
+
+    # ------------------------------------------------------------------ restart
+    def restart_fields(self) -> dict:
+        d = super().restart_fields()
+        d["oblique"] = [float(self.mac.frame_strain)]
+        return d
+
+    def exact_state(self) -> dict:
+        st = super().exact_state()
+        st["remaps"] = int(self.mac.remaps)
+        return st
+
+    def load_fields(self, fields: dict, exact) -> None:
+        self.mac.set_time(self.time, (exact or {}).get("remaps"))
+        super().load_fields(fields, exact)
+
+
+@register("Shear_Navier_Stokes_Lees_Edwards_FDM")
+def make_shear_le_fdm(cfg, args, doc):
+    return ShearFDMModel(cfg, args)
+
+
+@register("Shear_NS_LE_CH_FDM")
+def make_shear_le_ch_fdm(cfg, args, doc):
+    return ShearFDMModel(cfg, args)
+
+
+__all__ = ["ShearLEModel", "ShearFDMModel", "ShearStress", "ZigzagModel", "ZigzagShear", "shear_flow",
            "check_interpolation"]

@@ -171,8 +171,6 @@ class SPM:
         if self.mode == "spectral":
             self.fluid.step()
             if self.p.n:
-                if self.oblique:
-                    self._profiles()          # the grid moved with the frame
                 self.fluid.velocity(out=self.u)
         else:
             self.fluid.step(self.u)
@@ -206,6 +204,8 @@ class SPM:
         """Advance fluid and particles by dt (steps 1-5 of the module docstring)."""
         self._fluid_step()
         p = self.p
+        if p.n and self.oblique:
+            self._profiles()                  # the oblique grid moved with the frame
         if p.n:
             u = self.u
             v, shear = self._relative_velocity()

@@ -101,18 +101,20 @@ def _psi_bar(pot, psi_bar):
 
 
 def chemical_potential(psi, phi, params, out=None, *, dx=1.0, xi=1.0, psi_bar=None, kBT=1.0,
-                       potential=None):
+                       potential=None, lap=None, grad_sq=None):
     """mu = dF/dpsi of eq 17 at the nodes:
     f'(psi) - alpha lap psi + w xi |grad phi|^2 + 2 d (psi - psi_bar) phi.
 
-    ``phi`` may be None (no particles); ``xi`` is A_XI; ``out`` must not alias psi."""
+    ``phi`` may be None (no particles); ``xi`` is A_XI; ``out`` must not alias psi.
+    ``lap(f, out)`` / ``grad_sq(f)``: other operators (the oblique frame's metric ones)."""
     pot = make_potential(params, kBT) if potential is None else potential
     out = pot.df(psi, out=out)
-    lap = _lap(psi, dx, np.empty_like(psi))
-    out -= params.alpha * lap
+    lap = (lambda f, o: _lap(f, dx, o)) if lap is None else lap
+    grad_sq = (lambda f: _grad_sq(f, dx)) if grad_sq is None else grad_sq
+    out -= params.alpha * lap(psi, np.empty_like(psi))
     if phi is not None:
         if params.w != 0.0:
-            out += (params.w * xi) * _grad_sq(phi, dx)
+            out += (params.w * xi) * grad_sq(phi)
         if params.d != 0.0:
             out += (2.0 * params.d) * (psi - _psi_bar(pot, psi_bar)) * phi
     return out
@@ -138,11 +140,15 @@ def free_energy(psi, phi, params, *, dx=1.0, xi=1.0, psi_bar=None, kBT=1.0, pote
     return float(dens.sum()) * dx ** 3
 
 
-def capillary_force(psi, mu, rho, dx=1.0, out=None):
-    """-(psi/rho) grad mu (eq 15) at the nodes, central differences; (3, NX, NY, NZ)."""
+def capillary_force(psi, mu, rho, dx=1.0, out=None, grad=None):
+    """-(psi/rho) grad mu (eq 15) at the nodes, central differences; (3, NX, NY, NZ).
+    ``grad(f, out)``: another gradient (the oblique frame's)."""
     if out is None:
         out = np.empty((3,) + psi.shape)
-    _grad(mu, dx, out)
+    if grad is None:
+        _grad(mu, dx, out)
+    else:
+        grad(mu, out)
     out *= -1.0 / rho
     out *= psi
     return out
@@ -203,7 +209,8 @@ class CahnHilliard:
     def chemical_potential(self, psi, phi=None, out=None):
         """mu of eq 17 (see ``chemical_potential``)."""
         return chemical_potential(psi, phi, self.params, out=out, dx=self.dx, xi=self.xi,
-                                  psi_bar=self.psi_bar, potential=self.potential)
+                                  psi_bar=self.psi_bar, potential=self.potential,
+                                  lap=self._lap, grad_sq=self._grad_sq)
 
     def free_energy(self, psi, phi=None):
         return free_energy(psi, phi, self.params, dx=self.dx, xi=self.xi,
@@ -211,7 +218,20 @@ class CahnHilliard:
 
     def capillary_force(self, psi, mu, rho, out=None):
         """-(psi/rho) grad mu for the Navier-Stokes equation (eq 15), (3, NX, NY, NZ)."""
-        return capillary_force(psi, mu, rho, self.dx, out)
+        return capillary_force(psi, mu, rho, self.dx, out, grad=self._grad)
+
+    # operators (overridden by the oblique frame's CH, kapsel.fluid.oblique)
+    def _lap(self, f, out):
+        return _lap(f, self.dx, out)
+
+    def _grad(self, f, out):
+        return _grad(f, self.dx, out)
+
+    def _grad_sq(self, f):
+        return _grad_sq(f, self.dx)
+
+    def _div_flux(self, psi, u, out, work):
+        return _div_flux(psi, u, self.dx, out, work)
 
     def total(self, psi):
         """sum psi DX^3 (conserved)."""
@@ -323,24 +343,24 @@ class CahnHilliard:
 
     def _step_explicit(self, psi, u, phi):
         mu = self.chemical_potential(psi, phi, out=self._a)
-        rhs = _lap(mu, self.dx, self._b)
+        rhs = self._lap(mu, self._b)
         rhs *= self.kappa
         if u is not None:
-            rhs -= _div_flux(psi, u, self.dx, self._a, self._c)
+            rhs -= self._div_flux(psi, u, self._a, self._c)
         rhs *= self.dt
         psi += rhs
 
     # ---- implicit (eq 31)
     def _apply(self, x, c0, u, dphi, out):
         """A x = c0 x + dt div(x u) + dt kappa alpha lap lap x - dt kappa lap(2 d phi x)."""
-        la = _lap(x, self.dx, self._a)
+        la = self._lap(x, self._a)
         if dphi is not None:
             t = np.multiply(dphi, x, out=self._c)
             la *= self.alpha
             la -= t
-            _lap(la, self.dx, out)
+            self._lap(la, out)
         else:
-            _lap(la, self.dx, out)
+            self._lap(la, out)
             out *= self.alpha
         out *= self.dt * self.kappa
         if c0 == 1.0:
@@ -348,7 +368,7 @@ class CahnHilliard:
         else:
             out += c0 * x
         if u is not None:
-            out += self.dt * _div_flux(x, u, self.dx, self._a, self._c)
+            out += self.dt * self._div_flux(x, u, self._a, self._c)
         return out
 
     def _step_implicit(self, psi, u, phi):
@@ -372,10 +392,10 @@ class CahnHilliard:
             guess = 2.0 * psi - self.psi_old
         if phi is not None:
             if p.w != 0.0:
-                g += (p.w * self.xi) * _grad_sq(phi, self.dx)
+                g += (p.w * self.xi) * self._grad_sq(phi)
             if dphi is not None:
                 g -= dphi * self.psi_bar
-        rhs += (dt * self.kappa) * _lap(g, self.dx, np.empty(self.shape))
+        rhs += (dt * self.kappa) * self._lap(g, np.empty(self.shape))
         # mean of the solution is exact (column sums of A are c0); solve for the rest
         m = float(np.sum(rhs)) / (c0 * n)
         shape = self.shape
