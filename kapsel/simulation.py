@@ -97,7 +97,8 @@ def run(cfg, args, input_doc, model, resumed: bool = False) -> int:
     shear_log = None
     if hasattr(model, "shear_record"):
         from .io.records import ShearLog
-        shear_log = ShearLog(os.path.join(out_dir, "shear_stress.dat"), append=resumed)
+        shear_log = ShearLog(os.path.join(out_dir, "shear_stress.dat"), append=resumed,
+                             until_step=model.step_index)
     total = cfg.output.total_steps
     progress = Progress(total, quiet=args.quiet)
     start = model.step_index
@@ -109,7 +110,7 @@ def run(cfg, args, input_doc, model, resumed: bool = False) -> int:
         check_finite(model)
         check_step(model)
         items = model.record_items()
-        if shear_log is not None:
+        if shear_log is not None and record:
             shear = model.shear_record()
             shear_log.write(model.step_index, model.time, shear)
             if output is not None:

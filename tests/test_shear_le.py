@@ -381,3 +381,19 @@ def test_einstein_viscosity_dilute_suspension():
                 st.take(rate)              # discard the start-up
         values.append((st.take(rate) / rate - 1.0) / phi)
     assert np.mean(values) == pytest.approx(2.5, rel=0.15), values
+
+
+@pytest.mark.parametrize("eq", ["Shear_Navier_Stokes_Lees_Edwards",
+                                "Shear_Navier_Stokes_Lees_Edwards_FDM"])
+def test_chains_under_lees_edwards_are_refused(tmp_path, capsys, eq):
+    from udf import UDFManager
+    inp = make_input(tmp_path, particles=0, eq=eq)
+    u = UDFManager(inp)
+    u.put("chain", "object_type.type")
+    u.put(3, "object_type.chain.Chain_spec[0].Beads_number")
+    u.put(2, "object_type.chain.Chain_spec[0].Chain_number")
+    u.put("NONE", "object_type.chain.Chain_spec[0].janus_axis")
+    u.write(inp)
+    assert cli(tmp_path, inp) == 2
+    err = capsys.readouterr().err
+    assert "object_type.type = 'chain'" in err and "spherical particles only" in err

@@ -134,11 +134,20 @@ class ShearLog:
 
     HEADER = "# step t Shear_strain Shear_rate Shear_stress\n"
 
-    def __init__(self, path: str, append: bool = False):
+    def __init__(self, path: str, append: bool = False, until_step=None):
+        """``append`` (a continued run): keep the lines up to ``until_step``, drop later
+        ones (of an earlier run that went further)."""
         self.path = path
         if not append or not os.path.exists(path):
             with open(path, "w", encoding="utf-8") as fh:
                 fh.write(self.HEADER)
+        elif until_step is not None:
+            with open(path, encoding="utf-8") as fh:
+                lines = fh.readlines()
+            keep = [ln for ln in lines
+                    if ln.startswith("#") or not ln.strip() or int(ln.split()[0]) <= until_step]
+            if len(keep) != len(lines):
+                atomic_write_text(path, "".join(keep))
 
     def write(self, step: int, time: float, items: dict) -> None:
         with open(self.path, "a", encoding="utf-8") as fh:

@@ -1,0 +1,58 @@
+"""Continuation of the sheared types: N steps + restart + M steps is bit-identical to N + M
+steps in one run (fields, particles, frame strain oblique.degree_oblique, shear log)."""
+import shutil
+
+import numpy as np
+import pytest
+
+from kapsel.io.restart import state_path
+from test_restart import records, saved_data
+from test_shear_fdm import fdm_input
+from test_shear_le import cli, make_input
+from udf import UDFManager
+
+CASES = [("Shear_Navier_Stokes", {}),
+         ("Shear_Navier_Stokes_Lees_Edwards", {}),
+         ("Shear_Navier_Stokes_Lees_Edwards_FDM", {"ns": "explicit_scheme"}),
+         ("Shear_Navier_Stokes_Lees_Edwards_FDM", {"ns": "implicit_scheme"}),
+         ("Shear_NS_LE_CH_FDM", {"ns": "implicit_scheme", "ch": "implicit_scheme"}),
+         ("Shear_NS_LE_CH_FDM", {"ns": "explicit_scheme", "ch": "explicit_scheme"})]
+
+
+def inp(d, eq, nsnap, **kw):
+    common = dict(particles=2, gts=5, nsnap=nsnap, rate=0.6, kind="AC", freq=0.02)
+    if eq.endswith("FDM"):
+        return fdm_input(d, eq=eq, **common, **kw)
+    return make_input(d, eq=eq, **common)
+
+
+@pytest.mark.parametrize("eq,kw", CASES, ids=[f"{e}-{'-'.join(k.values())}" for e, k in CASES])
+def test_shear_continuation_is_bit_identical(tmp_path, eq, kw):
+    one = inp(tmp_path / "one", eq, 4, **kw)
+    assert cli(tmp_path / "one", one) == 0
+    two = inp(tmp_path / "two", eq, 2, **kw)
+    assert cli(tmp_path / "two", two) == 0
+    rs = UDFManager(str(tmp_path / "two" / "restart.udf"))
+    rs.put(4, "output.Num_snap")
+    rs.write(str(tmp_path / "two" / "cont.udf"))
+    shutil.copy(state_path(str(tmp_path / "two" / "restart.udf")),
+                state_path(str(tmp_path / "two" / "cont.udf")))
+    assert cli(tmp_path / "two", str(tmp_path / "two" / "cont.udf")) == 0
+    a = saved_data(str(tmp_path / "one" / "restart.udf"))
+    b = saved_data(str(tmp_path / "two" / "restart.udf"))
+    assert set(a) == set(b)
+    for k in a:
+        assert np.array_equal(a[k], b[k]), k
+    ra = records(str(tmp_path / "one" / "output.udf"))
+    rb = records(str(tmp_path / "two" / "output.udf"))
+    assert len(ra) == len(rb) == 5
+    for (ta, pa), (tb, pb) in zip(ra, rb):
+        assert ta == tb and np.array_equal(pa, pb)
+    la = np.loadtxt(tmp_path / "one" / "shear_stress.dat")
+    lb = np.loadtxt(tmp_path / "two" / "shear_stress.dat")
+    assert len(la) == len(lb) == 5 and np.array_equal(la, lb)
+    if "Lees" in eq or "LE" in eq:
+        kind = UDFManager(str(tmp_path / "one" / "restart.udf")).get("resume.Calculation")
+        g = UDFManager(str(tmp_path / "one" / "restart.udf")).get(
+            f"resume.{kind}.Saved_Data.oblique.degree_oblique")
+        assert g != 0.0 and abs(g) <= 0.5 + 1e-6
