@@ -501,20 +501,23 @@ class ObliqueSpectralNS(_ObliqueFrame, SpectralNS):
 # ---------------------------------------------------------------------------- MAC
 def _d11(f, dx, out):
     """Second difference along x (periodic), f[i+1] - 2 f[i] + f[i-1] over DX^2."""
+    from .operators import shift_add
     np.multiply(f, -2.0, out=out)
-    out += np.roll(f, 1, axis=-3)
-    out += np.roll(f, -1, axis=-3)
+    shift_add(out, f, 1, 0)
+    shift_add(out, f, -1, 0)
     out *= 1.0 / (dx * dx)
     return out
 
 
-def _d12(f, dx, out):
-    """Mixed central difference d^2 f / dx dy on the nodes (4 diagonal neighbours)."""
-    a = np.roll(f, -1, axis=-3)
-    b = np.roll(f, 1, axis=-3)
-    np.subtract(np.roll(a, -1, axis=-2), np.roll(a, 1, axis=-2), out=out)
-    out -= np.roll(b, -1, axis=-2)
-    out += np.roll(b, 1, axis=-2)
+def _d12(f, dx, out, work=None):
+    """Mixed central difference d^2 f / dx dy on the nodes (4 diagonal neighbours):
+    the central y difference of the central x difference."""
+    from .operators import cdiff_acc
+    t = np.empty_like(f) if work is None else work
+    t[...] = 0.0
+    cdiff_acc(t, f, 0)
+    out[...] = 0.0
+    cdiff_acc(out, t, 1)
     out *= 1.0 / (4.0 * dx * dx)
     return out
 
