@@ -354,7 +354,7 @@ def test_einstein_viscosity_dilute_suspension():
     (A = 4, xi = 2, WCA contacts) in 32^3, phi = 0.049, gamma_dot = 0.01, dt = 0.1;
     sigma_xy / (ETA gamma_dot) - 1 = [eta] phi averaged over steps 800-1500 and 3 seeds.
     Measured (2026-11): [eta] = 2.345, 2.332, 2.288 (seeds 1-3), mean 2.32 = Einstein's 2.5
-    within 7 %; about 7 s per seed (21 s in all) on the shared 2-core machine."""
+    within 7 %; 14-21 s in all on the shared 2-core machine (13.8 s at the last run)."""
     from kapsel.models.shear import ShearStress
     from kapsel.particles import placement
     n, A, N, rate, dt = 32, 4.0, 6, 0.01, 0.1
