@@ -56,6 +56,15 @@ def atomic_write_text(path: str, text) -> None:
         raise
 
 
+def _no_repeat(name, seen: dict, file, line, col) -> None:
+    """An item given twice is an error (the second would silently win)."""
+    if name in seen:
+        f, l0, c0 = seen[name]
+        first = f"line {l0}" if f == file else f"{f}:{l0}"
+        raise UDFError(f"{name!r} is given twice (first at {first})", file, line, col,
+                       path=name)
+
+
 class UDFManager:
     """A UDF document: schema, common data and records."""
 
@@ -89,12 +98,16 @@ class UDFManager:
             if sec.kind == "data":
                 for name, ndim, g, line, col in sec.items:
                     m = self._member(name, sec.file, line, col, want_global=True)
+                    _no_repeat(name, self.common_where, sec.file, line, col)
                     self.common[name] = bind(m.type, m.ndim, g, name, sec.file)
                     self.common_where[name] = (sec.file, line, col)
             elif sec.kind == "record":
                 rec = Record(sec.comment or "")
+                seen = {}
                 for name, ndim, g, line, col in sec.items:
                     m = self._member(name, sec.file, line, col, want_global=False)
+                    _no_repeat(name, seen, sec.file, line, col)
+                    seen[name] = (sec.file, line, col)
                     rec.values[name] = bind(m.type, m.ndim, g, name, sec.file)
                 self.records.append(rec)
         self.current = 0 if self.records else -1

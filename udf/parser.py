@@ -300,7 +300,14 @@ class _Builder:
                     tok = node.children[0]
                     raise UDFError(f'included file "{target}" not found (looked for {path})',
                                    self.file, tok.line, tok.column)
-                out.extend(self.loader(path))
+                try:
+                    out.extend(self.loader(path))
+                except UDFError as e:
+                    if e.file and os.path.normpath(e.file) == os.path.normpath(path) \
+                            and e.line is not None:
+                        e.message += f" (included from {self.file}:{node.children[0].line})"
+                        e.args = (e.format(),)
+                    raise
             elif kind in ("def_block", "global_def_block"):
                 out.append(self.definitions(node, "def" if kind == "def_block" else "global_def"))
             elif kind == "data_block":
@@ -336,7 +343,7 @@ def _terminal_name(name: str) -> str:
         return _TERMINAL_NAMES[name]
     try:
         pattern = grammar().get_terminal(name).pattern
-        return repr(pattern.value) if pattern.type == "str" else name
+        return f"'{pattern.value}'" if pattern.type == "str" else name
     except KeyError:
         return name.strip('"')
 
@@ -345,6 +352,14 @@ def _syntax_error(e: lark.exceptions.UnexpectedInput, file: str, text: str) -> U
     line, col = e.line, e.column
     if isinstance(e, lark.exceptions.UnexpectedCharacters):
         ch = text[e.pos_in_stream] if e.pos_in_stream < len(text) else "end of file"
+        if ch == '"':
+            if '"' not in text[e.pos_in_stream + 1:]:
+                return UDFError("unexpected end of file inside a string (its closing \" is "
+                                "missing)", file, line, col)
+            return UDFError("a string is not closed (its closing \" is missing)", file, line, col)
+        if len(ch) == 1 and not ch.isprintable() and ch not in "\t\r\n":
+            return UDFError(f"unexpected character {ch!r} (binary data: a UDF file is text)",
+                            file, line, col)
         return UDFError(f"unexpected character {ch!r}", file, line, col)
     if isinstance(e, lark.exceptions.UnexpectedToken):
         tok = e.token
@@ -352,6 +367,9 @@ def _syntax_error(e: lark.exceptions.UnexpectedInput, file: str, text: str) -> U
             return UDFError("unexpected end of file (a block or bracket is not closed)",
                             file, line if line and line > 0 else text.count("\n") + 1, None)
         exp = sorted({_terminal_name(x) for x in e.expected})[:8]
+        if "'\\include'" in exp and "'\\begin{data}'" in exp:
+            return UDFError(f"unexpected {str(tok)!r} where a section (\\begin{{...}}) or "
+                            f"\\include should start (is this a UDF file?)", file, line, col)
         return UDFError(f"unexpected {str(tok)!r}; expected one of: {', '.join(exp)}",
                         file, line, col)
     return UDFError(str(e).splitlines()[0], file, line, col)
