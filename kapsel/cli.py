@@ -61,6 +61,63 @@ def single_threaded_blas() -> None:
         os.environ.setdefault(var, "1")
 
 
+def check_output_paths(args) -> str | None:
+    """Where output.udf, the field files and restart.udf go must be a writable directory,
+    and -O and -R must differ: checked before anything is written."""
+    seen = {}
+    for flag, path in (("-O", args.output), ("-R", args.restart)):
+        d = os.path.dirname(os.path.abspath(path))
+        if not os.path.isdir(d):
+            if os.path.exists(d):
+                return f"{flag}{path}: {d} is not a directory"
+            return f"{flag}{path}: the directory {d} does not exist"
+        if not os.access(d, os.W_OK | os.X_OK):
+            return f"{flag}{path}: the directory {d} is not writable"
+        if os.path.isdir(path):
+            return f"{flag}{path}: is a directory, not a file name"
+        real = os.path.realpath(path)
+        if real in seen:
+            return f"{seen[real]} and {flag} name the same file {path}"
+        seen[real] = flag
+    return None
+
+
+def check_define(define, args, model) -> str | None:
+    """The -D schema must hold what output.udf and restart.udf will be written with (a
+    wrong -D file otherwise fails after output.udf was created)."""
+    from .io.records import OUT_FIELDS
+    from udf.schema import Struct
+    schema = define.schema
+    items = model.record_items() if hasattr(model, "record_items") else {}
+    particles = getattr(model, "particles", None)
+    need = ["E", "t"] + list(items)
+    if particles is not None and particles.n:
+        need.append("Particles")
+    missing = [n for n in need if n not in schema.record_items]
+    if missing:
+        return (f"-D{args.define}: not a KAPSEL define file for this run: its record "
+                f"definitions lack {', '.join(missing)}")
+    kind = getattr(model, "restart_kind", None)
+    structs = []
+    m = schema.record_items.get("Particles")
+    if "Particles" in need and isinstance(m.type, Struct):
+        structs.append(m.type)
+    if kind is not None:
+        res = schema.global_items.get("resume")
+        i = res.type.index(kind) if res is not None and isinstance(res.type, Struct) else None
+        sd = res.type.members[i].type.members[0].type if i is not None else None
+        if not isinstance(sd, Struct) or sd.index("jikan") is None:
+            return f"-D{args.define}: not a KAPSEL define file: it has no resume.{kind}.Saved_Data"
+        if "Particles" in need and sd.index("Particles") is not None:
+            structs.append(sd.members[sd.index("Particles")].type)
+    for st in structs:
+        unknown = [x.name for x in getattr(st, "members", ()) if x.name not in OUT_FIELDS]
+        if unknown:
+            return (f"-D{args.define}: its particle class has members kapsel-py does not "
+                    f"know: {', '.join(unknown)}")
+    return None
+
+
 def main(argv=None) -> int:
     single_threaded_blas()
     argv = list(sys.argv[1:] if argv is None else argv)
@@ -80,13 +137,16 @@ def main(argv=None) -> int:
     try:
         doc = udf.UDFManager(args.input)
         cfg = config.from_document(doc, args.input)
-        udf.UDFManager(args.define)  # the schema for output.udf and restart.udf must read
+        define = udf.UDFManager(args.define)  # the schema of output.udf and restart.udf
     except (udf.UDFError, config.ConfigError) as e:
         return fail(str(e))
 
     if cfg.type not in SOLVERS:
         return fail(f"constitutive_eq.type {cfg.type!r} is not implemented yet in kapsel-py "
                     f"(implemented: {', '.join(sorted(SOLVERS)) or 'none'})")
+    problem = check_output_paths(args)
+    if problem:
+        return fail(problem)
     resumed = cfg.resume.calculation != "NEW"
     if not resumed and not args.overwrite:
         targets = [(f"-O{args.output}", args.output), (f"-R{args.restart}", args.restart)]
@@ -98,6 +158,10 @@ def main(argv=None) -> int:
             if os.path.exists(path):
                 return fail(f"{what} exists; pass --overwrite to replace it (or continue a "
                             f"run from its restart file)")
+    announce_seed = args.seed is None and not args.quiet
+    if args.seed is None:   # drawn here, reported once the input is known to be good
+        import secrets
+        args.seed = secrets.randbits(63)
     try:
         model = SOLVERS[cfg.type](cfg, args, doc)
         if resumed:
@@ -112,6 +176,12 @@ def main(argv=None) -> int:
         return fail(str(e))
     except udf.UDFError as e:
         return fail(str(e))
+    problem = check_define(define, args, model)
+    if problem:
+        return fail(problem)
+    if announce_seed:
+        print(f"#random seed {args.seed} (rerun with --seed {args.seed} to reproduce)",
+              file=sys.stderr)
     return run(cfg, args, doc, model, resumed=resumed)
 
 

@@ -7,6 +7,7 @@ not implement raise ``ConfigError`` naming the option (never a silent fallback).
 from __future__ import annotations
 
 import math
+import os
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -207,6 +208,11 @@ class _Reader:
         return self.doc.where(path.split(".")[0].split("[")[0])
 
     def get(self, path: str):
+        top = path.split(".")[0].split("[")[0]
+        if self.doc.path and top not in self.doc.common_where:
+            raise ConfigError("is missing from the input (its \\begin{data} block has no "
+                              f"{top})",
+                              self.doc.path, path)
         try:
             return self.doc.get(path)
         except UDFError as e:
@@ -250,6 +256,7 @@ def load(input_path: str) -> RunConfig:
 
 def from_document(doc: udf.UDFManager, input_path: str = "") -> RunConfig:
     r = _Reader(doc)
+    _check_is_input(doc, input_path)
     eq_type = r.get("constitutive_eq.type")
     base = f"constitutive_eq.{eq_type}"
     if eq_type == "Electrolyte":
@@ -383,6 +390,7 @@ def from_document(doc: udf.UDFManager, input_path: str = "") -> RunConfig:
                                    rigid_velocity=tuple(r.get(f"{p}.Rigid_velocity")),
                                    rigid_omega=tuple(r.get(f"{p}.Rigid_omega"))))
     particles = Particles(obj, tuple(species), A, A_XI)
+    check_memory(r, mesh, eq_type, particles.count)
     box = mesh.box
     if particles.count:
         if 2 * A >= box.min():
@@ -421,12 +429,17 @@ def from_document(doc: udf.UDFManager, input_path: str = "") -> RunConfig:
     if dist == "user_specify" and particles.count and len(user) < particles.count:
         r.fail("switch.INIT_distribution.user_specify.Particles[]", len(user),
                f"user_specify needs one entry per particle ({particles.count} particles)")
+    if dist == "user_specify" and particles.count:
+        _check_user_positions(r, user[:particles.count], box, A)
     pin, pin_rot = (), ()
     if r.has("switch.pin.type") and r.get("switch.pin.type") == "YES":
         pin = tuple(r.get("switch.pin.YES.pin[]"))
         pin_rot = tuple(r.get("switch.pin.YES.pin_rot[]"))
         for p_, ids in (("switch.pin.YES.pin[]", pin), ("switch.pin.YES.pin_rot[]", pin_rot)):
-            bad = [i for i in ids if not 0 <= i < max(particles.count, 1)]
+            bad = [i for i in ids if not 0 <= i < particles.count]
+            if bad and not particles.count:
+                r.fail(p_, bad, "pins particles but the input has none (Particle_number 0); "
+                                "set switch.pin to NO")
             if bad:
                 r.fail(p_, bad, f"particle ids must lie in 0..{particles.count - 1}")
         if obj == "rigid" and (pin or pin_rot):
@@ -466,8 +479,8 @@ def from_document(doc: udf.UDFManager, input_path: str = "") -> RunConfig:
     gts, nsnap = r.get("output.GTS"), r.get("output.Num_snap")
     if gts < 1:
         r.fail("output.GTS", gts, "must be at least 1 (steps between snapshots)")
-    if nsnap < 0:
-        r.fail("output.Num_snap", nsnap, "must be zero or positive")
+    if nsnap < 1:
+        r.fail("output.Num_snap", nsnap, "must be at least 1 (the run is GTS x Num_snap steps)")
     avs = r.get("output.AVS") == "ON"
     if avs:
         r.fail("output.AVS", "ON", "AVS output is not supported by kapsel-py (HDF5 + XDMF "
@@ -477,3 +490,84 @@ def from_document(doc: udf.UDFManager, input_path: str = "") -> RunConfig:
     return RunConfig(type=eq_type, mesh=mesh, fluid=fluid, particles=particles,
                      interactions=inter, switches=switches, time=time, output=output,
                      resume=resume, phase=phase, shear=shear, input_path=input_path)
+
+
+# ---------------------------------------------------------------------------------------
+# Checks of the whole input, before anything is built or written.
+
+# Peak memory per mesh point, measured on 64^3 and 128^3 runs (fields, solver work arrays,
+# restart text) with a margin; and per particle (state, records, SPM profile bookkeeping).
+BYTES_PER_POINT = {"phase": 1200, "fluid": 600}
+BYTES_PER_PARTICLE = 4000
+MEMORY_ENV = "KAPSEL_PY_MEMORY_LIMIT_GB"
+
+
+def memory_limit() -> float:
+    """Bytes a run may use: the machine's physical memory, or ``$KAPSEL_PY_MEMORY_LIMIT_GB``."""
+    env = os.environ.get(MEMORY_ENV)
+    if env:
+        try:
+            gb = float(env)
+        except ValueError:
+            gb = float("nan")
+        if not gb > 0 or not math.isfinite(gb):
+            raise ConfigError("must be a positive number of gigabytes", "environment",
+                              MEMORY_ENV, env)
+        return gb * 2 ** 30
+    try:
+        return float(os.sysconf("SC_PHYS_PAGES") * os.sysconf("SC_PAGE_SIZE"))
+    except (ValueError, OSError, AttributeError):
+        return float("inf")
+
+
+def _size(nbytes: float) -> str:
+    for unit, scale in (("TB", 2 ** 40), ("GB", 2 ** 30), ("MB", 2 ** 20)):
+        if nbytes >= scale:
+            return f"{nbytes / scale:.3g} {unit}"
+    return f"{nbytes / 2 ** 10:.3g} kB"
+
+
+def check_memory(r: _Reader, mesh: Mesh, eq_type: str, n_particles: int) -> None:
+    """Refuse a mesh (or particle count) whose run would not fit in memory: a typo such as
+    NPX = 12 must not start a run that swaps for hours."""
+    points = float(np.prod(mesh.shape, dtype=float))
+    need = points * BYTES_PER_POINT["phase" if eq_type in PHASE_TYPES else "fluid"] \
+        + float(n_particles) * BYTES_PER_PARTICLE
+    limit = memory_limit()
+    if need > limit:
+        nx, ny, nz = mesh.shape
+        r.fail("mesh", [mesh.NPX, mesh.NPY, mesh.NPZ],
+               f"a {nx} x {ny} x {nz} mesh" + (f" with {n_particles} particles"
+                                              if n_particles * BYTES_PER_PARTICLE > points
+                                              else "")
+               + f" needs about {_size(need)} of memory for {eq_type}, more than the "
+               f"{_size(limit)} available (physical memory, or ${MEMORY_ENV})")
+
+
+def _check_is_input(doc: udf.UDFManager, input_path: str) -> None:
+    where = input_path or doc.path or ""
+    if doc.schema.item("constitutive_eq")[0] is None:
+        raise ConfigError("is not a KAPSEL input: it neither defines nor includes the KAPSEL "
+                          "schema (\\include{\"define.udf\"})", where)
+    if doc.path and not doc.common_where:
+        raise ConfigError("holds no input values (no \\begin{data} ... \\end{data} block)",
+                          where)
+
+
+def _check_user_positions(r: _Reader, user: np.ndarray, box: np.ndarray, A: float) -> None:
+    """user_specify rows must be finite and the particles must not overlap deeply (closer
+    than half the contact distance 2A, where the run's overlap guard would stop it)."""
+    path = "switch.INIT_distribution.user_specify.Particles[]"
+    bad = np.flatnonzero(~np.isfinite(user).all(axis=1))
+    if bad.size:
+        r.fail(path, user[bad[0]].tolist(), f"entry {bad[0]} is not finite")
+    R = user[:, 0:3]
+    for i in range(len(R) - 1):
+        d = R[i + 1:] - R[i]
+        d -= box * np.round(d / box)
+        r2 = np.einsum("ij,ij->i", d, d)
+        j = int(np.argmin(r2))
+        if r2[j] < A * A:
+            r.fail(path, [R[i].tolist(), R[i + 1 + j].tolist()],
+                   f"particles {i} and {i + 1 + j} are {math.sqrt(r2[j]):.3g} apart, less than "
+                   f"half the contact distance 2A = {2 * A:g} (they overlap)")
