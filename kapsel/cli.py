@@ -173,6 +173,9 @@ def main(argv=None) -> int:
                       f"data alone (R_raw restarts at R, the noise stream at the seed)",
                       file=sys.stderr)
     except config.ConfigError as e:
+        if not e.where:  # raised by a model: say where the item is in the input
+            top = e.path.split(".")[0].split("[")[0] if e.path else ""
+            return fail(f"{doc.where(top) if top else args.input}: {e}")
         return fail(str(e))
     except udf.UDFError as e:
         return fail(str(e))

@@ -28,7 +28,7 @@ class ConfigError(Exception):
     """An invalid or unsupported input value: one line for the user."""
 
     def __init__(self, message: str, where: str = "", path: str = "", value=None):
-        self.path, self.value = path, value
+        self.path, self.value, self.where = path, value, where
         text = ""
         if where:
             text += where + ": "
@@ -538,7 +538,7 @@ def check_memory(r: _Reader, mesh: Mesh, eq_type: str, n_particles: int) -> None
         nx, ny, nz = mesh.shape
         r.fail("mesh", [mesh.NPX, mesh.NPY, mesh.NPZ],
                f"a {nx} x {ny} x {nz} mesh" + (f" with {n_particles} particles"
-                                              if n_particles * BYTES_PER_PARTICLE > points
+                                              if n_particles * BYTES_PER_PARTICLE > need / 2
                                               else "")
                + f" needs about {_size(need)} of memory for {eq_type}, more than the "
                f"{_size(limit)} available (physical memory, or ${MEMORY_ENV})")

@@ -115,7 +115,12 @@ class UDFManager:
     def _member(self, name, file, line, col, want_global):
         m, is_global = self.schema.item(name)
         if m is None:
-            raise UDFError(f"{name!r} is not defined in the schema", file, line, col, path=name)
+            import difflib
+            known = list(self.schema.global_items if want_global else self.schema.record_items)
+            close = difflib.get_close_matches(name, known, n=1)
+            hint = f" (did you mean {close[0]!r}?)" if close else ""
+            raise UDFError(f"{name!r} is not defined in the schema{hint}", file, line, col,
+                           path=name)
         if is_global != want_global:
             where = "common data" if want_global else "a record"
             raise UDFError(f"{name!r} does not belong in {where}", file, line, col, path=name)
