@@ -284,9 +284,7 @@ def from_document(doc: udf.UDFManager, input_path: str = "") -> RunConfig:
         fl["ns_solver"] = r.get(f"{sp}.type")
         if fl["ns_solver"] == "implicit_scheme":
             tol = r.finite(f"{sp}.implicit_scheme.tolerance")
-            if tol >= 0:
-                r.fail(f"{sp}.implicit_scheme.tolerance", tol,
-                       "is a base-10 exponent and must be negative (e.g. -9 for 1e-9)")
+            _check_tolerance(r, f"{sp}.implicit_scheme.tolerance", tol)
             fl["tolerance"] = 10.0 ** tol
             it = r.get(f"{sp}.implicit_scheme.maximum_iteration")
             if it < 1:
@@ -316,9 +314,7 @@ def from_document(doc: udf.UDFManager, input_path: str = "") -> RunConfig:
         tol, it = 1e-9, 1000
         if ch == "implicit_scheme":
             t = r.finite(f"{cp}.implicit_scheme.tolerance")
-            if t >= 0:
-                r.fail(f"{cp}.implicit_scheme.tolerance", t,
-                       "is a base-10 exponent and must be negative (e.g. -9 for 1e-9)")
+            _check_tolerance(r, f"{cp}.implicit_scheme.tolerance", t)
             tol = 10.0 ** t
             it = r.get(f"{cp}.implicit_scheme.maximum_iteration")
             if it < 1:
@@ -396,7 +392,7 @@ def from_document(doc: udf.UDFManager, input_path: str = "") -> RunConfig:
         if 2 * A >= box.min():
             r.fail("A", A, f"a particle of diameter {2 * A:g} does not fit in the box "
                            f"{' x '.join(f'{x:g}' for x in box)}")
-        fraction = particles.count * (4 / 3) * math.pi * A ** 3 / float(np.prod(box))
+        fraction = particles.count * (4 / 3) * math.pi * A ** 3 / math.prod(box.tolist())
         if fraction > 0.74:
             r.fail("object_type", particles.count,
                    f"{particles.count} particles of radius {A:g} cannot fit in the box "
@@ -476,6 +472,7 @@ def from_document(doc: udf.UDFManager, input_path: str = "") -> RunConfig:
         time = TimeIncrement("auto", factor=r.positive("time_increment.auto.factor"))
     else:
         time = TimeIncrement("manual", delta_t=r.positive("time_increment.manual.delta_t"))
+    _check_time_step(r, time, fluid, mesh)
     gts, nsnap = r.get("output.GTS"), r.get("output.Num_snap")
     if gts < 1:
         r.fail("output.GTS", gts, "must be at least 1 (steps between snapshots)")
@@ -571,3 +568,27 @@ def _check_user_positions(r: _Reader, user: np.ndarray, box: np.ndarray, A: floa
             r.fail(path, [R[i].tolist(), R[i + 1 + j].tolist()],
                    f"particles {i} and {i + 1 + j} are {math.sqrt(r2[j]):.3g} apart, less than "
                    f"half the contact distance 2A = {2 * A:g} (they overlap)")
+
+
+def _check_tolerance(r: _Reader, path: str, exponent: float) -> None:
+    """The BiCGSTAB tolerance is 10^exponent: below 1 and reachable in double precision."""
+    if exponent >= 0:
+        r.fail(path, exponent, "is a base-10 exponent and must be negative (e.g. -9 for 1e-9)")
+    if exponent < -15:
+        r.fail(path, exponent, "is a base-10 exponent below -15: a relative residual under "
+                               "1e-15 is out of reach in double precision (e.g. -9 for 1e-9)")
+
+
+def _check_time_step(r: _Reader, time: TimeIncrement, fluid: Fluid, mesh: Mesh) -> None:
+    """The time step the run would take must be a positive finite number."""
+    if time.kind == "manual":
+        return
+    from .timestep import auto_dt
+    try:
+        dt = auto_dt(time.factor, fluid.RHO, fluid.ETA, mesh.DX)
+    except (ZeroDivisionError, OverflowError):
+        dt = float("nan")
+    if not (dt > 0 and math.isfinite(dt)):
+        r.fail("time_increment.auto.factor", time.factor,
+               f"the automatic time step factor * RHO / (ETA (pi/DX)^2) with RHO = {fluid.RHO:g}, "
+               f"ETA = {fluid.ETA:g}, DX = {mesh.DX:g} is not a finite positive time step")

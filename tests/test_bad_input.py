@@ -11,7 +11,7 @@ import sys
 
 import pytest
 
-from kapsel import cli
+from kapsel import cli, models  # noqa: F401  (models register their types at import)
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 CORPUS_DIR = os.path.join(HERE, "bad_inputs")
@@ -59,6 +59,12 @@ CORPUS = {
     "too_few_values.udf": ("gravity:{0.0}, one of its two values missing",
                            ["too_few_values.udf:22:9:", "expected 2 values", "found 1",
                             "(at gravity)"]),
+    "int_infinite.udf": ("output.GTS = 1e400 (an int that overflows to infinity)",
+                         ["int_infinite.udf:56:9:", "expected an integer, found 1e400",
+                          "output.GTS"]),
+    "int_out_of_range.udf": ("Particle_number 99999999999, beyond a UDF (32-bit) int",
+                             ["int_out_of_range.udf:11:5:", "99999999999 is out of range",
+                              "Particle_number"]),
     "unknown_item.udf": ("EPSILLON:5.0, a misspelt item",
                          ["unknown_item.udf:23:1:", "'EPSILLON' is not defined",
                           "did you mean 'EPSILON'"]),
@@ -116,11 +122,18 @@ CORPUS = {
                                         "Navier_Stokes_Cahn_Hilliard_FDM.kBT = -0.5",
                                         "zero or positive"]),
     "eta_infinite.udf": ("ETA = 1e400 (overflows to infinity)",
-                         ["eta_infinite.udf:7:1:", "ETA = inf", "positive"]),
+                         ["eta_infinite.udf:7:", "1e400 is beyond the range of a double",
+                          "Navier_Stokes_Cahn_Hilliard_FDM.ETA"]),
     "tolerance_positive.udf": ("CH_solver tolerance 9 (it is a base-10 exponent)",
                                ["tolerance_positive.udf:7:1:",
                                 "CH_solver.implicit_scheme.tolerance = 9.0",
                                 "base-10 exponent", "negative"]),
+    "tolerance_unreachable.udf": ("CH_solver tolerance exponent -300 (10^-300: never reached)",
+                                  ["tolerance_unreachable.udf:7:1:", "tolerance = -300.0",
+                                   "below -15"]),
+    "dx_huge_auto_dt_zero.udf": ("DX = 1e300: the automatic dt underflows to 0",
+                                 ["dx_huge_auto_dt_zero.udf:26:1:", "DX = 1e+300",
+                                  "not a finite positive time step"]),
     "maximum_iteration_zero.udf": ("CH_solver maximum_iteration 0",
                                    ["maximum_iteration_zero.udf:7:1:",
                                     "implicit_scheme.maximum_iteration = 0", "at least 1"]),

@@ -9,11 +9,16 @@ Storage rules:
 """
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from .errors import UDFError
 from .parser import Bulk, Group
 from .schema import Primitive, Select, Struct, leaf_count, leaf_kinds
+
+
+INT_MIN, INT_MAX = -2 ** 31, 2 ** 31 - 1   # OCTA stores int as a C int
 
 
 def _where(g):
@@ -44,13 +49,20 @@ def bind(t, ndim: int, g, path: str, file: str):
             s = str(g)
             if t.name == "int":
                 try:
-                    return int(s)
+                    v = int(s)
                 except ValueError:
-                    v = float(s)
-                    if v != int(v):
+                    f = float(s)
+                    if not math.isfinite(f) or f != int(f):
                         raise _err(f"expected an integer, found {s}", g, file, path) from None
-                    return int(v)
-            return float(s)
+                    v = int(f)
+                if not INT_MIN <= v <= INT_MAX:
+                    raise _err(f"the integer {s} is out of range (a UDF int is 32-bit: "
+                               f"{INT_MIN}..{INT_MAX})", g, file, path)
+                return v
+            v = float(s)
+            if not math.isfinite(v):
+                raise _err(f"the number {s} is beyond the range of a double", g, file, path)
+            return v
         if t.name == "bool":
             if getattr(g, "type", None) == "NUMBER":
                 return bool(int(float(str(g))))
@@ -149,9 +161,14 @@ def _bulk_to_array(t, ndim, lc, g: Bulk, path, file):
         inner = total // block
     shape = tuple(outer) + (inner,) + (() if isinstance(t, Primitive) else (lc,))
     arr = g.numbers.reshape(shape)
+    if arr.size and not np.isfinite(arr).all():
+        raise _err("a number is beyond the range of a double", g, file, path)
     if _dtype(t) is np.int64:
         if not g.integral and np.any(arr != np.round(arr)):
             raise _err("expected integers, found a fractional value", g, file, path)
+        if arr.size and not (INT_MIN <= arr.min() and arr.max() <= INT_MAX):
+            raise _err(f"an integer is out of range (a UDF int is 32-bit: {INT_MIN}..{INT_MAX})",
+                       g, file, path)
         arr = arr.astype(np.int64)
     return arr
 

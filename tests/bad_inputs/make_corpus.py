@@ -92,6 +92,8 @@ FILES = {
     "number_for_select.udf": edit(('LJ_powers:"12:6"', "LJ_powers:12")),
     "string_for_int_particles.udf": edit((SPEC, SPEC.replace("{2,", '{"two",'))),
     "too_few_values.udf": edit(('gravity:{0.0,"-Y"}', "gravity:{0.0}")),
+    "int_infinite.udf": edit(("output:{1,1,", "output:{1e400,1,")),
+    "int_out_of_range.udf": edit((SPEC, SPEC.replace("{2,", "{99999999999,"))),
     "unknown_item.udf": edit(("EPSILON:5.0", "EPSILLON:5.0")),
     "missing_item.udf": edit(("A:4.00000000000000\n", "")),
     "duplicate_item.udf": edit(("A:4.00000000000000\n", "A:4.00000000000000\nA:3.0\n")),
@@ -120,6 +122,8 @@ FILES = {
     "kbt_negative.udf": edit(fluid(kBT="-0.5")),
     "eta_infinite.udf": edit(fluid(ETA="1e400")),
     "tolerance_positive.udf": edit((CH, CH.replace("-9.00000000000000", "9.0"))),
+    "tolerance_unreachable.udf": edit((CH, CH.replace("-9.00000000000000", "-300"))),
+    "dx_huge_auto_dt_zero.udf": edit(fluid(DX="1e300")),
     "maximum_iteration_zero.udf": edit((CH, CH.replace("1500", "0"))),
     # --- time and output
     "factor_negative.udf": edit(('time_increment:{"auto",{1.00000000000000}',
