@@ -104,7 +104,11 @@ def check_define(define, args, model) -> str | None:
         structs.append(m.type)
     if kind is not None:
         res = schema.global_items.get("resume")
-        i = res.type.index(kind) if res is not None and isinstance(res.type, Struct) else None
+        i = None
+        if res is not None and isinstance(res.type, Struct):
+            from .io.restart import schema_kind   # CONTINUE is CONTINUE_ORIGINAL in some
+            kind = schema_kind(define, kind)       # define.udf versions
+            i = res.type.index(kind)
         sd = res.type.members[i].type.members[0].type if i is not None else None
         if not isinstance(sd, Struct) or sd.index("jikan") is None:
             return f"-D{args.define}: not a KAPSEL define file: it has no resume.{kind}.Saved_Data"
