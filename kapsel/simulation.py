@@ -18,6 +18,8 @@ import os
 import signal
 import sys
 
+import numpy as np
+
 SOLVERS: dict = {}
 
 
@@ -99,6 +101,14 @@ def run(cfg, args, input_doc, model, resumed: bool = False) -> int:
         from .io.records import ShearLog
         shear_log = ShearLog(os.path.join(out_dir, "shear_stress.dat"), append=resumed,
                              until_step=model.step_index)
+    rot_log = None
+    bodies = getattr(model.particles, "constraints", None) if model.particles is not None \
+        else None
+    if hasattr(bodies, "rotational_energies"):
+        from .io.records import RotationalEnergyLog
+        rot_log = RotationalEnergyLog(os.path.join(out_dir, "rotational_energy.dat"),
+                                      len(bodies.rotational_energies()), append=resumed,
+                                      until_step=model.step_index)
     total = cfg.output.total_steps
     progress = Progress(total, quiet=args.quiet)
     start = model.step_index
@@ -115,6 +125,11 @@ def run(cfg, args, input_doc, model, resumed: bool = False) -> int:
             shear_log.write(model.step_index, model.time, shear)
             if output is not None:
                 items.update({k: v for k, v in shear.items() if output.has_record_item(k)})
+        if rot_log is not None and record:
+            e_rot = bodies.rotational_energies()
+            rot_log.write(model.step_index, model.time, e_rot)
+            if output is not None and output.has_record_item("E_rot"):
+                items["E_rot"] = float(np.sum(e_rot))
         if output is not None and record:
             output.add_record(model.step_index, model.time, model.kinetic_energy(),
                               model.particles, items)

@@ -373,6 +373,11 @@ def test_kapsel_py_runs_rigid_bodies_and_writes_rigid_particles(tmp_path, eq):
     assert e.returncode == 0, e.stderr
     last = e.stdout.strip().splitlines()[-1].split()
     assert len(last) == 3 + 4 and float(last[-1]) > 0           # the spinning body
+    # each record's rotational energies (spec 002 eqs 3-7) in rotational_energy.dat
+    rows = np.loadtxt(tmp_path / "rotational_energy.dat", ndmin=2)
+    assert rows.shape == (3, 2 + 1 + 4)
+    assert np.allclose(rows[:, 2], rows[:, 3:].sum(axis=1))
+    assert rows[-1, -1] > 0 and rows[-1, -1] == pytest.approx(float(last[-1]), rel=0.5)
 
 
 def test_continuation_of_rigid_bodies_is_bit_identical(tmp_path):

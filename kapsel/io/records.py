@@ -128,19 +128,18 @@ class OutputUDF:
         self.doc.records = []
 
 
-class ShearLog:
-    """``shear_stress.dat``: one line per snapshot of a sheared type (step, t, applied strain,
-    shear rate, shear stress sigma_xy), flushed at once."""
+class TableLog:
+    """A text table next to output.udf, one line per snapshot (``step t`` then ``columns``),
+    flushed at once; for quantities the define.udf records have no place for."""
 
-    HEADER = "# step t Shear_strain Shear_rate Shear_stress\n"
-
-    def __init__(self, path: str, append: bool = False, until_step=None):
+    def __init__(self, path: str, columns, append: bool = False, until_step=None):
         """``append`` (a continued run): keep the lines up to ``until_step``, drop later
         ones (of an earlier run that went further)."""
         self.path = path
+        self.header = "# step t " + " ".join(columns) + "\n"
         if not append or not os.path.exists(path):
             with open(path, "w", encoding="utf-8") as fh:
-                fh.write(self.HEADER)
+                fh.write(self.header)
         elif until_step is not None:
             with open(path, encoding="utf-8") as fh:
                 lines = fh.readlines()
@@ -149,7 +148,32 @@ class ShearLog:
             if len(keep) != len(lines):
                 atomic_write_text(path, "".join(keep))
 
-    def write(self, step: int, time: float, items: dict) -> None:
+    def write_row(self, step: int, time: float, values) -> None:
         with open(self.path, "a", encoding="utf-8") as fh:
-            fh.write(f"{step} {time:.10g} {items['Shear_strain']:.10g} "
-                     f"{items['Shear_rate']:.10g} {items['Shear_stress']:.10g}\n")
+            fh.write(f"{step} {time:.10g} " + " ".join(f"{float(v):.10g}" for v in values)
+                     + "\n")
+
+
+class ShearLog(TableLog):
+    """``shear_stress.dat``: step, t, applied strain, shear rate, shear stress sigma_xy."""
+
+    COLUMNS = ("Shear_strain", "Shear_rate", "Shear_stress")
+
+    def __init__(self, path: str, append: bool = False, until_step=None):
+        super().__init__(path, self.COLUMNS, append, until_step)
+
+    def write(self, step: int, time: float, items: dict) -> None:
+        self.write_row(step, time, [items[c] for c in self.COLUMNS])
+
+
+class RotationalEnergyLog(TableLog):
+    """``rotational_energy.dat``: step, t, the total rotational energy of the rigid bodies
+    E_rot (spec 002 eq 7) and E_rot,g of each body g (eqs 3-6)."""
+
+    def __init__(self, path: str, bodies: int, append: bool = False, until_step=None):
+        cols = ["E_rot"] + [f"E_rot[{g}]" for g in range(bodies)]
+        super().__init__(path, cols, append, until_step)
+
+    def write(self, step: int, time: float, energies) -> None:
+        e = np.asarray(energies, dtype=float)
+        self.write_row(step, time, [e.sum(), *e])
