@@ -194,7 +194,7 @@ CORPUS = {
                                         "input (no saved data)",
                                         ["continue_without_saved_data.udf:57:1:",
                                          "resume.CONTINUE_FDM_PHASE_SEPARATION",
-                                         "no particles"]),
+                                         "holds no saved state", "NEW"]),
     # --- command line: a valid input, bad flags
     "cli_define_missing.udf": ("-D names a file that does not exist",
                                ["-Dnosuch_define.udf", "no such file"],

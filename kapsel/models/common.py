@@ -263,6 +263,11 @@ class Model:
         if not same_kind(saved.kind, self.restart_kind):
             raise ConfigError(f"{self.cfg.type} continues from a {self.restart_kind} restart, "
                               f"not {saved.kind}", path="resume.Calculation", value=saved.kind)
+        if not saved.fields and saved.particles is None and saved.exact is None:
+            raise ConfigError(f"resume.{saved.kind}.Saved_Data holds no saved state: this is "
+                              f"not a restart file; set resume.Calculation to NEW, or continue "
+                              f"from a restart.udf written by a run",
+                              path="resume.Calculation", value=saved.kind)
         exact = saved.exact
         self.step_index = saved.step
         self.time = saved.time
