@@ -54,7 +54,7 @@ import numpy as np
 
 from ..grid import Grid
 from .mac import MACSolver
-from .spectral import SpectralNS, phi1
+from .spectral import SpectralNS, cross_in_place, phi1
 
 __all__ = ["ShearFlow", "ObliqueSpectralNS", "ObliqueMAC", "shift_rows", "to_rectangular", "to_oblique",
            "contravariant", "cartesian", "lees_edwards_wrap", "lees_edwards_displacement",
@@ -372,16 +372,7 @@ class ObliqueSpectralNS(_ObliqueFrame, SpectralNS):
             u, w, n = self._u, self._w, self._n
             gr.backward_raw(uh, u)
             gr.backward_raw(wh, w)
-            tmp = n[2]
-            np.multiply(u[1], w[2], out=n[0])
-            np.multiply(u[2], w[1], out=tmp)
-            n[0] -= tmp
-            np.multiply(u[2], w[0], out=n[1])
-            np.multiply(u[0], w[2], out=tmp)
-            n[1] -= tmp
-            np.multiply(u[0], w[1], out=n[2])
-            np.multiply(u[1], w[0], out=u[0])
-            n[2] -= u[0]
+            cross_in_place(u, w, n)
             n[0] -= g * n[1]                          # contravariant
             gr.forward(n, out=nl)
             nl[:, 0, 0, 0] = 0.0

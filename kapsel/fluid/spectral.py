@@ -46,6 +46,22 @@ from ..grid import Grid
 __all__ = ["SpectralNS", "phi1", "phi2"]
 
 
+def cross_in_place(u, w, n):
+    """n = u x w for real (3, ...) arrays without temporaries: n[2] is scratch until the
+    end and u[0] is overwritten (the caller no longer needs u)."""
+    tmp = n[2]
+    np.multiply(u[1], w[2], out=n[0])
+    np.multiply(u[2], w[1], out=tmp)
+    n[0] -= tmp
+    np.multiply(u[2], w[0], out=n[1])
+    np.multiply(u[0], w[2], out=tmp)
+    n[1] -= tmp
+    np.multiply(u[0], w[1], out=n[2])
+    np.multiply(u[1], w[0], out=u[0])
+    n[2] -= u[0]
+    return n
+
+
 def phi1(z):
     """(e^z - 1)/z, 1 at z = 0."""
     z = np.asarray(z, dtype=float)
@@ -192,16 +208,7 @@ class SpectralNS:
             u, w, n = self._u, self._w, self._n
             g.backward_raw(uh, u)      # destroys uh
             g.backward_raw(wh, w)
-            tmp = self._n[2]           # n = u x omega, using n[2] as scratch until the end
-            np.multiply(u[1], w[2], out=n[0])
-            np.multiply(u[2], w[1], out=tmp)
-            n[0] -= tmp
-            np.multiply(u[2], w[0], out=n[1])
-            np.multiply(u[0], w[2], out=tmp)
-            n[1] -= tmp
-            np.multiply(u[0], w[1], out=n[2])
-            np.multiply(u[1], w[0], out=u[0])   # u no longer needed
-            n[2] -= u[0]
+            cross_in_place(u, w, n)    # n = u x omega
             g.forward(n, out=nl)
             nl[:, 0, 0, 0] = 0.0                # exact: mean of (u.grad)u is 0
             g.project(nl, tmp=(self._s, self._t))
