@@ -404,3 +404,26 @@ def test_read_lammps_dump_errors(tmp_path, text, match):
     f.write_text(text)
     with pytest.raises(ValueError, match=match):
         read_lammps_dump(f)
+
+
+def test_against_ovito_on_a_kapsel_py_run(tmp_path):
+    """An FCC crystal of 32 thermal spheres (A = 4) from a kapsel-py run, classified at the
+    last record of its output.udf: particle by particle the same labels as OVITO."""
+    pytest.importorskip("ovito", reason="OVITO not installed (pip install ovito) - "
+                                        "comparison with its fixed-cutoff CNA skipped")
+    from kapsel.analysis.cna_command import default_cutoff, udf_frames
+    from test_restart import cli, make_input
+    from udf import UDFManager
+    d = tmp_path / "run"
+    inp = make_input(d, "Navier_Stokes", particles=32, gts=20, nsnap=2, kBT=2.0, npx=5)
+    doc = UDFManager(inp)
+    doc.put("FCC", "switch.INIT_distribution.type")
+    doc.write(inp)
+    assert cli(d, inp) == 0
+    _, frame = udf_frames(str(d / "output.udf"), "2")[0]
+    p, box = frame[0], frame[1]
+    assert len(p) == 32
+    rc = default_cutoff(p, box)
+    ours, theirs = cna(p, box, rc), _ovito_cna(p, box, rc)
+    assert (ours == FCC).sum() >= 16         # the crystal is still (mostly) there
+    assert (ours == theirs).all(), np.flatnonzero(ours != theirs)
