@@ -268,6 +268,15 @@ class Grid:
         return pyfftw.empty_aligned(shape, dtype="complex128")
 
     # ------------------------------------------------------------------ operators
+    def k_dot(self, v_hat, out, tmp):
+        """out = k . v_hat (complex cshape; ``tmp`` scratch of the same shape)."""
+        np.multiply(v_hat[0], self.kx, out=out)
+        np.multiply(v_hat[1], self.ky, out=tmp)
+        out += tmp
+        np.multiply(v_hat[2], self.kz, out=tmp)
+        out += tmp
+        return out
+
     def project(self, v_hat, out=None, tmp=None):
         """Solenoidal projection P v = v - k (k.v)/k^2 (in place unless ``out``); k = 0 kept.
 
@@ -283,11 +292,7 @@ class Grid:
             s, t = self._ptmp
         else:
             s, t = tmp
-        np.multiply(out[0], self.kx, out=s)
-        np.multiply(out[1], self.ky, out=t)
-        s += t
-        np.multiply(out[2], self.kz, out=t)
-        s += t
+        self.k_dot(out, s, t)
         s *= self.inv_k2
         for c, k in enumerate((self.kx, self.ky, self.kz)):
             np.multiply(s, k, out=t)

@@ -83,8 +83,7 @@ def run(cfg, args, input_doc, model, resumed: bool = False) -> int:
     if cfg.output.UDF:
         output = OutputUDF(args.output, args.define, input_doc, append=append)
         if append:
-            kept, dropped = output.truncate_after(model.time)
-            last = output.last_time()
+            kept, dropped, last = output.truncate_after(model.time)
             record_now = last is None or abs(last - model.time) > 1e-6 * max(1.0, model.time)
             if not args.quiet:
                 print(f"#continuing at step {model.step_index} (t = {model.time:g}): appending "

@@ -306,11 +306,7 @@ class ObliqueSpectralNS(_ObliqueFrame, SpectralNS):
             self._metric(g)
         k = self.grid
         s, t = self._s, self._t
-        np.multiply(vh[0], k.kx, out=s)
-        np.multiply(vh[1], k.ky, out=t)
-        s += t
-        np.multiply(vh[2], k.kz, out=t)
-        s += t
+        k.k_dot(vh, s, t)
         s *= self._invK2
         # (G k^)^1 = (1 + g^2) k1 - g k2, (G k^)^2 = k2 - g k1, (G k^)^3 = k3
         np.multiply(s, (1.0 + g * g) * k.kx - g * k.ky, out=t)

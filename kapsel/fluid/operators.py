@@ -51,34 +51,29 @@ def shift_assign(out, f, s, axis):
     return out
 
 
-def shift_add(out, f, s, axis):
-    """out[i] += f[i+s] (periodic)."""
+def _shift_apply(op, out, f, s, axis):
+    """out[i] = op(out[i], f[i+s]) (periodic), in place."""
     a = _ax(axis)
     if s == 1:
         o, g = out[_sl(a, None, -1)], f[_sl(a, 1, None)]
-        np.add(o, g, out=o)
+        op(o, g, out=o)
         o, g = out[_ix(a, -1)], f[_ix(a, 0)]
     else:
         o, g = out[_sl(a, 1, None)], f[_sl(a, None, -1)]
-        np.add(o, g, out=o)
+        op(o, g, out=o)
         o, g = out[_ix(a, 0)], f[_ix(a, -1)]
-    np.add(o, g, out=o)
+    op(o, g, out=o)
     return out
+
+
+def shift_add(out, f, s, axis):
+    """out[i] += f[i+s] (periodic)."""
+    return _shift_apply(np.add, out, f, s, axis)
 
 
 def shift_sub(out, f, s, axis):
     """out[i] -= f[i+s] (periodic)."""
-    a = _ax(axis)
-    if s == 1:
-        o, g = out[_sl(a, None, -1)], f[_sl(a, 1, None)]
-        np.subtract(o, g, out=o)
-        o, g = out[_ix(a, -1)], f[_ix(a, 0)]
-    else:
-        o, g = out[_sl(a, 1, None)], f[_sl(a, None, -1)]
-        np.subtract(o, g, out=o)
-        o, g = out[_ix(a, 0)], f[_ix(a, -1)]
-    np.subtract(o, g, out=o)
-    return out
+    return _shift_apply(np.subtract, out, f, s, axis)
 
 
 def _fdiff(out, f, axis):

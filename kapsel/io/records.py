@@ -66,10 +66,11 @@ class OutputUDF:
         if not append or not os.path.exists(path):
             atomic_write_text(path, self.doc.pieces())
 
-    def truncate_after(self, time: float) -> tuple[int, int]:
+    def truncate_after(self, time: float) -> tuple[int, int, float | None]:
         """Drop the records later than ``time`` (those of a run being continued from an
-        earlier restart); returns (records kept, records dropped).  The kept bytes are not
-        rewritten except for the cut, which is atomic."""
+        earlier restart); returns (records kept, records dropped, time of the last kept
+        record or None).  The kept bytes are not rewritten except for the cut, which is
+        atomic."""
         old = UDFManager(self.path)
         times = []
         for n in range(old.totalRecord()):
@@ -87,15 +88,7 @@ class OutputUDF:
             if len(starts) != len(times):
                 raise ValueError(f"{self.path}: cannot locate its records")
             atomic_write_text(self.path, data[:starts[keep]].decode("utf-8"))
-        return keep, len(times) - keep
-
-    def last_time(self):
-        """Time of the last record of the file, or None."""
-        old = UDFManager(self.path)
-        if not old.totalRecord():
-            return None
-        old.jump(old.totalRecord() - 1)
-        return float(old.get("t"))
+        return keep, len(times) - keep, (times[keep - 1] if keep else None)
 
     def has_record_item(self, name: str) -> bool:
         """Whether the define file declares ``name`` as a record item."""

@@ -37,7 +37,6 @@ from udf import UDFManager
 from .records import OUT_FIELDS, particle_table
 
 STATE_SUFFIX = ".state.npz"
-KINDS = ("CONTINUE", "CONTINUE_ORIGINAL", "CONTINUE_FDM", "CONTINUE_FDM_PHASE_SEPARATION")
 
 
 def schema_kind(doc: UDFManager, kind: str) -> str:
@@ -100,9 +99,14 @@ def fingerprint(step, time, particles, fields) -> str:
     return h.hexdigest()
 
 
-def _sparticle_type(doc: UDFManager, kind: str):
+def _saved_data_type(doc: UDFManager, kind: str):
+    """The Struct of ``resume.<kind>.Saved_Data``."""
     m, _ = doc.schema.item("resume")
-    sd = m.type.members[m.type.index(kind)].type.members[0].type
+    return m.type.members[m.type.index(kind)].type.members[0].type
+
+
+def _sparticle_type(doc: UDFManager, kind: str):
+    sd = _saved_data_type(doc, kind)
     return sd.members[sd.index("Particles")].type
 
 
@@ -159,10 +163,8 @@ def read_restart(doc: UDFManager, input_path: str, kind: str) -> Saved:
     table = None
     if doc.size(f"{base}.Particles[]"):
         table = np.asarray(doc.getArray(f"{base}.Particles[]"), dtype=np.float64)
-    m, _ = doc.schema.item("resume")
-    sd = m.type.members[m.type.index(kind)].type.members[0].type
     fields = {}
-    for member in sd.members:
+    for member in _saved_data_type(doc, kind).members:
         name = member.name
         if name in ("jikan", "Particles") or member.ndim == 0:
             continue

@@ -110,30 +110,30 @@ def _shift(p, epsilon, t):
     return epsilon  # V(r_min) = -EPSILON for every 2n:n LJ
 
 
-def pair_potential(r, sigma, kind="12:6", epsilon=1.0, truncate="ON"):
-    """Pair potential V(r) including truncation/shift; 0 beyond the cutoff."""
+def _within_cutoff(r, sigma, kind, epsilon, truncate):
+    """(V, F, shift) of the raw pair law where r is inside the cutoff, 0 elsewhere; None
+    for LJ_truncate NONE."""
     p, t = _check_powers(kind), _truncate_key(truncate)
     r = np.asarray(r, dtype=float)
     sigma = np.broadcast_to(np.asarray(sigma, dtype=float), r.shape)
     if t == "NONE":
-        return np.zeros_like(r)
+        return None, r
     inside = r < interaction_range(p, t) * sigma
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-        V, _ = _raw(r, sigma, p, epsilon)
-    return np.where(inside, V + _shift(p, epsilon, t), 0.0)
+        V, F = _raw(r, sigma, p, epsilon)
+    return (np.where(inside, V + _shift(p, epsilon, t), 0.0), np.where(inside, F, 0.0)), r
+
+
+def pair_potential(r, sigma, kind="12:6", epsilon=1.0, truncate="ON"):
+    """Pair potential V(r) including truncation/shift; 0 beyond the cutoff."""
+    VF, r = _within_cutoff(r, sigma, kind, epsilon, truncate)
+    return np.zeros_like(r) if VF is None else VF[0]
 
 
 def pair_force_magnitude(r, sigma, kind="12:6", epsilon=1.0, truncate="ON"):
     """-dV/dr (positive = repulsive); 0 beyond the cutoff."""
-    p, t = _check_powers(kind), _truncate_key(truncate)
-    r = np.asarray(r, dtype=float)
-    sigma = np.broadcast_to(np.asarray(sigma, dtype=float), r.shape)
-    if t == "NONE":
-        return np.zeros_like(r)
-    inside = r < interaction_range(p, t) * sigma
-    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-        _, F = _raw(r, sigma, p, epsilon)
-    return np.where(inside, F, 0.0)
+    VF, r = _within_cutoff(r, sigma, kind, epsilon, truncate)
+    return np.zeros_like(r) if VF is None else VF[1]
 
 
 def pair_dVdr(r, sigma, kind="12:6", epsilon=1.0, truncate="ON"):
