@@ -1,27 +1,50 @@
 # Two commands do all set-up on a fresh machine: `make run` and `make test`.
+#   make run    installs kapsel-py with what a run needs (+ matplotlib for the picture),
+#               runs the manual's sample in samples/, reports its time, draws the last snapshot
+#   make test   installs the test tools too (pytest, hypothesis, vtk, ovito, matplotlib), runs
+#               the fast suite
+#   make bench  installs the benchmark extra, runs the benchmarks
+# pip's own output goes to .venv/pip-<what>.log and is shown only when an install fails.
 PY ?= python3
 VENV ?= .venv
 BIN := $(VENV)/bin
-STAMP := $(VENV)/.installed
 
 .PHONY: install run test bench clean
 
-$(STAMP): pyproject.toml
-	$(PY) -m venv $(VENV)
-	$(BIN)/pip install -q --upgrade pip
-	$(BIN)/pip install -q -e '.[test]'
-	touch $(STAMP)
+# $(call pip_install,<extra>,<what it installs, one line>)
+define pip_install
+	@test -x $(BIN)/python || $(PY) -m venv $(VENV)
+	@echo "Installing into $(VENV): $(2) (pip log: $(VENV)/pip-$(1).log)"
+	@$(BIN)/python -m pip install 'pip>=21.3' > $(VENV)/pip-$(1).log 2>&1 \
+	  && $(BIN)/python -m pip install -e '.[$(1)]' >> $(VENV)/pip-$(1).log 2>&1 \
+	  || { tail -n 40 $(VENV)/pip-$(1).log; echo "pip install failed; full log: $(VENV)/pip-$(1).log"; exit 1; }
+	@touch $@
+endef
 
-install: $(STAMP)
+$(VENV)/.installed-plot: pyproject.toml
+	$(call pip_install,plot,kapsel-py and numpy scipy pyfftw h5py lark orjson (the run) + matplotlib (the picture))
 
-run: $(STAMP)
-	cd samples && ../$(BIN)/kapsel-py -Iinput.udf -Ooutput.udf -Ddefine.udf -Rrestart.udf --overwrite --seed 1
-	@echo "Output written to samples/: output.udf, restart.udf, *.h5 and *.xmf"
+$(VENV)/.installed-test: pyproject.toml
+	$(call pip_install,test,kapsel-py + test tools: pytest hypothesis vtk ovito matplotlib)
 
-test: $(STAMP)
+$(VENV)/.installed-bench: pyproject.toml
+	$(call pip_install,bench,kapsel-py + benchmark tools: matplotlib)
+
+install: $(VENV)/.installed-plot
+
+run: $(VENV)/.installed-plot
+	@echo "Running the manual's sample (samples/input.udf: Navier_Stokes_Cahn_Hilliard_FDM, 32^3, 8 particles, 1000 steps)"
+	@cd samples && t0=$$(date +%s.%N) \
+	  && $(abspath $(BIN))/kapsel-py -Iinput.udf -Ooutput.udf -Ddefine.udf -Rrestart.udf --overwrite --seed 1 \
+	  && t1=$$(date +%s.%N) \
+	  && echo "$$t0 $$t1" | awk '{printf "Sample run took %.1f s (wall clock, measured by make run)\n", $$2 - $$1}'
+	@echo "Output written to samples/: output.udf, restart.udf, *.h5 and *.xmf (ParaView)"
+	@$(BIN)/kapsel-py analyze show samples
+
+test: $(VENV)/.installed-test
 	$(BIN)/python -m pytest -q -m "not slow"
 
-bench: $(STAMP)
+bench: $(VENV)/.installed-bench
 	$(BIN)/python bench/bench_udf.py
 	$(BIN)/python bench/bench_spectral.py
 	$(BIN)/python bench/bench_spm.py
