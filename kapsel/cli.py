@@ -4,7 +4,8 @@
 
 The flags are the original kapsel_u2m's (``-I input.udf`` with a space works too).
 Exit codes: 0 success, 1 run failed (instability, solver did not converge, interrupted),
-2 bad command line or bad input.
+2 bad command line or bad input.  ``--check`` stops after every check (``prepare``) and
+prints what the run will be, writing nothing.
 """
 from __future__ import annotations
 
@@ -44,6 +45,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--quiet", action="store_true", help="no progress on stderr")
     p.add_argument("--overwrite", action="store_true",
                    help="replace existing output and restart files")
+    p.add_argument("--check", action="store_true",
+                   help="read and check the input as a run would, print what the run will be "
+                        "(type, mesh, particles, dt, steps, files, memory) and exit: 0 ready, "
+                        "2 problems; writes nothing")
     p.add_argument("--version", action="version", version=f"kapsel-py {__version__}")
     return p
 
@@ -122,13 +127,11 @@ def check_define(define, args, model) -> str | None:
     return None
 
 
-def main(argv=None) -> int:
-    single_threaded_blas()
-    argv = list(sys.argv[1:] if argv is None else argv)
-    if argv and argv[0] == "analyze":
-        from .analysis.cli import main as analyze
-        return analyze(argv[1:])
-    args = build_parser().parse_args(argv)
+def prepare(args):
+    """Everything a run does before its first write: read the input and the -D schema,
+    build the configuration and the model (every check), check the output paths.
+    Returns the exit code of a refusal (the message printed), or
+    (cfg, doc, model, resumed, seed_drawn).  Writes nothing."""
     if args.threads < 1:
         return fail(f"--threads must be at least 1, got {args.threads}")
     for flag, path in (("-I", args.input), ("-D", args.define)):
@@ -137,7 +140,7 @@ def main(argv=None) -> int:
 
     import udf
     from . import config, models  # noqa: F401  (models register their types)
-    from .simulation import SOLVERS, run
+    from .simulation import SOLVERS
     try:
         doc = udf.UDFManager(args.input)
         cfg = config.from_document(doc, args.input)
@@ -162,7 +165,7 @@ def main(argv=None) -> int:
             if os.path.exists(path):
                 return fail(f"{what} exists; pass --overwrite to replace it (or continue a "
                             f"run from its restart file)")
-    announce_seed = args.seed is None and not args.quiet
+    seed_drawn = args.seed is None
     if args.seed is None:   # drawn here, reported once the input is known to be good
         import secrets
         args.seed = secrets.randbits(63)
@@ -186,9 +189,36 @@ def main(argv=None) -> int:
     problem = check_define(define, args, model)
     if problem:
         return fail(problem)
-    if announce_seed:
-        print(f"#random seed {args.seed} (rerun with --seed {args.seed} to reproduce)",
-              file=sys.stderr)
+    return cfg, doc, model, resumed, seed_drawn
+
+
+def main(argv=None) -> int:
+    single_threaded_blas()
+    argv = list(sys.argv[1:] if argv is None else argv)
+    if argv and argv[0] == "analyze":
+        from .analysis.cli import main as analyze
+        return analyze(argv[1:])
+    args = build_parser().parse_args(argv)
+    prepared = prepare(args)
+    if isinstance(prepared, int):
+        return prepared
+    cfg, doc, model, resumed, seed_drawn = prepared
+
+    from .banner import describe, memory_estimate, print_banner, _size
+    from .simulation import planned_files, run
+    if args.quiet and not args.check:
+        return run(cfg, args, doc, model, resumed=resumed)
+    lines = describe(cfg, args, model, resumed, planned_files(cfg, args, model, resumed),
+                     seed_drawn=seed_drawn and not args.check)
+    if args.check:
+        if seed_drawn:
+            lines[-1] = f"threads {args.threads}, seed drawn at the start of the run " \
+                        f"(--seed S fixes it)"
+        lines.append(f"memory: about {_size(memory_estimate(cfg))} (the input check's estimate)")
+        lines.append(f"check passed: {args.input} is ready to run (nothing was written)")
+        print_banner(lines, sys.stdout, prefix="")
+        return EXIT_OK
+    print_banner(lines, sys.stderr)
     return run(cfg, args, doc, model, resumed=resumed)
 
 

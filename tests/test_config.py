@@ -112,7 +112,7 @@ def test_cli_unimplemented_type_is_named(tmp_path, monkeypatch):
 
 
 def test_cli_flags_with_and_without_space(tmp_path, capsys, monkeypatch):
-    from kapsel import simulation
+    from kapsel import models, simulation  # noqa: F401  (registered before the stub)
     seen = {}
     monkeypatch.setitem(simulation.SOLVERS, "Navier_Stokes_Cahn_Hilliard_FDM",
                         lambda cfg, args, doc: seen.setdefault("args", args))
@@ -120,7 +120,7 @@ def test_cli_flags_with_and_without_space(tmp_path, capsys, monkeypatch):
     path = sample_copy(tmp_path)
     d = str(tmp_path / "define.udf")
     assert cli.main([f"-I{path}", f"-O{tmp_path / 'o.udf'}", f"-D{d}", "-R", "r.udf",
-                     "--threads", "2", "--seed", "5"]) == 0
+                     "--threads", "2", "--seed", "5", "--quiet"]) == 0
     a = seen["args"]
     assert a.input == path and a.output.endswith("o.udf") and a.restart == "r.udf"
     assert a.threads == 2 and a.seed == 5

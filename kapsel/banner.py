@@ -1,0 +1,108 @@
+"""What a run will be, in a few lines: the start banner on stderr and ``kapsel-py --check``.
+
+``describe(cfg, args, model, resumed, files)`` gives the lines: type and solvers, mesh and
+box, particles, dt and how it was chosen, steps and snapshots, the files and where, threads,
+seed.  ``memory_estimate(cfg)`` is the figure the input check budgets with (config.py).
+The models do no I/O; this module only formats what the configuration and model hold.
+"""
+from __future__ import annotations
+
+import math
+import os
+
+
+def _g(x: float) -> str:
+    return f"{float(x):.6g}"
+
+
+def _size(nbytes: float) -> str:
+    for unit, scale in (("TB", 2 ** 40), ("GB", 2 ** 30), ("MB", 2 ** 20)):
+        if nbytes >= scale:
+            return f"{nbytes / scale:.3g} {unit}"
+    return f"{nbytes / 2 ** 10:.3g} kB"
+
+
+def memory_estimate(cfg) -> float:
+    """Peak bytes of the run: the per-point and per-particle figures the input check uses."""
+    from . import config
+    points = math.prod(cfg.mesh.shape)
+    per_point = config.BYTES_PER_POINT["phase" if cfg.has_phase_field else "fluid"]
+    return float(points) * per_point + float(cfg.particles.count) * config.BYTES_PER_PARTICLE
+
+
+def _solvers(cfg) -> str:
+    parts = []
+    if cfg.is_fdm:
+        parts.append(f"MAC {cfg.fluid.ns_solver.replace('_scheme', '')}")
+    else:
+        parts.append("spectral fluid")
+    if cfg.phase is not None:
+        parts.append(f"Cahn-Hilliard {cfg.phase.ch_solver.replace('_scheme', '')}, "
+                     f"{cfg.phase.potential}")
+    if cfg.shear is not None:
+        parts.append(f"{cfg.shear.kind} shear rate {_g(cfg.shear.shear_rate)}"
+                     + (f", frequency {_g(cfg.shear.frequency)}" if cfg.shear.kind == "AC"
+                        else ""))
+    return "; ".join(parts)
+
+
+def _dt(cfg, dt: float) -> str:
+    if cfg.time.kind == "auto":
+        return (f"dt = {_g(dt)} (auto, factor {_g(cfg.time.factor)}, from RHO = "
+                f"{_g(cfg.fluid.RHO)}, ETA = {_g(cfg.fluid.ETA)}, DX = {_g(cfg.mesh.DX)})")
+    return f"dt = {_g(dt)} (given: time_increment.manual.delta_t)"
+
+
+def _particles(cfg) -> str:
+    p = cfg.particles
+    if not p.count:
+        return "particles: none"
+    kinds = {"spherical_particle": "spheres", "chain": "chains", "rigid": "rigid bodies"}
+    groups = ", ".join(f"{s.number}" + (f" x {s.beads} beads" if p.object_type != "spherical_particle"
+                                        else "")
+                       for s in p.species if s.number)
+    return (f"particles: {p.count} ({p.object_type}: {groups} {kinds.get(p.object_type, '')}), "
+            f"A = {_g(p.A)}, A_XI = {_g(p.A_XI)}")
+
+
+def _files(files: list[tuple[str, str]]) -> list[str]:
+    """``files``: (directory, what) pairs -> one line per directory."""
+    by_dir: dict[str, list[str]] = {}
+    for d, what in files:
+        by_dir.setdefault(d, []).append(what)
+    return [f"writes in {d}: {', '.join(whats)}" for d, whats in by_dir.items()]
+
+
+def describe(cfg, args, model, resumed: bool, files: list[tuple[str, str]],
+             seed_drawn: bool = False) -> list[str]:
+    """The lines of the banner (no leading '#')."""
+    nx, ny, nz = cfg.mesh.shape
+    bx, by, bz = (_g(x) for x in cfg.mesh.box)
+    total = cfg.output.total_steps
+    dt = model.dt
+    lines = [f"kapsel-py: {cfg.type} ({_solvers(cfg)})",
+             f"mesh {nx} x {ny} x {nz}, DX = {_g(cfg.mesh.DX)}, box {bx} x {by} x {bz}",
+             _particles(cfg),
+             _dt(cfg, dt)]
+    if resumed:
+        lines.append(f"continues from step {model.step_index} (t = {_g(model.time)}) to step "
+                     f"{total}: {total - model.step_index} steps, a snapshot every "
+                     f"{cfg.output.GTS} steps")
+    else:
+        lines.append(f"{total} steps to t = {_g(total * dt)}: {cfg.output.Num_snap} snapshots "
+                     f"every {cfg.output.GTS} steps (plus the initial state)")
+    lines += _files(files)
+    seed = f"seed {args.seed}" + (f" (drawn; rerun with --seed {args.seed} to reproduce)"
+                                  if seed_drawn else "")
+    lines.append(f"threads {args.threads}, {seed}")
+    return lines
+
+
+def print_banner(lines, stream, prefix: str = "#") -> None:
+    for line in lines:
+        print(f"{prefix}{line}", file=stream)
+    stream.flush()
+
+
+def abspath_dir(path: str) -> str:
+    return os.path.dirname(os.path.abspath(path))

@@ -1,0 +1,126 @@
+"""`kapsel-py --check` reads and checks an input as a run would and prints what the run will
+be (exit 0) or the problems (exit 2), writing nothing; a run starts with the same lines on
+stderr (the banner), which --quiet suppresses."""
+import importlib.util
+import os
+import shutil
+import subprocess
+import sys
+
+import pytest
+
+from kapsel import cli, models  # noqa: F401  (models register their types)
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+SAMPLES = os.path.join(HERE, "..", "samples")
+sys.path.insert(0, os.path.join(HERE, "bad_inputs"))
+import make_corpus  # noqa: E402
+
+FLAGS = ["-Iinput.udf", "-Ooutput.udf", "-Ddefine.udf", "-Rrestart.udf"]
+
+
+def setup(d, text=None):
+    for f in ("define.udf", "kapsel_unit.udf"):
+        shutil.copy(os.path.join(SAMPLES, f), d / f)
+    (d / "input.udf").write_text(make_corpus.tiny_sample() if text is None else text)
+
+
+def listing(d):
+    return sorted((os.path.relpath(os.path.join(root, f), d),
+                   os.stat(os.path.join(root, f)).st_mtime_ns)
+                  for root, dirs, files in os.walk(d) for f in files + dirs)
+
+
+def test_check_prints_the_run_and_writes_nothing(tmp_path, monkeypatch, capsys):
+    setup(tmp_path)
+    before = listing(tmp_path)
+    monkeypatch.chdir(tmp_path)
+    assert cli.main([*FLAGS, "--check"]) == cli.EXIT_OK
+    out, err = capsys.readouterr()
+    assert listing(tmp_path) == before
+    assert "Traceback" not in err
+    d = str(tmp_path)
+    for fragment in ("Navier_Stokes_Cahn_Hilliard_FDM (MAC explicit; Cahn-Hilliard implicit",
+                     "mesh 16 x 16 x 16, DX = 1, box 16 x 16 x 16",
+                     "particles: 2 (spherical_particle: 2 spheres), A = 4, A_XI = 2",
+                     "dt = ", "(auto, factor 1, from RHO = 1, ETA = 1, DX = 1)",
+                     "1 steps to t = ", "1 snapshots every 1 steps",
+                     f"writes in {d}: output.udf (records), ",
+                     "orderparam_<n>.h5 + orderparam.xmf", "velocity_<n>.h5",
+                     "restart.udf + restart.udf.state.npz (restart)",
+                     "threads 1, seed drawn at the start of the run",
+                     "memory: about ", "check passed"):
+        assert fragment in out, (fragment, out)
+
+
+def test_check_names_a_given_dt_and_seed(tmp_path, monkeypatch, capsys):
+    text = make_corpus.tiny_sample().replace('time_increment:{"auto"', 'time_increment:{"manual"')
+    setup(tmp_path, text)
+    monkeypatch.chdir(tmp_path)
+    assert cli.main([*FLAGS, "--check", "--seed", "9", "--threads", "2"]) == cli.EXIT_OK
+    out = capsys.readouterr().out
+    assert "dt = 1.73839e-09 (given: time_increment.manual.delta_t)" in out
+    assert "threads 2, seed 9\n" in out
+
+
+def test_check_refuses_a_bad_input_and_writes_nothing(tmp_path, monkeypatch, capsys):
+    setup(tmp_path, make_corpus.tiny_sample().replace("A:4.0", "A:-4.0"))
+    before = listing(tmp_path)
+    monkeypatch.chdir(tmp_path)
+    assert cli.main([*FLAGS, "--check"]) == cli.EXIT_BAD_INPUT
+    out, err = capsys.readouterr()
+    assert out == "" and err.startswith("kapsel-py: error: ") and "A" in err
+    assert "Traceback" not in err
+    assert listing(tmp_path) == before
+
+
+def test_check_refuses_every_corpus_input(tmp_path, monkeypatch, capsys):
+    """The bad-input corpus (tests/bad_inputs) is refused by --check as by a run."""
+    spec = importlib.util.spec_from_file_location("bad_input_cases",
+                                                  os.path.join(HERE, "test_bad_input.py"))
+    cases = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(cases)
+    for name in sorted(cases.CORPUS):
+        d = tmp_path / name.replace(".udf", "")
+        d.mkdir()
+        cases.setup_dir(d, name)
+        before = listing(d)
+        monkeypatch.chdir(d)
+        code = cli.main(cases.command_line(name) + ["--check"])
+        out, err = capsys.readouterr()
+        assert code == cli.EXIT_BAD_INPUT, (name, err)
+        assert out == "" and err.startswith("kapsel-py: error: "), (name, err)
+        assert "Traceback" not in err
+        assert listing(d) == before, name
+
+
+def test_check_through_the_console_command(tmp_path):
+    setup(tmp_path)
+    before = listing(tmp_path)
+    r = subprocess.run([sys.executable, "-m", "kapsel.cli", *FLAGS, "--check"], cwd=tmp_path,
+                       capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0, r.stderr
+    assert "check passed" in r.stdout and listing(tmp_path) == before
+
+
+def test_banner_on_stderr_unless_quiet(tmp_path, monkeypatch, capsys):
+    setup(tmp_path)
+    monkeypatch.chdir(tmp_path)
+    assert cli.main([*FLAGS, "--seed", "5"]) == cli.EXIT_OK
+    err = capsys.readouterr().err
+    banner = [ln for ln in err.splitlines() if ln.startswith("#")][:8]
+    assert banner[0].startswith("#kapsel-py: Navier_Stokes_Cahn_Hilliard_FDM")
+    assert "#mesh 16 x 16 x 16, DX = 1, box 16 x 16 x 16" in banner
+    assert "#threads 1, seed 5" in banner
+    assert not any("memory" in ln for ln in banner)
+    assert cli.main([*FLAGS, "--seed", "5", "--overwrite", "--quiet"]) == cli.EXIT_OK
+    assert capsys.readouterr().err == ""
+
+
+def test_banner_reports_a_drawn_seed_once(tmp_path, monkeypatch, capsys):
+    setup(tmp_path)
+    monkeypatch.chdir(tmp_path)
+    assert cli.main(FLAGS) == cli.EXIT_OK
+    err = capsys.readouterr().err
+    seeds = [ln for ln in err.splitlines() if "seed" in ln]
+    assert len(seeds) == 1 and "(drawn; rerun with --seed " in seeds[0], err
