@@ -3,6 +3,7 @@
     kapsel-py analyze sq OUTPUT_DIR [--dx 1.0] [--plot sq.png] [--table sq.txt]
     kapsel-py analyze cna OUTPUT.udf|positions.xyz|dump.lammpstrj [--cutoff r] [--record n|all]
     kapsel-py analyze erotate OUTPUT.udf
+    kapsel-py analyze show RUN_DIR [--record -1|I|all] [--z K] [--udf output.udf] [--out DIR]
 """
 from __future__ import annotations
 
@@ -76,6 +77,14 @@ def cmd_erotate(a) -> int:
     return erotate_command.run(a)
 
 
+def cmd_show(a) -> int:
+    from .show import ShowError, run
+    try:
+        return run(a)
+    except ShowError as e:
+        return _fail(str(e))
+
+
 def main(argv) -> int:
     p = argparse.ArgumentParser(prog="kapsel-py analyze", description=__doc__,
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -95,5 +104,18 @@ def main(argv) -> int:
     e = sub.add_parser("erotate", help="rotational energy of rigid bodies per record")
     e.add_argument("file", help="output.udf")
     e.set_defaults(fn=cmd_erotate)
+    w = sub.add_parser("show", help="picture of a run: a slice of psi (or |u|) with the "
+                                    "particles, and E (shear stress) over time; one PNG per "
+                                    "snapshot")
+    w.add_argument("run_dir", metavar="RUN_DIR", help="the directory output.udf and the "
+                                                      "field files are in")
+    w.add_argument("--record", default="-1",
+                   help="record of output.udf to draw: an index (negative from the end) or "
+                        "'all' (default -1, the last)")
+    w.add_argument("--z", type=int, default=None, metavar="K",
+                   help="mesh index of the z slice (default: the middle)")
+    w.add_argument("--udf", help="the run's output UDF (default RUN_DIR/output.udf)")
+    w.add_argument("--out", help="directory of the PNGs (default RUN_DIR)")
+    w.set_defaults(fn=cmd_show)
     a = p.parse_args(argv)
     return a.fn(a)
