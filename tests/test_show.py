@@ -116,3 +116,11 @@ def test_show_spectral_shear_run_says_it_has_no_fields(tmp_path, monkeypatch, ca
     assert "no field files" in err and "spectral types write none" in err
     png = tmp_path / "show_record2.png"
     assert png.exists() and matplotlib.image.imread(str(png)).shape[:2] == (500, 1200)
+
+
+def test_show_without_matplotlib_names_the_extra(tmp_path, monkeypatch, capsys):
+    (tmp_path / "output.udf").write_text("")
+    monkeypatch.setitem(sys.modules, "matplotlib", None)     # import matplotlib fails
+    assert cli.main(["analyze", "show", str(tmp_path)]) == 2
+    err = capsys.readouterr().err
+    assert "matplotlib is not installed" in err and "kapsel-py[plot]" in err
