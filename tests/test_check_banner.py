@@ -124,3 +124,21 @@ def test_banner_reports_a_drawn_seed_once(tmp_path, monkeypatch, capsys):
     err = capsys.readouterr().err
     seeds = [ln for ln in err.splitlines() if "seed" in ln]
     assert len(seeds) == 1 and "(drawn; rerun with --seed " in seeds[0], err
+
+
+def test_check_a_continued_run(tmp_path, monkeypatch, capsys):
+    """--check of a restart file says where the run continues and that records are appended."""
+    from udf import UDFManager
+    setup(tmp_path)
+    monkeypatch.chdir(tmp_path)
+    assert cli.main([*FLAGS, "--seed", "5", "--quiet"]) == cli.EXIT_OK
+    u = UDFManager(str(tmp_path / "restart.udf"))
+    u.put(2, "output.Num_snap")
+    u.write(str(tmp_path / "restart.udf"))
+    before = listing(tmp_path)
+    assert cli.main(["-Irestart.udf", "-Ooutput.udf", "-Ddefine.udf", "-Rrestart.udf",
+                     "--check"]) == cli.EXIT_OK
+    out = capsys.readouterr().out
+    assert "continues from step 1 (t = " in out and "to step 2: 1 steps" in out
+    assert "output.udf (records appended)" in out
+    assert listing(tmp_path) == before
