@@ -5,6 +5,7 @@ import shutil
 import subprocess
 import sys
 
+import h5py
 import numpy as np
 import pytest
 
@@ -89,7 +90,15 @@ def test_show_draws_the_last_snapshot_as_its_data(tmp_path, monkeypatch, capsys)
 
 
 def test_show_record_options_and_errors(tmp_path, monkeypatch, capsys):
-    short_run(tmp_path, monkeypatch, gts=1, nsnap=1)
+    """On a one-component fluid (|u| is drawn)."""
+    short_run(tmp_path, monkeypatch, eq="Navier_Stokes_FDM", gts=1, nsnap=1)
+    rec = show.read_records(str(tmp_path / "output.udf"))
+    files = show.snapshot_files(str(tmp_path))
+    assert "psi" not in files[1]
+    pic = show.render(str(tmp_path / "u.png"), rec, 1, {"u": files[1]["u"]}, z_index=5)
+    with h5py.File(files[1]["u"]) as f:
+        speed = np.sqrt(sum(np.asarray(f[c]) ** 2 for c in ("UX", "UY", "UZ"))).T
+    assert pic.kind == "u" and pic.z_index == 5 and np.allclose(pic.slice, speed[:, :, 5])
     assert cli.main(["analyze", "show", str(tmp_path), "--record", "all",
                      "--out", str(tmp_path / "pics")]) == 0
     assert sorted(os.listdir(tmp_path / "pics")) == ["show_0.png", "show_1.png"]
