@@ -8,18 +8,11 @@ The models do no I/O; this module only formats what the configuration and model 
 from __future__ import annotations
 
 import math
-import os
+
 
 
 def _g(x: float) -> str:
     return f"{float(x):.6g}"
-
-
-def _size(nbytes: float) -> str:
-    for unit, scale in (("TB", 2 ** 40), ("GB", 2 ** 30), ("MB", 2 ** 20)):
-        if nbytes >= scale:
-            return f"{nbytes / scale:.3g} {unit}"
-    return f"{nbytes / 2 ** 10:.3g} kB"
 
 
 def memory_estimate(cfg) -> float:
@@ -102,7 +95,3 @@ def print_banner(lines, stream, prefix: str = "#") -> None:
     for line in lines:
         print(f"{prefix}{line}", file=stream)
     stream.flush()
-
-
-def abspath_dir(path: str) -> str:
-    return os.path.dirname(os.path.abspath(path))

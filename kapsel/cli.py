@@ -204,7 +204,8 @@ def main(argv=None) -> int:
         return prepared
     cfg, doc, model, resumed, seed_drawn = prepared
 
-    from .banner import describe, memory_estimate, print_banner, _size
+    from .banner import describe, memory_estimate, print_banner
+    from .config import _size
     from .simulation import planned_files, run
     if args.quiet and not args.check:
         return run(cfg, args, doc, model, resumed=resumed)
