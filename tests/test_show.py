@@ -133,3 +133,14 @@ def test_show_without_matplotlib_names_the_extra(tmp_path, monkeypatch, capsys):
     assert cli.main(["analyze", "show", str(tmp_path)]) == 2
     err = capsys.readouterr().err
     assert "matplotlib is not installed" in err and "kapsel-py[plot]" in err
+
+
+def test_periodic_and_lees_edwards_images():
+    box = np.array([16.0, 16.0, 16.0])
+    R = np.array([[1.0, 1.0, 8.0]])        # near the x = 0 and y = 0 edges, cut by z = 8
+    plain = {(cx, cy) for cx, cy, r, cut in show.particle_circles(R, 2.0, box, 8.0)}
+    assert plain == {(1, 1), (17, 1), (1, 17), (17, 17)}
+    sheared = show.particle_circles(R, 2.0, box, 8.0, le_shift=4.0)
+    assert {(cx, cy) for cx, cy, *_ in sheared} == {(1, 1), (17, 1), (5, 17)}
+    assert all(cut for *_, cut in sheared)
+    assert not any(cut for *_, cut in show.particle_circles(R, 2.0, box, 12.0))

@@ -1,10 +1,10 @@
 """``kapsel-py analyze show RUN_DIR``: a picture of a run, one PNG per chosen snapshot.
 
 Left: a z-slice of psi (two-component types) or of |u| (one-component fluids), with the
-particles drawn at their positions and sizes (periodic images across the box edges; solid
-outline: the particle is cut by the slice, dashed: it lies off the slice).  Right: the record
-scalars over time, E and, for the sheared types, the shear stress of shear_stress.dat, with
-the snapshot marked.
+particles drawn at their positions and sizes (periodic images across the box edges, shifted
+by strain x Ly across y for the Lees-Edwards types; solid outline: the particle is cut by the
+slice, dashed: it lies off the slice).  Right: the record scalars over time, E and, for the
+sheared types, the shear stress of shear_stress.dat, with the snapshot marked.
 
 What is read, and where, is kept in two small functions (``snapshot_files`` for the field
 files, ``read_records`` for output.udf) so a change of file names touches only them.
@@ -117,20 +117,35 @@ def read_table(path: str):
 
 
 # ---------------------------------------------------------------------------- drawing
-def particle_circles(R: np.ndarray, A: float, box: np.ndarray, z: float):
+def particle_circles(R: np.ndarray, A: float, box: np.ndarray, z: float,
+                     le_shift: float = 0.0):
     """Circles (x, y, radius, cut) of the particles and of their periodic images that
-    reach into the box: ``cut`` when the sphere crosses the plane z (periodic)."""
+    reach into the box: ``cut`` when the sphere crosses the plane z (periodic).
+    ``le_shift``: the Lees-Edwards offset (strain x Ly) of the images across y = Ly (+)
+    and y = 0 (-)."""
     out = []
     Lx, Ly, Lz = box
     for x, y, zz in np.mod(R, box):
         dz = (zz - z + Lz / 2) % Lz - Lz / 2
         cut = abs(dz) < A
-        for sx in (-Lx, 0.0, Lx):
-            for sy in (-Ly, 0.0, Ly):
-                cx, cy = x + sx, y + sy
+        for sy in (-Ly, 0.0, Ly):
+            x0 = (x + np.sign(sy) * le_shift) % Lx
+            for sx in (-Lx, 0.0, Lx):
+                cx, cy = x0 + sx, y + sy
                 if -A < cx < Lx + A and -A < cy < Ly + A:
                     out.append((cx, cy, A, cut))
     return out
+
+
+def lees_edwards_shift(rec: "Records", index: int, table, box) -> float:
+    """strain x Ly of the Lees-Edwards types at the record (shear_stress.dat), else 0."""
+    if "Lees_Edwards" not in rec.type and "_LE_" not in rec.type:
+        return 0.0
+    if table is None or "Shear_strain" not in table[0] or not len(table[1]):
+        return 0.0
+    names, data = table
+    j = int(np.argmin(np.abs(data[:, names.index("t")] - rec.t[index])))
+    return float(data[j, names.index("Shear_strain")]) * box[1]
 
 
 def busiest_slice(R: np.ndarray, A: float, box: np.ndarray, nz: int) -> int:
@@ -199,7 +214,8 @@ def render(path: str, rec: Records, index: int, fields: dict | None, z_index=Non
         cax.set_axis_off()
         ax.text(0.5, 0.5, "no field file for this snapshot\n(this type writes none)",
                 ha="center", va="center", transform=ax.transAxes, color="0.4")
-    for cx, cy, r, cut in particle_circles(rec.R[index], rec.A, box, z):
+    shift = lees_edwards_shift(rec, index, table, box)
+    for cx, cy, r, cut in particle_circles(rec.R[index], rec.A, box, z, shift):
         ax.add_patch(Circle((cx, cy), r, fill=False, lw=1.2, color="k",
                             ls="-" if cut else "--"))
     ax.set_xlim(0, box[0])
