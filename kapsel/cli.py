@@ -154,10 +154,8 @@ def main(argv=None) -> int:
     resumed = cfg.resume.calculation != "NEW"
     if not resumed and not args.overwrite:
         targets = [(f"-O{args.output}", args.output), (f"-R{args.restart}", args.restart)]
-        if cfg.is_fdm:
-            out_dir = os.path.dirname(os.path.abspath(args.output))
-            targets += [(f"the field series {name}", os.path.join(out_dir, name))
-                        for name in ("orderparam.xmf", "particle.xmf", "velocity.xmf")]
+        from .io.writers import new_run_targets
+        targets += new_run_targets(cfg, args)
         for what, path in targets:
             if os.path.exists(path):
                 return fail(f"{what} exists; pass --overwrite to replace it (or continue a "
