@@ -174,6 +174,8 @@ def main(argv=None) -> int:
                 print(f"#{args.input}: no matching state file; continuing from the restart "
                       f"data alone (R_raw restarts at R, the noise stream at the seed)",
                       file=sys.stderr)
+        from .io import writers
+        writers.check_output(cfg, model)
     except config.ConfigError as e:
         if not e.where:  # raised by a model: say where the item is in the input
             top = e.path.split(".")[0].split("[")[0] if e.path else ""

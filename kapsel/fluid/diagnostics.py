@@ -73,7 +73,7 @@ def velocity_gradient_spectral(u: np.ndarray, dx: float, strain: float = 0.0) ->
     for a in range(3):
         uh = np.fft.rfftn(u[a])
         for b, k in enumerate((kx, ky, kz)):
-            g[a, b] = np.fft.irfftn(1j * k * uh, s=shape)
+            g[a, b] = np.fft.irfftn(1j * k * uh, s=shape, axes=(0, 1, 2))
     return g
 
 
@@ -89,8 +89,9 @@ def spectral_pressure(u: np.ndarray, du: np.ndarray | None, rho: float, dt: floa
     shape = u.shape[1:]
     ks = _wavenumbers(shape, dx)
     k2 = ks[0] ** 2 + ks[1] ** 2 + ks[2] ** 2
-    k2[0, 0, 0] = 1.0
-    ph = np.zeros(ks[0].shape[:2] + (shape[2] // 2 + 1,), dtype=complex)
+    zero = k2 == 0.0                       # the mean and the all-Nyquist modes
+    k2[zero] = 1.0
+    ph = np.zeros(k2.shape, dtype=complex)
     for a in range(3):
         for b in range(a, 3):
             w = (1.0 if a == b else 2.0) * rho
@@ -99,5 +100,5 @@ def spectral_pressure(u: np.ndarray, du: np.ndarray | None, rho: float, dt: floa
         for a in range(3):
             ph -= 1j * (rho / dt) * ks[a] * np.fft.rfftn(du[a])
     ph /= k2
-    ph[0, 0, 0] = 0.0
-    return np.fft.irfftn(ph, s=shape)
+    ph[zero] = 0.0
+    return np.fft.irfftn(ph, s=shape, axes=(0, 1, 2))

@@ -147,11 +147,71 @@ def make_writers(cfg, args, input_doc, snap) -> list:
     if files.series:
         _require(snap, files.needs(), "the per-snapshot files")
         writers.append(files)
+    spec = cfg.output.fields
+    if spec is not None:
+        check_output(cfg, snap)
+        writers.append(field_writer(cfg, args, snap))
     if snap.offers("shear"):
         writers.append(ShearLogWriter(os.path.join(out_dir, "shear_stress.dat")))
     if snap.offers("E_rot"):
         writers.append(RotationalEnergyWriter(os.path.join(out_dir, "rotational_energy.dat")))
     return writers
+
+
+def field_directory(cfg, args) -> str:
+    """output.ON.Out_dir; a relative one is taken from the directory of output.udf."""
+    d = os.path.expanduser(cfg.output.fields.Out_dir)
+    return d if os.path.isabs(d) else os.path.join(output_dir(args), d)
+
+
+def field_writer(cfg, args, snap):
+    """The writer of output.AVS ON: EXTENDED (kapsel.io.extended) or legacy AVS
+    (kapsel.io.avs)."""
+    spec = cfg.output.fields
+    directory = field_directory(cfg, args)
+    species = snap.particles.species if snap.n_particles else []
+    if spec.FileType == "EXTENDED":
+        from .extended import ExtendedHDF5
+        w = ExtendedHDF5(directory, spec, cfg.mesh.shape, cfg.mesh.DX, snap.dt,
+                         cfg.output.GTS, snap.n_particles, species, snap.sheared)
+        if not getattr(args, "quiet", False):
+            print(w.console(), end="", file=sys.stderr)
+        return w
+    from .avs import LegacyAVS
+    return LegacyAVS(directory, spec, cfg.mesh.shape, cfg.mesh.DX, cfg.output.Num_snap,
+                     snap.n_particles, snap.particles)
+
+
+# what each print switch needs, and its name in messages
+_FIELD_NAMES = {"u": "velocity", "phi": "particle profile", "pressure": "pressure",
+                "tau": "viscous stress"}
+
+
+_FLAGS = {"u": "Vel", "pressure": "Pressure", "tau": "Tau"}
+
+
+def check_output(cfg, model) -> None:
+    """Refuse output the type cannot give (kapsel.config.ConfigError naming the switch), e.g.
+    the pressure of the spectral Lees-Edwards type: never a zero-filled placeholder.
+    ``model``: the model or its snapshot."""
+    from ..config import ConfigError
+    spec = cfg.output.fields
+    if spec is None:
+        return
+    snap = model.snapshot() if hasattr(model, "snapshot") else model
+    if spec.FileType == "EXTENDED":
+        for flag, name in (("Vel", "u"), ("Pressure", "pressure"), ("Tau", "tau")):
+            if getattr(spec, flag) and not snap.offers(name):
+                raise ConfigError(f"{cfg.type} does not compute the {_FIELD_NAMES[name]} "
+                                  f"field in kapsel-py; set it to NO",
+                                  path=f"output.ON.EXTENDED.Print_field.{flag}", value="YES")
+        return
+    missing = [n for n in ("u", "pressure", "tau") if not snap.offers(n)]
+    if missing:
+        raise ConfigError(f"the legacy AVS files hold the {', '.join(_FIELD_NAMES[n] for n in missing)}, "
+                          f"which {cfg.type} does not compute in kapsel-py; use EXTENDED and "
+                          f"switch {', '.join(_FLAGS[n] for n in missing)} off",
+                          path="output.ON.FileType", value=spec.FileType)
 
 
 def _require(snap, names, what):
@@ -165,5 +225,11 @@ def new_run_targets(cfg, args) -> list:
     to replace them without --overwrite)."""
     from .fields import series_for
     out_dir = output_dir(args)
-    return [(f"the field series {s.name}.xmf", os.path.join(out_dir, s.name + ".xmf"))
-            for s in series_for(cfg.type, cfg.particles.count)]
+    out = [(f"the field series {s.name}.xmf", os.path.join(out_dir, s.name + ".xmf"))
+           for s in series_for(cfg.type, cfg.particles.count)]
+    spec = cfg.output.fields
+    if spec is not None:
+        ext = ".h5" if spec.FileType == "EXTENDED" else ".fld"
+        path = os.path.join(field_directory(cfg, args), spec.Out_name + ext)
+        out.append((f"the output.AVS file {path}", path))
+    return out
