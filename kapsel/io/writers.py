@@ -174,12 +174,13 @@ def field_writer(cfg, args, snap):
         from .extended import ExtendedHDF5
         w = ExtendedHDF5(directory, spec, cfg.mesh.shape, cfg.mesh.DX, snap.dt,
                          cfg.output.GTS, snap.n_particles, species, snap.sheared)
-        if not getattr(args, "quiet", False):
-            print(w.console(), end="", file=sys.stderr)
-        return w
-    from .avs import LegacyAVS
-    return LegacyAVS(directory, spec, cfg.mesh.shape, cfg.mesh.DX, cfg.output.Num_snap,
-                     snap.n_particles, snap.particles)
+    else:
+        from .avs import LegacyAVS
+        w = LegacyAVS(directory, spec, cfg.mesh.shape, cfg.mesh.DX, cfg.output.Num_snap,
+                      snap.n_particles, snap.particles)
+    if not getattr(args, "quiet", False):
+        print(w.console(), end="", file=sys.stderr)
+    return w
 
 
 # what each print switch needs, and its name in messages
