@@ -243,6 +243,7 @@ def test_viscous_stress_spectral_central_and_oblique():
     exact = eta * np.stack([0 * X, np.cos(Y), np.cos(X), 0 * X, -np.sin(Z)])
     tau = dg.stress_from_gradient(dg.velocity_gradient_spectral(u, dx), eta)
     np.testing.assert_allclose(tau, exact, atol=1e-12)
+    np.testing.assert_allclose(dg.viscous_stress_spectral(u, dx, eta), exact, atol=1e-12)
     tau = dg.stress_from_gradient(dg.velocity_gradient_central(u, dx), eta)
     np.testing.assert_allclose(tau, exact, atol=0.03)          # O(dx^2)
     # on the oblique grid x^ = x - g y of a field periodic there: d_y = d_y^ - g d_x^
@@ -250,6 +251,9 @@ def test_viscous_stress_spectral_central_and_oblique():
     f = np.sin(X + 2 * Y)                                        # a field of (x^, y)
     grad = dg.velocity_gradient_spectral(np.stack([f, 0 * f, 0 * f]), dx, strain=g)
     np.testing.assert_allclose(grad[0, 1], (2 - g) * np.cos(X + 2 * Y), atol=1e-12)
+    tau = dg.viscous_stress_spectral(np.stack([f, 0 * f, 0 * f]), dx, eta, strain=g)
+    np.testing.assert_allclose(tau[1], eta * (2 - g) * np.cos(X + 2 * Y), atol=1e-12)
+    np.testing.assert_allclose(tau[0], 2 * eta * np.cos(X + 2 * Y), atol=1e-12)
 
 
 def test_pressure_at_the_nodes():

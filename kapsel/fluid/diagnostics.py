@@ -10,6 +10,7 @@ All fields are float64 arrays indexed [x, y, z]; vectors (3, NX, NY, NZ); the st
 from __future__ import annotations
 
 import numpy as np
+import scipy.fft as sfft
 
 PAIRS = ((0, 0), (0, 1), (0, 2), (1, 1), (1, 2))       # xx, xy, xz, yy, yz
 
@@ -71,10 +72,25 @@ def velocity_gradient_spectral(u: np.ndarray, dx: float, strain: float = 0.0) ->
     ky = ky - strain * kx
     g = np.empty((3, 3) + shape)
     for a in range(3):
-        uh = np.fft.rfftn(u[a])
+        uh = sfft.rfftn(u[a])
         for b, k in enumerate((kx, ky, kz)):
-            g[a, b] = np.fft.irfftn(1j * k * uh, s=shape, axes=(0, 1, 2))
+            g[a, b] = sfft.irfftn(1j * k * uh, s=shape, axes=(0, 1, 2))
     return g
+
+
+def viscous_stress_spectral(u: np.ndarray, dx: float, eta: float,
+                            strain: float = 0.0) -> np.ndarray:
+    """tau (5, ...) of a periodic field by FFT: tau_ab^ = i eta (k_a u_b^ + k_b u_a^), five
+    inverse transforms (``strain``: as velocity_gradient_spectral)."""
+    shape = u.shape[1:]
+    kx, ky, kz = _wavenumbers(shape, dx)
+    ks = (kx, ky - strain * kx, kz)
+    uh = [sfft.rfftn(u[a]) for a in range(3)]
+    tau = np.empty((5,) + shape)
+    for n, (a, b) in enumerate(PAIRS):
+        th = (1j * eta) * (ks[a] * uh[b] + ks[b] * uh[a])
+        tau[n] = sfft.irfftn(th, s=shape, axes=(0, 1, 2))
+    return tau
 
 
 def spectral_pressure(u: np.ndarray, du: np.ndarray | None, rho: float, dt: float,
@@ -95,10 +111,10 @@ def spectral_pressure(u: np.ndarray, du: np.ndarray | None, rho: float, dt: floa
     for a in range(3):
         for b in range(a, 3):
             w = (1.0 if a == b else 2.0) * rho
-            ph -= w * ks[a] * ks[b] * np.fft.rfftn(u[a] * u[b])
+            ph -= w * ks[a] * ks[b] * sfft.rfftn(u[a] * u[b])
     if du is not None:
         for a in range(3):
-            ph -= 1j * (rho / dt) * ks[a] * np.fft.rfftn(du[a])
+            ph -= 1j * (rho / dt) * ks[a] * sfft.rfftn(du[a])
     ph /= k2
     ph[zero] = 0.0
-    return np.fft.irfftn(ph, s=shape, axes=(0, 1, 2))
+    return sfft.irfftn(ph, s=shape, axes=(0, 1, 2))

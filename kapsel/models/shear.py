@@ -134,7 +134,7 @@ class ShearLEModel(SpectralModel):
         """u (full flow) and phi in the rectangular frame (OBL_INT interpolation), tau of the
         full flow (spectral Cartesian derivatives on the oblique grid; d_y U_x = gamma_dot
         added to xy).  No pressure: not computed for the oblique frame."""
-        from ..fluid.diagnostics import stress_from_gradient, velocity_gradient_spectral
+        from ..fluid.diagnostics import viscous_stress_spectral
         from ..fluid.oblique import to_rectangular
         g0 = self.fluid.y0 / self.cfg.mesh.DX
 
@@ -142,10 +142,11 @@ class ShearLEModel(SpectralModel):
             return to_rectangular(f, self.fluid.frame_strain, self.interpolation, g0)
 
         def tau():
-            grad = velocity_gradient_spectral(self.spm.velocity(), self.cfg.mesh.DX,
-                                              self.fluid.frame_strain)
-            grad[0, 1] += self.fluid.shear_rate_now
-            return rect(stress_from_gradient(grad, self.cfg.fluid.ETA))
+            eta = self.cfg.fluid.ETA
+            t = viscous_stress_spectral(self.spm.velocity(), self.cfg.mesh.DX, eta,
+                                        self.fluid.frame_strain)
+            t[1] += eta * self.fluid.shear_rate_now
+            return rect(t)
 
         src = {"u": lambda: self.fluid.velocity_rectangular(self.interpolation), "tau": tau}
         if self.particles.n:

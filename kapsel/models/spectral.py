@@ -68,14 +68,18 @@ class SpectralModel(Model):
         """u, phi (with particles), tau (spectral derivatives) and the pressure
         (kapsel.fluid.diagnostics.spectral_pressure: advection and the particles' body force
         of the last step)."""
-        from ..fluid.diagnostics import (spectral_pressure, stress_from_gradient,
-                                         velocity_gradient_spectral)
+        from ..fluid.diagnostics import spectral_pressure, viscous_stress_spectral
         dx, f = self.cfg.mesh.DX, self.cfg.fluid
-        src = {"u": self.spm.velocity,
-               "tau": lambda: stress_from_gradient(
-                   velocity_gradient_spectral(self.spm.velocity(), dx), f.ETA),
-               "pressure": lambda: spectral_pressure(self.spm.velocity(), self.spm._du, f.RHO,
-                                                     self.dt, dx)}
+        memo = {}
+
+        def u():                  # the snapshot's velocity, transformed once
+            if "u" not in memo:
+                memo["u"] = self.spm.velocity()
+            return memo["u"]
+
+        src = {"u": u,
+               "tau": lambda: viscous_stress_spectral(u(), dx, f.ETA),
+               "pressure": lambda: spectral_pressure(u(), self.spm._du, f.RHO, self.dt, dx)}
         if self.particles.n:
             src["phi"] = self.spm.phi
         return src
