@@ -262,3 +262,33 @@ def test_pressure_at_the_nodes():
     q = dg.pressure_at_nodes(p)
     assert q.sum() == 8.0
     assert all(q[i, j, k] == 1.0 for i in (1, 2) for j in (1, 2) for k in (1, 2))
+
+
+def test_a_cut_frame_is_dropped_on_continuing(tmp_path):
+    """A frame left incomplete by a killed run is not kept when the run is continued."""
+    from kapsel.config import FieldOutput
+    from kapsel.io.extended import ExtendedHDF5
+    from test_avs import with_stress
+    from test_fields import fake_snapshot, SHAPE, DX, DT
+
+    def writer():
+        return ExtendedHDF5(tmp_path, FieldOutput(str(tmp_path), "t", "EXTENDED"), SHAPE, DX,
+                            DT, 2, 3, [0, 0, 0], False)
+    snaps = [with_stress(fake_snapshot(s)) for s in (0, 2, 4)]
+    w = writer()
+    w.open(snaps[0], False)
+    for s in snaps:
+        w.write(s)
+    w.close("interrupted")
+    with h5py.File(tmp_path / "t.h5", "a") as f:
+        del f["trajectory_data/frame_2/field/u_x"]
+    w = writer()
+    w.open(snaps[2], True)
+    assert w.frames == 2 and w._skip is None
+    w.write(snaps[2])
+    w.close("end")
+    with h5py.File(tmp_path / "t.h5", "r") as f:
+        assert sorted(f["trajectory_data"]) == ["frame_0", "frame_1", "frame_2"]
+        np.testing.assert_array_equal(f["trajectory_data/frame_2/field/u_x"],
+                                      snaps[2].get("u")[0].astype(np.float32))
+    assert " 0.0 0.125000 3\n" in (tmp_path / "t.conf").read_text()

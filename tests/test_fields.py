@@ -151,6 +151,13 @@ def test_single_particle_layout(tmp_path):
         assert h["RX"][0] == 0.25
     text = (tmp_path / "particle_coordinate.xmf").read_text()
     assert 'NumberOfElements="1"' in text and 'Dimensions="2 3"' in text
+    r, steps = vtk_reader(tmp_path / "particle_coordinate.xmf")     # ParaView reads it
+    assert steps == (0.0,)
+    pts, arrays = vtk_at(r, 0.0)
+    from vtkmodules.util.numpy_support import vtk_to_numpy
+    p = fake_snapshot(0, 1).particles
+    np.testing.assert_array_equal(vtk_to_numpy(pts.GetPoints().GetData())[0], p.R[0])
+    np.testing.assert_array_equal(arrays["particle_velocity"][0], p.v[0])
 
 
 def vtk_reader(path):

@@ -38,6 +38,7 @@ files are rewritten (atomically) after every frame, so they always describe the 
 from __future__ import annotations
 
 import os
+import sys
 
 import h5py
 import numpy as np
@@ -108,8 +109,11 @@ class ExtendedHDF5:
     # ------------------------------------------------------------------ protocol
     def open(self, snap, resumed: bool) -> None:
         os.makedirs(self.directory, exist_ok=True)
-        if resumed and os.path.exists(self.path) and self._continue(snap):
-            return
+        if resumed and os.path.exists(self.path):
+            if self._continue(snap):
+                return
+            print(f"#{self.path} cannot be continued (another grid, crop or particle "
+                  f"number, or not readable): a new trajectory replaces it", file=sys.stderr)
         self.file = h5py.File(self.path, "w")
         self._header()
         self.frames, self._times = 0, []
@@ -133,7 +137,8 @@ class ExtendedHDF5:
         n = 0
         times = []
         tol = 1e-6 * max(1.0, abs(snap.time))
-        while f"frame_{n}" in traj and float(traj[f"frame_{n}"].attrs["time"][0]) <= snap.time + tol:
+        while f"frame_{n}" in traj and self._complete(traj[f"frame_{n}"]) \
+                and float(traj[f"frame_{n}"].attrs["time"][0]) <= snap.time + tol:
             times.append(float(traj[f"frame_{n}"].attrs["time"][0]))
             n += 1
         m = n
@@ -146,6 +151,22 @@ class ExtendedHDF5:
         f.flush()
         self._describe()
         return True
+
+    def _complete(self, frame) -> bool:
+        """A frame with every dataset this run writes (not one cut by a killed run)."""
+        names = [f"field/{n}" for n in self._dataset_names()]
+        if self.nump:
+            names += [f"particle/{n}" for n in ("pos", "pos_raw", "QR") + PARTICLE_VECTORS]
+        try:
+            return "time" in frame.attrs and all(n in frame for n in names)
+        except (OSError, KeyError):
+            return False
+
+    def _dataset_names(self):
+        out = []
+        for name in self.fields:
+            out += {"u": ["u_x", "u_y", "u_z"], "tau": list(TAU)}.get(name, [name])
+        return out
 
     def write(self, snap) -> None:
         if snap.step == self._skip:
