@@ -153,7 +153,8 @@ def test_continued_run_keeps_the_earlier_blocks(tmp_path):
     assert re.findall(r'"step(\d+)time', (tmp_path / "runp.fld").read_text()) == ["0", "2"]
 
 
-@pytest.mark.parametrize("eq", ["Navier_Stokes", "Shear_Navier_Stokes", "Navier_Stokes_FDM",
+@pytest.mark.parametrize("eq", ["Navier_Stokes", "Shear_Navier_Stokes",
+                                "Shear_Navier_Stokes_Lees_Edwards", "Navier_Stokes_FDM",
                                 "Navier_Stokes_Cahn_Hilliard_FDM",
                                 "Shear_Navier_Stokes_Lees_Edwards_FDM", "Shear_NS_LE_CH_FDM"])
 def test_every_type_writes_avs(tmp_path, eq):
@@ -180,13 +181,3 @@ def test_every_type_writes_avs(tmp_path, eq):
         np.testing.assert_array_equal(
             blocks[4][("variable", 1)],
             read_snapshot(tmp_path / "velocity_2.h5", "UX").astype(np.float32).ravel(order="F"))
-
-
-def test_spectral_lees_edwards_refused(tmp_path, capsys):
-    from test_extended import extended_input
-    from test_restart import cli
-    inp = extended_input(tmp_path, "Shear_Navier_Stokes_Lees_Edwards", file_type="ASCII")
-    assert cli(tmp_path, inp) == 2
-    err = capsys.readouterr().err
-    assert "output.ON.FileType" in err and "pressure" in err
-    assert not (tmp_path / "out").exists()

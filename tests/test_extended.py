@@ -56,8 +56,8 @@ def run(d, eq, **kw):
 
 
 def fields_expected(eq):
-    return ["phi"] + (["pressure"] if eq != LE else []) + \
-        ["tau_xx", "tau_xy", "tau_xz", "tau_yy", "tau_yz", "u_x", "u_y", "u_z"]
+    return ["phi", "pressure", "tau_xx", "tau_xy", "tau_xz", "tau_yy", "tau_yz", "u_x", "u_y",
+            "u_z"]
 
 
 @pytest.mark.parametrize("eq", TYPES)
@@ -67,7 +67,7 @@ def test_trajectory_of_every_type(tmp_path, eq):
     strain for the sheared types; the .conf; VTK opens both XDMF files (times, points at the
     grid coordinates, array names)."""
     from udf import UDFManager
-    f = run(tmp_path, eq, pressure=eq != LE)
+    f = run(tmp_path, eq)
     dt = run_dt(tmp_path)
     n = 16
     a = f.attrs
@@ -127,7 +127,7 @@ def test_trajectory_of_every_type(tmp_path, eq):
                            "[Filename]\n traj\n[Grid Dimensions]\n 16 16 16\n[Time Series]\n"
                            f" 0.0 {2 * dt:.6f} 3\n[Particle Number]\n 2\n[Obstacle Number]\n 0\n")
     assert "[Field Vector]\n u_x u_y u_z u\n" in conf and "[Particle Tensor]\n QR\n" in conf
-    assert ("[Field Scalar]\n pressure\n" in conf) == (eq != LE)
+    assert "[Field Scalar]\n pressure\n" in conf
     times = [np.float32(2 * k * dt) for k in range(3)]
     r, steps = vtk_reader(tmp_path / "out" / "traj_fluid.xdmf")
     assert steps == pytest.approx(times)
@@ -198,13 +198,22 @@ def test_continued_run_appends_frames(tmp_path):
     assert " 5\n[Particle Number]" in (d / "out" / "traj.conf").read_text()
 
 
-def test_pressure_of_the_spectral_lees_edwards_type_is_refused(tmp_path, capsys):
-    from test_restart import cli
-    inp = extended_input(tmp_path, LE, pressure=True)
-    assert cli(tmp_path, inp) == 2
-    err = capsys.readouterr().err
-    assert "output.ON.EXTENDED.Print_field.Pressure" in err and "set it to NO" in err
-    assert not (tmp_path / "out").exists() and not (tmp_path / "output.udf").exists()
+def test_what_a_type_does_not_compute_is_refused(tmp_path):
+    """A print switch (or legacy AVS) needing a field the model does not offer is refused
+    with the item named, before anything is written."""
+    from kapsel import config
+    from kapsel.io.writers import check_output
+    from test_fields import fake_snapshot
+    inp = extended_input(tmp_path, NS)
+    cfg = config.load(inp)
+    snap = fake_snapshot(0)                   # offers u, phi, psi, flux: no pressure, no tau
+    with pytest.raises(config.ConfigError, match="Print_field.Pressure.*set it to NO"):
+        check_output(cfg, snap)
+    cfg = config.load(extended_input(tmp_path, NS, file_type="BINARY"))
+    with pytest.raises(config.ConfigError, match="output.ON.FileType.*pressure, viscous stress"):
+        check_output(cfg, snap)
+    snap.sources.update(pressure=lambda: 0, tau=lambda: 0)
+    check_output(cfg, snap)
 
 
 def test_bad_crop_is_refused(tmp_path, capsys):
@@ -233,6 +242,23 @@ def test_spectral_pressure_of_the_taylor_green_vortex():
     du = 0.1 / rho * np.stack([-np.sin(X + 2 * Z), 0 * X, -2 * np.sin(X + 2 * Z)])
     np.testing.assert_allclose(dg.spectral_pressure(0 * u, du, rho, 0.1, 2 * np.pi / n), q,
                                atol=1e-12)
+
+
+def test_spectral_pressure_of_a_sheared_deviation():
+    """Deviation u = (0, A sin kx, 0) from U = gamma_dot y e_x: (u.grad)u = 0, and
+    lap p = -2 RHO gamma_dot d_x u_y gives p = 2 RHO gamma_dot A cos(kx) / k, also seen
+    from an oblique grid."""
+    n, rho, rate, A, k = 16, 1.3, 0.2, 0.5, 2.0
+    dx = 2 * np.pi / n
+    X, Y, Z = _grid(n, dx)
+    u = np.stack([0 * X, A * np.sin(k * X), 0 * X])
+    p = dg.spectral_pressure(u, None, rho, 0.1, dx, rate=rate)
+    np.testing.assert_allclose(p, 2 * rho * rate * A * np.cos(k * X) / k, atol=1e-12)
+    # oblique grid of strain g = 1/2: the grid mode (2, 1) is the Cartesian (2, 0) wave
+    # (x^ = x - g y), divergence-free; a flat metric would see |k|^2 = 5 instead of 4
+    u = np.stack([0 * X, A * np.sin(2 * X + Y), 0 * X])
+    p = dg.spectral_pressure(u, None, rho, 0.1, dx, rate=rate, strain=0.5)
+    np.testing.assert_allclose(p, 2 * rho * rate * A * np.cos(2 * X + Y) / 2, atol=1e-12)
 
 
 def test_viscous_stress_spectral_central_and_oblique():

@@ -94,16 +94,23 @@ def viscous_stress_spectral(u: np.ndarray, dx: float, eta: float,
 
 
 def spectral_pressure(u: np.ndarray, du: np.ndarray | None, rho: float, dt: float,
-                      dx: float) -> np.ndarray:
+                      dx: float, rate: float = 0.0, strain: float = 0.0) -> np.ndarray:
     """Pressure of the incompressible flow u on a periodic grid (zero mean):
 
         lap p = -RHO d_i d_j (u_i u_j) + div f,   f = RHO du / dt
 
     with du the particles' rigidity increment of the last step (the SPM body force, whose
     longitudinal part the projection removes); in Fourier space
-    p^ = -(RHO k_i k_j (u_i u_j)^ + i k . f^) / k^2  (k = 0: 0)."""
+    p^ = -(RHO k_i k_j (u_i u_j)^ + i k . f^) / k^2  (k = 0: 0).
+
+    Lees-Edwards (``rate`` gamma_dot, ``strain`` g of the oblique grid, u the deviation from
+    U = gamma_dot y e_x on that grid): the advection by U and the term u_y dU/dx add
+    div(U . grad u + u_y gamma_dot e_x) = 2 gamma_dot d_x u_y to the divergence of the
+    momentum equation, so p^ gets + 2 i RHO gamma_dot k_x u_y^ / k^2 (k the Cartesian wave
+    vector, k_y = k_y^ - g k_x^)."""
     shape = u.shape[1:]
-    ks = _wavenumbers(shape, dx)
+    kx, ky, kz = _wavenumbers(shape, dx)
+    ks = (kx, ky - strain * kx, kz)
     k2 = ks[0] ** 2 + ks[1] ** 2 + ks[2] ** 2
     zero = k2 == 0.0                       # the mean and the all-Nyquist modes
     k2[zero] = 1.0
@@ -112,6 +119,8 @@ def spectral_pressure(u: np.ndarray, du: np.ndarray | None, rho: float, dt: floa
         for b in range(a, 3):
             w = (1.0 if a == b else 2.0) * rho
             ph -= w * ks[a] * ks[b] * sfft.rfftn(u[a] * u[b])
+    if rate != 0.0:
+        ph += (2j * rho * rate) * ks[0] * sfft.rfftn(u[1])
     if du is not None:
         for a in range(3):
             ph -= 1j * (rho / dt) * ks[a] * sfft.rfftn(du[a])

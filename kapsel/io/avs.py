@@ -14,8 +14,8 @@ In ``Out_dir``:
 files have two header lines and one line per grid point / particle of ``%.3g`` values (the
 original's 3 digits).  The fields are the snapshot's (kapsel.snapshot, rectangular frame for
 the sheared types): velocity, phi (0 without particles), pressure and the viscous stress; a
-type that does not compute one of them is refused (kapsel.io.writers.check_output), nothing is
-zero-filled (the original writes zeros as the spectral types' pressure).
+type that did not compute one of them would be refused (kapsel.io.writers.check_output),
+nothing is zero-filled (the original writes zeros as the spectral types' pressure).
 
 Differences from the original, on purpose: a continued run keeps the earlier run's blocks of
 the .fld files up to the restart's step and appends (the original truncates them to the header,

@@ -133,22 +133,38 @@ class ShearLEModel(SpectralModel):
     def field_sources(self) -> dict:
         """u (full flow) and phi in the rectangular frame (OBL_INT interpolation), tau of the
         full flow (spectral Cartesian derivatives on the oblique grid; d_y U_x = gamma_dot
-        added to xy).  No pressure: not computed for the oblique frame."""
+        added to xy), the pressure (kapsel.fluid.diagnostics.spectral_pressure with the
+        shear terms)."""
         from ..fluid.diagnostics import viscous_stress_spectral
         from ..fluid.oblique import to_rectangular
         g0 = self.fluid.y0 / self.cfg.mesh.DX
 
+        memo = {}
+
         def rect(f):
             return to_rectangular(f, self.fluid.frame_strain, self.interpolation, g0)
 
+        def deviation():          # on the oblique grid, transformed once per snapshot
+            if "u" not in memo:
+                memo["u"] = self.spm.velocity()
+            return memo["u"]
+
         def tau():
             eta = self.cfg.fluid.ETA
-            t = viscous_stress_spectral(self.spm.velocity(), self.cfg.mesh.DX, eta,
+            t = viscous_stress_spectral(deviation(), self.cfg.mesh.DX, eta,
                                         self.fluid.frame_strain)
             t[1] += eta * self.fluid.shear_rate_now
             return rect(t)
 
-        src = {"u": lambda: self.fluid.velocity_rectangular(self.interpolation), "tau": tau}
+        def pressure():
+            from ..fluid.diagnostics import spectral_pressure
+            f = self.cfg.fluid
+            return rect(spectral_pressure(deviation(), self.spm._du, f.RHO, self.dt,
+                                          self.cfg.mesh.DX, self.fluid.shear_rate_now,
+                                          self.fluid.frame_strain))
+
+        src = {"u": lambda: self.fluid.velocity_rectangular(self.interpolation), "tau": tau,
+               "pressure": pressure}
         if self.particles.n:
             src["phi"] = lambda: rect(self.spm.phi())
         return src
