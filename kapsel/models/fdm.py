@@ -207,17 +207,27 @@ class FDMModel(Model):
 
     # ------------------------------------------------------------------ snapshot
     def field_sources(self) -> dict:
-        """u, pressure (at the nodes), tau; phi with particles; psi, psi_all (psi is defined
+        """u, pressure (at the nodes, the particles' force included), tau; phi with particles; psi, psi_all (psi is defined
         inside the particles too, so it is the total order parameter) and flux with a phase
         field (kapsel.snapshot)."""
-        from ..fluid.diagnostics import pressure_at_nodes
-        src = {"u": lambda: self.u, "pressure": lambda: pressure_at_nodes(self.mac.pressure),
-               "tau": self._tau}
+        src = {"u": lambda: self.u, "pressure": self._pressure, "tau": self._tau}
         if self.particles.n:
             src["phi"] = lambda: self.phi
         if self.psi is not None:
             src.update(psi=lambda: self.psi, psi_all=lambda: self.psi, flux=self._flux)
         return src
+
+    def _pressure_cells(self):
+        """The fluid step's pressure plus the part that balances the particles' force of
+        the step (the projection of their rigidity increment), at the cell centres."""
+        p = self.mac.pressure.copy()
+        if self.particles.n and self.step_index > 0:
+            p += self.mac.projection_pressure(self.spm._du)
+        return p
+
+    def _pressure(self):
+        from ..fluid.diagnostics import pressure_at_nodes
+        return pressure_at_nodes(self._pressure_cells())
 
     def _eta(self):
         return self.eta_field if self.eta_field is not None else self.cfg.fluid.ETA

@@ -412,7 +412,7 @@ class ShearFDMModel(FDMModel):
         flux_<n>.h5 for Navier_Stokes_Cahn_Hilliard_FDM only)."""
         from ..fluid.diagnostics import pressure_at_nodes
         src = {"u": self._u_rect,
-               "pressure": lambda: self._rect(pressure_at_nodes(self.mac.pressure)),
+               "pressure": lambda: self._rect(pressure_at_nodes(self._pressure_cells())),
                "tau": self._tau}
         if self.particles.n:
             src["phi"] = lambda: self._rect(self.phi)
