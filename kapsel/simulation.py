@@ -69,7 +69,8 @@ def restart_hint(step, args=None) -> str:
 
 
 def run(cfg, args, input_doc, model, resumed: bool = False) -> int:
-    """Run ``model`` until step GTS * Num_snap, writing a record every GTS steps.
+    """Run ``model`` until step GTS * Num_snap; every GTS steps each writer of
+    kapsel.io.writers.make_writers writes the snapshot (output.udf, field files, logs).
 
     ``resumed``: the model continues a restart (its clock is past 0); output.udf then gets
     the records of the continued run appended (later records of the earlier run, if any,

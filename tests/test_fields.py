@@ -343,6 +343,11 @@ def test_every_fdm_type_with_vtk(tmp_path, eq):
             return np.stack([h["RX"], h["RY"], h["RZ"]], 1), np.stack([h["VX"], h["VY"],
                                                                        h["VZ"]], 1)
     check_xmf_with_vtk(tmp_path, (n, n, n), 1.0, times, fields, parts32)
+    if eq == NSCH:              # what `kapsel-py analyze sq` reads
+        from kapsel.analysis import structure_factor as sq
+        assert len(sq.snapshot_files(str(tmp_path))) == 3
+        assert sq.snapshot_times(str(tmp_path)) == pytest.approx(dict(enumerate(times)))
+        assert sq.read_psi(str(tmp_path / "orderparam_1.h5")).shape == (n, n, n)
     if eq in (NSCH, LECH):
         out.jump(2)
         psi = out.getArray("PSI[]")[..., 0]
