@@ -339,3 +339,13 @@ def test_mac_projection_pressure_balances_a_gradient_force():
     o = ObliqueMAC((n, n, n), dx, rho, 1.0, dt, ShearFlow("DC", 0.0))
     np.testing.assert_allclose(op.grad_b(o.projection_pressure(du), dx), op.grad_b(q, dx),
                                atol=1e-10)
+
+
+def test_a_new_run_does_not_replace_a_trajectory(tmp_path, capsys):
+    from test_restart import cli
+    run(tmp_path, NS).close()
+    os.remove(tmp_path / "output.udf")
+    os.remove(tmp_path / "restart.udf")
+    assert cli(tmp_path, "input.udf") == 2
+    assert "traj.h5 exists; pass --overwrite" in capsys.readouterr().err
+    assert cli(tmp_path, "input.udf", "--overwrite") == 0
