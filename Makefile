@@ -51,6 +51,7 @@ bench: $(VENV)/.installed-bench
 	$(BIN)/python bench/bench_mac.py
 	$(BIN)/python bench/bench_fdm.py
 	$(BIN)/python bench/bench_cna.py
+	$(BIN)/python bench/bench_output.py
 
 clean:
 	rm -rf $(VENV) build *.egg-info

@@ -157,10 +157,8 @@ def prepare(args):
     resumed = cfg.resume.calculation != "NEW"
     if not resumed and not args.overwrite:
         targets = [(f"-O{args.output}", args.output), (f"-R{args.restart}", args.restart)]
-        if cfg.is_fdm:
-            out_dir = os.path.dirname(os.path.abspath(args.output))
-            targets += [(f"the field series {name}", os.path.join(out_dir, name))
-                        for name in ("orderparam.xmf", "particle.xmf", "velocity.xmf")]
+        from .io.writers import new_run_targets
+        targets += new_run_targets(cfg, args)
         for what, path in targets:
             if os.path.exists(path):
                 return fail(f"{what} exists; pass --overwrite to replace it (or continue a "
@@ -179,6 +177,8 @@ def prepare(args):
                 print(f"#{args.input}: no matching state file; continuing from the restart "
                       f"data alone (R_raw restarts at R, the noise stream at the seed)",
                       file=sys.stderr)
+        from .io import writers
+        writers.check_output(cfg, model)
     except config.ConfigError as e:
         if not e.where:  # raised by a model: say where the item is in the input
             top = e.path.split(".")[0].split("[")[0] if e.path else ""

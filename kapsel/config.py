@@ -157,11 +157,28 @@ class TimeIncrement:
 
 
 @dataclass(frozen=True)
+class FieldOutput:
+    """output.AVS ON: ``Out_dir``, ``Out_name``, ``FileType`` (BINARY / ASCII: legacy AVS;
+    EXTENDED: one HDF5 trajectory), and for EXTENDED the Print_field switches and the crop
+    (``slabs``: ((start, count, stride) per axis) or None for the full grid)."""
+    Out_dir: str
+    Out_name: str
+    FileType: str
+    slabs: tuple | None = None
+    Vel: bool = True
+    Phi: bool = True
+    Charge: bool = False
+    Pressure: bool = True
+    Tau: bool = True
+
+
+@dataclass(frozen=True)
 class Output:
     GTS: int
     Num_snap: int
     UDF: bool
     AVS: bool = False
+    fields: FieldOutput | None = None
 
     @property
     def total_steps(self) -> int:
@@ -479,14 +496,49 @@ def from_document(doc: udf.UDFManager, input_path: str = "") -> RunConfig:
     if nsnap < 1:
         r.fail("output.Num_snap", nsnap, "must be at least 1 (the run is GTS x Num_snap steps)")
     avs = r.get("output.AVS") == "ON"
-    if avs:
-        r.fail("output.AVS", "ON", "AVS output is not supported by kapsel-py (HDF5 + XDMF "
-                                   "field files are written for the FDM types); set it to OFF")
-    output = Output(gts, nsnap, r.get("output.UDF") == "ON", avs)
+    output = Output(gts, nsnap, r.get("output.UDF") == "ON", avs,
+                    _field_output(r, mesh) if avs else None)
     resume = Resume(r.get("resume.Calculation"))
     return RunConfig(type=eq_type, mesh=mesh, fluid=fluid, particles=particles,
                      interactions=inter, switches=switches, time=time, output=output,
                      resume=resume, phase=phase, shear=shear, input_path=input_path)
+
+
+def _field_output(r: _Reader, mesh: Mesh) -> FieldOutput:
+    """output.ON (FORMAT-OUTPUT.md §2.1, §3.1): the crop is checked as the original does
+    (0 <= start < N, 0 < stride < N, 0 < count <= N, start + (count-1) stride < N).
+    Charge is forced off (the original does so for every type but Electrolyte)."""
+    on = "output.ON"
+    out_dir, name, kind = r.get(f"{on}.Out_dir"), r.get(f"{on}.Out_name"), r.get(f"{on}.FileType")
+    if not name or "/" in name:
+        r.fail(f"{on}.Out_name", name, "must be a non-empty file name prefix (no '/')")
+    if not out_dir:
+        r.fail(f"{on}.Out_dir", out_dir, "must name a directory")
+    if kind != "EXTENDED":
+        return FieldOutput(out_dir, name, kind)
+    ext = f"{on}.EXTENDED"
+    if r.has(f"{ext}.Driver.Format") and r.get(f"{ext}.Driver.Format") != "HDF5":
+        r.fail(f"{ext}.Driver.Format", r.get(f"{ext}.Driver.Format"), "must be HDF5")
+    pf = f"{ext}.Print_field"
+    yes = {k: r.get(f"{pf}.{k}") == "YES" for k in ("Vel", "Phi", "Charge", "Pressure", "Tau")}
+    slabs = None
+    if r.get(f"{pf}.Crop") == "YES":
+        slabs = []
+        for ax, n in zip("xyz", mesh.shape):
+            path = f"{pf}.YES.Slab_{ax}"
+            v = r.get(path)
+            start, count, stride = (int(x) for x in (v if isinstance(v, (list, tuple)) else
+                                    (r.get(f"{path}.start"), r.get(f"{path}.count"),
+                                     r.get(f"{path}.stride"))))
+            if not (0 <= start < n and 0 < stride < n and 0 < count <= n
+                    and start + (count - 1) * stride < n):
+                r.fail(path, [start, count, stride],
+                       f"needs 0 <= start < {n}, 0 < stride < {n}, 0 < count <= {n} and "
+                       f"start + (count-1) stride < {n} (N{ax.upper()} = {n})")
+            slabs.append((start, count, stride))
+        slabs = tuple(slabs)
+    return FieldOutput(out_dir, name, kind, slabs, yes["Vel"], yes["Phi"], False,
+                       yes["Pressure"], yes["Tau"])
 
 
 # ---------------------------------------------------------------------------------------

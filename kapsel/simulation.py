@@ -5,9 +5,8 @@ A *model* is the physics of one ``constitutive_eq.type``; it does no I/O and off
     model.dt, model.time, model.step_index      the clock
     model.advance()                             one time step
     model.particles                             ParticleState (n may be 0)
-    model.kinetic_energy()                      E of the output record
-    model.record_items() -> dict                further record items (e.g. PSI)
-    model.fields() -> dict                      psi / phi / u for HDF5 snapshots ({} if none)
+    model.snapshot() -> Snapshot                what it offers the output writers
+                                                (kapsel.snapshot: fields, particles, E, ...)
 
 ``SOLVERS`` maps each implemented ``constitutive_eq.type`` to a factory
 ``make(cfg, args, input_doc) -> model``; ``run`` drives any of them.
@@ -35,10 +34,12 @@ class InstabilityError(Exception):
     """NaN or infinity in the fields or particles."""
 
 
-def check_finite(model) -> None:
+def check_finite(model, snap=None) -> None:
+    """NaN or infinity in the model's own fields (u, psi, phi) or particles."""
     import numpy as np
-    for name, arr in model.fields().items():
-        if not np.isfinite(arr).all():
+    snap = model.snapshot() if snap is None else snap
+    for name in ("u", "psi", "phi"):
+        if snap.offers(name) and not np.isfinite(snap.get(name)).all():
             raise InstabilityError(f"the field {name} is not finite (NaN or infinity)")
     p = model.particles
     if p is not None and p.n and not (np.isfinite(p.R).all() and np.isfinite(p.v).all()):
@@ -94,72 +95,28 @@ def planned_files(cfg, args, model, resumed: bool = False) -> list[tuple[str, st
 
 
 def run(cfg, args, input_doc, model, resumed: bool = False) -> int:
-    """Run ``model`` until step GTS * Num_snap, writing a record every GTS steps.
+    """Run ``model`` until step GTS * Num_snap; every GTS steps each writer of
+    kapsel.io.writers.make_writers writes the snapshot (output.udf, field files, logs).
 
     ``resumed``: the model continues a restart (its clock is past 0); output.udf then gets
     the records of the continued run appended (later records of the earlier run, if any,
     are dropped), unless --overwrite asks for a new file."""
-    from .io.records import OutputUDF
+    from .io.writers import make_writers
     from .progress import Progress
 
-    out_dir = os.path.dirname(os.path.abspath(args.output))
-    append = resumed and os.path.exists(args.output) and not args.overwrite
-    output = None
-    record_now = True
-    if cfg.output.UDF:
-        output = OutputUDF(args.output, args.define, input_doc, append=append)
-        if append:
-            kept, dropped, last = output.truncate_after(model.time)
-            record_now = last is None or abs(last - model.time) > 1e-6 * max(1.0, model.time)
-            if not args.quiet:
-                print(f"#continuing at step {model.step_index} (t = {model.time:g}): appending "
-                      f"to {args.output} ({kept} records kept"
-                      + (f", {dropped} later ones dropped" if dropped else "") + ")",
-                      file=sys.stderr)
-    fields = None
-    if model.fields():
-        from .io.fields import FieldWriter
-        fields = FieldWriter(out_dir, cfg.mesh.shape, cfg.mesh.DX,
-                             fields=tuple(model.fields()), resume=resumed)
-    shear_log = None
-    if hasattr(model, "shear_record"):
-        from .io.records import ShearLog
-        shear_log = ShearLog(os.path.join(out_dir, "shear_stress.dat"), append=resumed,
-                             until_step=model.step_index)
-    rot_log = None
-    bodies = getattr(model.particles, "constraints", None) if model.particles is not None \
-        else None
-    if hasattr(bodies, "rotational_energies"):
-        from .io.records import RotationalEnergyLog
-        rot_log = RotationalEnergyLog(os.path.join(out_dir, "rotational_energy.dat"),
-                                      len(bodies.rotational_energies()), append=resumed,
-                                      until_step=model.step_index)
+    writers = make_writers(cfg, args, input_doc, model.snapshot())
     total = cfg.output.total_steps
     progress = Progress(total, quiet=args.quiet)
     start = model.step_index
 
     check_every = min(cfg.output.GTS, 10)
 
-    def snapshot(record=True):
-        n = model.step_index // cfg.output.GTS
-        check_finite(model)
+    def snapshot(snap=None):
+        snap = model.snapshot() if snap is None else snap
+        check_finite(model, snap)
         check_step(model)
-        items = model.record_items()
-        if shear_log is not None and record:
-            shear = model.shear_record()
-            shear_log.write(model.step_index, model.time, shear)
-            if output is not None:
-                items.update({k: v for k, v in shear.items() if output.has_record_item(k)})
-        if rot_log is not None and record:
-            e_rot = bodies.rotational_energies()
-            rot_log.write(model.step_index, model.time, e_rot)
-            if output is not None and output.has_record_item("E_rot"):
-                items["E_rot"] = float(np.sum(e_rot))
-        if output is not None and record:
-            output.add_record(model.step_index, model.time, model.kinetic_energy(),
-                              model.particles, items)
-        if fields is not None:
-            fields.write(n, model.time, **model.fields())
+        for w in writers:
+            w.write(snap)
         save_restart()
 
     saved = {"step": None}
@@ -180,12 +137,14 @@ def run(cfg, args, input_doc, model, resumed: bool = False) -> int:
 
     from .fluid.mac import SolverDidNotConverge
     old = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
+    closing = "failed"
     try:
         try:
-            if not resumed:
-                snapshot()
-            elif model.step_index % cfg.output.GTS == 0:
-                snapshot(record=record_now)
+            first = model.snapshot()
+            for w in writers:
+                w.open(first, resumed)
+            if model.step_index % cfg.output.GTS == 0:
+                snapshot(first)
         except InstabilityError as e:
             print(f"kapsel-py: error: {e} in the initial state (step {model.step_index})",
                   file=sys.stderr)
@@ -215,6 +174,7 @@ def run(cfg, args, input_doc, model, resumed: bool = False) -> int:
                           f"factor (or delta_t).", file=sys.stderr)
                     return 1
             if stop["signal"] is not None:
+                closing = "interrupted"
                 check_finite(model)
                 save_restart()
                 print(f"kapsel-py: interrupted at step {model.step_index} (t = {model.time:g}); "
@@ -224,8 +184,11 @@ def run(cfg, args, input_doc, model, resumed: bool = False) -> int:
                 return 1
         if saved["step"] != model.step_index:
             save_restart()
+        closing = "end"
     finally:
         for s, h in old.items():
             signal.signal(s, h)
+        for w in writers:
+            w.close(closing)
     progress.summary()
     return 0

@@ -78,7 +78,9 @@ def test_shear_fixture_config():
      ["CH_solver.implicit_scheme.tolerance", "negative"]),
     ("\"OFF\",{0.0,0.0,0.0}{0.0,0.0,0.0}0.0,0.0}]", "\"TUMBLER\",{0.0,0.0,0.0}{0.0,0.0,0.0}0.0,0.0}]",
      ["janus_propulsion", "TUMBLER", "not supported"]),
-    ("output:{100,10,\"OFF\"", "output:{100,10,\"ON\"", ["output.AVS", "not supported"]),
+    ("output:{100,10,\"OFF\",{\"output\",\"data\",\"EXTENDED\",{{\"HDF5\"}{\"YES\",{{0,8,4}",
+     "output:{100,10,\"ON\",{\"output\",\"data\",\"EXTENDED\",{{\"HDF5\"}{\"YES\",{{0,8,5}",
+     ["output.ON.EXTENDED.Print_field.YES.Slab_x", "start + (count-1) stride < 32"]),
 ])
 def test_invalid_values_are_refused(tmp_path, old, new, words):
     path = sample_copy(tmp_path, old, new)
@@ -117,6 +119,7 @@ def test_cli_flags_with_and_without_space(tmp_path, capsys, monkeypatch):
     monkeypatch.setitem(simulation.SOLVERS, "Navier_Stokes_Cahn_Hilliard_FDM",
                         lambda cfg, args, doc: seen.setdefault("args", args))
     monkeypatch.setattr(simulation, "run", lambda cfg, args, doc, model, resumed=False: 0)
+    monkeypatch.setattr("kapsel.io.writers.check_output", lambda cfg, model: None)
     path = sample_copy(tmp_path)
     d = str(tmp_path / "define.udf")
     assert cli.main([f"-I{path}", f"-O{tmp_path / 'o.udf'}", f"-D{d}", "-R", "r.udf",

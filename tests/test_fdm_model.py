@@ -63,13 +63,14 @@ def test_sample_runs_with_every_solver(tmp_path, ns, ch):
     assert out.size("Particles[]") == 8
     psi = out.getArray("PSI[]")
     assert psi.shape[:3] == (32, 32, 32) and np.isfinite(psi).all()
-    for name in ("orderparam_2.h5", "particle_2.h5", "velocity_2.h5", "orderparam.xmf",
-                 "particle.xmf", "velocity.xmf"):
+    for name in ("orderparam_2.h5", "flux_2.h5", "particle_2.h5", "particle_data_2.h5",
+                 "velocity_2.h5", "fluid_phase.xmf", "flux_field.xmf", "particle_phase.xmf",
+                 "particle_coordinate.xmf", "velocity_field.xmf"):
         assert (tmp_path / name).exists(), name
     with h5py.File(tmp_path / "orderparam_2.h5") as f:
-        assert f["PSI"].shape == (32, 32, 32)
+        assert list(f) == ["PSI_ALL"] and f["PSI_ALL"].shape == (32, 32, 32)
         # the file holds the same field as the record (single precision there)
-        assert np.allclose(np.asarray(f["PSI"]).T, psi[..., 0], atol=1e-6)
+        assert np.allclose(np.asarray(f["PSI_ALL"]).T, psi[..., 0], atol=1e-6)
 
 
 def test_psi_conserved_with_particles(tmp_path):
@@ -99,7 +100,8 @@ def test_navier_stokes_fdm_particles_settle_momentum(tmp_path):
     for _ in range(20):
         m.advance()
     assert np.isfinite(m.u).all()
-    assert m.fields().keys() == {"u", "phi"}
+    assert {"u", "phi", "tau", "pressure"} <= set(m.snapshot().sources)
+    assert not m.snapshot().offers("psi")
 
 
 def test_same_seed_same_run(tmp_path):

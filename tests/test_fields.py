@@ -1,29 +1,26 @@
-"""Field snapshots (kapsel.io.fields): HDF5 layout, XDMF time series, atomic writes, VTK reading."""
+"""The FDM types' per-snapshot files (kapsel.io.fields): the original's names, datasets and
+.xmf text (FORMAT-OUTPUT.md §4), read back with h5py and with VTK's XDMF reader (what
+ParaView uses), atomic writes, continued runs, and the sample's ParaView state."""
 import os
+import re
 import xml.etree.ElementTree as ET
 
 import h5py
 import numpy as np
 import pytest
 
-from kapsel.io import fields as fieldsmod
-from kapsel.io.fields import FieldWriter, read_snapshot
+from kapsel.io import atomic
+from kapsel.io.fields import SnapshotFiles, read_snapshot
+from kapsel.particles.state import ParticleState
+from kapsel.snapshot import Snapshot
 
 SHAPE = (8, 4, 2)  # (NX, NY, NZ), non-cubic on purpose
 DX = 0.5
-TIMES = (0.0, 0.125, 0.75)
-
-
-def analytic(t, shape=SHAPE, dx=DX):
-    """psi, phi, u on the grid at time t, as functions of the physical point (X, Y, Z)."""
-    nx, ny, nz = shape
-    X, Y, Z = np.meshgrid(np.arange(nx) * dx, np.arange(ny) * dx, np.arange(nz) * dx,
-                          indexing="ij")
-    return {
-        "psi": psi_at(X, Y, Z, t),
-        "phi": 0.5 + 0.1 * X - 0.2 * Y + 0.3 * Z * (1 + t),
-        "u": np.stack(u_at(X, Y, Z, t)),
-    }
+DT = 0.0625
+GTS = 2
+NSCH = "Navier_Stokes_Cahn_Hilliard_FDM"
+LECH = "Shear_NS_LE_CH_FDM"
+SAMPLES = os.path.join(os.path.dirname(__file__), "..", "samples")
 
 
 def psi_at(X, Y, Z, t):
@@ -34,221 +31,372 @@ def u_at(X, Y, Z, t):
     return (X + t, -2.0 * Y + 3.0 * t, 5.0 * Z - t + X * Y)
 
 
-def write_series(directory, times=TIMES, **kw):
-    w = FieldWriter(directory, SHAPE, DX, **kw)
-    for n, t in enumerate(times):
-        w.write(n, t, **analytic(t))
+def fake_snapshot(step, n_particles=3, shape=SHAPE, strain=0.0):
+    """A Snapshot of analytic fields (functions of the physical point) at step."""
+    t = step * DT
+    nx, ny, nz = shape
+    X, Y, Z = np.meshgrid(np.arange(nx) * DX, np.arange(ny) * DX, np.arange(nz) * DX,
+                          indexing="ij")
+    p = ParticleState.spheres([0] * n_particles, [1.0] * n_particles, [1.0] * n_particles, 1.0)
+    k = np.arange(n_particles)[:, None]
+    p.R[:] = 0.25 + k * np.array([1.0, 0.5, 0.25]) + t
+    p.v[:] = k * np.array([-1.0, 2.0, 3.0]) - t
+    u = np.stack(u_at(X, Y, Z, t))
+    src = {"u": lambda: u, "psi": lambda: psi_at(X, Y, Z, t), "phi": lambda: 0.5 + 0.1 * X - Y * t,
+           "flux": lambda: 2.0 * u}
+    src["psi_all"] = src["psi"]
+    return Snapshot(step=step, time=t, dt=DT, shape=shape, dx=DX, particles=p, strain=strain,
+                    sources=src)
+
+
+def write_series(directory, eq=NSCH, steps=(0, 2, 4), n_particles=3, resumed=False):
+    w = SnapshotFiles(directory, eq, SHAPE, DX, GTS, n_particles)
+    snaps = [fake_snapshot(s, n_particles) for s in steps]
+    w.open(snaps[0], resumed)
+    for s in snaps:
+        w.write(s)
+    w.close("end")
     return w
 
 
-EXPECTED = {"orderparam.xmf", "particle.xmf", "velocity.xmf"} | {
-    f"{p}_{n}.h5" for p in ("orderparam", "particle", "velocity") for n in range(3)}
-
-
-def test_datasets_shapes_values(tmp_path):
+def test_names_datasets_and_layout(tmp_path):
     write_series(tmp_path)
-    f = analytic(TIMES[1])
+    names = set(os.listdir(tmp_path))
+    assert names == {"fluid_phase.xmf", "particle_phase.xmf", "particle_coordinate.xmf",
+                     "velocity_field.xmf", "flux_field.xmf"} | {
+        f"{p}_{n}.h5" for p in ("orderparam", "flux", "particle", "particle_data", "velocity")
+        for n in range(3)}                   # and no temporary file left
+    snap = fake_snapshot(2)
     nx, ny, nz = SHAPE
-    expect = {"orderparam_1.h5": {"PSI": f["psi"]}, "particle_1.h5": {"PHI": f["phi"]},
-              "velocity_1.h5": {"UX": f["u"][0], "UY": f["u"][1], "UZ": f["u"][2]}}
+    expect = {"orderparam_1.h5": {"PSI_ALL": snap.get("psi_all")},
+              "particle_1.h5": {"PHI": snap.get("phi")},
+              "velocity_1.h5": {f"U{c}": snap.get("u")[i] for i, c in enumerate("XYZ")},
+              "flux_1.h5": {f"FLUX_{c}": snap.get("flux")[i] for i, c in enumerate("XYZ")}}
     for name, datasets in expect.items():
         with h5py.File(tmp_path / name, "r") as h:
             assert sorted(h.keys()) == sorted(datasets)
             for ds, field in datasets.items():
                 d = h[ds]
-                assert d.shape == (nz, ny, nx)
-                assert d.dtype == np.float64
+                assert d.shape == (nz, ny, nx) and d.dtype == np.dtype("<f8")
                 a = d[()]
                 for x, y, z in [(0, 0, 0), (7, 0, 0), (1, 3, 0), (5, 2, 1), (7, 3, 1)]:
                     assert a[z, y, x] == field[x, y, z]
-                np.testing.assert_array_equal(a, field.transpose(2, 1, 0))
                 np.testing.assert_array_equal(read_snapshot(tmp_path / name, ds), field)
-    # first dataset by default, as the analysis scripts read them
-    np.testing.assert_array_equal(read_snapshot(tmp_path / "orderparam_1.h5"), f["psi"])
-    np.testing.assert_array_equal(read_snapshot(tmp_path / "particle_1.h5"), f["phi"])
-    np.testing.assert_array_equal(read_snapshot(tmp_path / "velocity_1.h5"), f["u"][0])
-    assert read_snapshot(tmp_path / "orderparam_1.h5").shape == SHAPE
+    with h5py.File(tmp_path / "particle_data_1.h5", "r") as h:
+        assert sorted(h.keys()) == ["DEGREE_OBLIQUE", "RX", "RY", "RZ", "VX", "VY", "VZ"]
+        for i, c in enumerate("XYZ"):
+            assert h[f"R{c}"].dtype == np.dtype("<f8") and h[f"R{c}"].shape == (3,)
+            np.testing.assert_array_equal(h[f"R{c}"][()], snap.particles.R[:, i])
+            np.testing.assert_array_equal(h[f"V{c}"][()], snap.particles.v[:, i])
+        assert h["DEGREE_OBLIQUE"].shape == (1,)
 
 
-def test_temporal_collection(tmp_path):
-    write_series(tmp_path)
-    assert set(os.listdir(tmp_path)) == EXPECTED  # no temporary file left
-    for prefix, attr, datasets in [("orderparam", "PSI", ["PSI"]), ("particle", "PHI", ["PHI"]),
-                                   ("velocity", "U", ["UX", "UY", "UZ"])]:
-        root = ET.parse(tmp_path / f"{prefix}.xmf").getroot()
-        assert root.tag == "Xdmf" and root.get("Version") == "2.0"
-        coll = root.find("Domain/Grid")
-        assert coll.get("GridType") == "Collection"
-        assert coll.get("CollectionType") == "Temporal"
-        grids = coll.findall("Grid")
-        assert len(grids) == 3
-        for n, (g, t) in enumerate(zip(grids, TIMES)):
-            assert g.get("GridType") == "Uniform"
-            assert float(g.find("Time").get("Value")) == t
-            topo = g.find("Topology")
-            assert topo.get("TopologyType") == "3DCORECTMesh"
-            assert topo.get("Dimensions").split() == ["2", "4", "8"]  # NZ NY NX
-            geo = g.find("Geometry")
-            assert geo.get("GeometryType") == "ORIGIN_DXDYDZ"
-            origin, spacing = geo.findall("DataItem")
-            assert [float(v) for v in origin.text.split()] == [0, 0, 0]
-            assert [float(v) for v in spacing.text.split()] == [DX] * 3
-            a = g.find("Attribute")
-            assert a.get("Name") == attr
-            if len(datasets) == 1:
-                assert a.get("AttributeType") == "Scalar"
-                items = a.findall("DataItem")
+def test_which_files_each_type_writes(tmp_path):
+    for eq, particles, want in [
+            (LECH, 2, {"orderparam", "particle", "particle_data", "velocity"}),
+            ("Navier_Stokes_FDM", 0, {"velocity"}),
+            ("Shear_Navier_Stokes_Lees_Edwards_FDM", 1, {"particle", "particle_data",
+                                                          "velocity"})]:
+        d = tmp_path / eq
+        write_series(d, eq=eq, steps=(0,), n_particles=particles)
+        assert {n.rsplit("_", 1)[0] for n in os.listdir(d) if n.endswith(".h5")} == want
+    with h5py.File(tmp_path / LECH / "orderparam_0.h5", "r") as h:
+        assert list(h) == ["PSI"]
+
+
+def test_xmf_text_is_the_originals(tmp_path):
+    write_series(tmp_path, steps=(0, 2))
+    text = (tmp_path / "fluid_phase.xmf").read_text()
+    first = text.split('<Grid Name="Structured grid"')[0]
+    assert first == ('<?xml version="1.0" ?>\n<!DOCTYPE Xdmf SYSTEM "Xdmf.dtd" []>\n'
+                     '<Xdmf Version="2.0">\n<Domain>\n<Grid Name="CellTime" '
+                     'GridType="Collection" CollectionType="Temporal">\n\n')
+    grid = ('<Grid Name="Structured grid" GridType="Uniform">\n<Time Value="0.125" />\n'
+            '<Topology Name="tp" TopologyType="3DCORECTMesh" NumberOfElements="2 4 8"/>\n'
+            '<Geometry Name="geo" GeometryType="ORIGIN_DXDYDZ">\n'
+            '<DataItem Name="Origin" Dimensions="3" NumberType="Float" Precision="4" '
+            'Format="XML">\n0 0 0\n</DataItem>\n'
+            '<DataItem Name="Spacing" Dimensions="3" NumberType="Float" Precision="4" '
+            'Format="XML">\n0.5 0.5 0.5\n</DataItem>\n</Geometry>\n'
+            '<Attribute Name = "fluid_phase" AttributeType = "Scalar" Center = "Node">\n'
+            '<DataItem Dimensions="2 4 8" NumberType="Float" Precision="8" Format="HDF">\n'
+            'orderparam_1.h5:/PSI_ALL\n</DataItem>\n</Attribute>\n</Grid>\n\n')
+    assert grid in text
+    assert text.endswith("</Grid>\n\n</Grid>\n</Domain>\n</Xdmf>\n")
+    vec = (tmp_path / "velocity_field.xmf").read_text()
+    assert ('<Attribute Name = "velocity_field" AttributeType = "Vector" Center = "Node">\n'
+            '<DataItem ItemType="Function" Dimensions="2 4 8 3" Function = "JOIN($0, $1, $2) ">\n'
+            '<DataItem Dimensions="2 4 8" NumberType="Float" Precision="8" Format="HDF">\n'
+            'velocity_1.h5:/UX\n</DataItem>\n') in vec
+    part = (tmp_path / "particle_coordinate.xmf").read_text()
+    assert ('<Topology Name="tp" TopologyType="Polyvertex" NumberOfElements="3"/>\n'
+            '<Geometry GeometryType="XYZ">\n'
+            '<DataItem ItemType="Function" Dimensions="3 3" Function = "JOIN($0, $1, $2) ">\n'
+            '<DataItem Dimensions="3" NumberType="Float" Precision="8" Format="HDF">\n'
+            'particle_data_0.h5:/RX\n</DataItem>\n') in part
+    assert '<Attribute Name = "particle_velocity" AttributeType = "Vector">' in part
+    for name in ("fluid_phase", "particle_phase", "particle_coordinate", "velocity_field",
+                 "flux_field"):
+        root = ET.parse(tmp_path / f"{name}.xmf").getroot()
+        assert [g.get("Name") for g in root.findall("Domain/Grid/Grid")] == \
+            ["Structured grid"] * 2
+
+
+def test_single_particle_layout(tmp_path):
+    """The original writes each particle array with shape (2,) for one particle (dummy -1)."""
+    write_series(tmp_path, eq="Navier_Stokes_FDM", steps=(0,), n_particles=1)
+    with h5py.File(tmp_path / "particle_data_0.h5", "r") as h:
+        for c in ("RX", "RY", "RZ", "VX", "VY", "VZ"):
+            assert h[c].shape == (2,) and h[c][1] == -1.0
+        assert h["RX"][0] == 0.25
+    text = (tmp_path / "particle_coordinate.xmf").read_text()
+    assert 'NumberOfElements="1"' in text and 'Dimensions="2 3"' in text
+    r, steps = vtk_reader(tmp_path / "particle_coordinate.xmf")     # ParaView reads it
+    assert steps == (0.0,)
+    pts, arrays = vtk_at(r, 0.0)
+    from vtkmodules.util.numpy_support import vtk_to_numpy
+    p = fake_snapshot(0, 1).particles
+    np.testing.assert_array_equal(vtk_to_numpy(pts.GetPoints().GetData())[0], p.R[0])
+    np.testing.assert_array_equal(arrays["particle_velocity"][0], p.v[0])
+
+
+def vtk_reader(path):
+    xdmf2 = pytest.importorskip(
+        "vtkmodules.vtkIOXdmf2",
+        reason="VTK (pip install vtk) is needed to check the files with ParaView's XDMF reader")
+    from vtkmodules.vtkCommonExecutionModel import vtkStreamingDemandDrivenPipeline as SDDP
+    r = xdmf2.vtkXdmfReader()
+    r.SetFileName(str(path))
+    r.UpdateInformation()
+    steps = r.GetOutputInformation(0).Get(SDDP.TIME_STEPS())
+    return r, tuple(steps or ())
+
+
+def vtk_at(reader, t):
+    from vtkmodules.util.numpy_support import vtk_to_numpy
+    reader.UpdateTimeStep(t)
+    data = reader.GetOutputDataObject(0)
+    pd = data.GetPointData()
+    arrays = {pd.GetArrayName(i): vtk_to_numpy(pd.GetArray(i))
+              for i in range(pd.GetNumberOfArrays())}
+    return data, arrays
+
+
+def check_xmf_with_vtk(directory, shape, dx, times, fields, particles=None):
+    """Open every .xmf of a directory with VTK: time values, grid dimensions and spacing,
+    array names, field values at the right points (``fields``: xmf name -> function t ->
+    array [x, y, z] or (3, ...)), particle positions and velocities (``particles``: t ->
+    (R, v))."""
+    nx, ny, nz = shape
+    for name, field in fields.items():
+        r, steps = vtk_reader(os.path.join(directory, name + ".xmf"))
+        assert steps == pytest.approx(times), name
+        for t in times:
+            img, arrays = vtk_at(r, t)
+            assert img.GetDimensions() == tuple(shape)
+            assert img.GetSpacing() == pytest.approx((dx,) * 3)
+            assert img.GetOrigin() == pytest.approx((0, 0, 0))
+            assert list(arrays) == [name]
+            want = field(t)
+            got = arrays[name]
+            if want.ndim == 4:   # VTK point order: x fastest
+                np.testing.assert_array_equal(got, want.reshape(3, -1, order="F").T)
             else:
-                assert a.get("AttributeType") == "Vector"
-                (join,) = a.findall("DataItem")
-                assert join.get("ItemType") == "Function"
-                assert join.get("Function").replace(" ", "") == "JOIN($0,$1,$2)"
-                assert join.get("Dimensions").split() == ["2", "4", "8", "3"]
-                items = join.findall("DataItem")
-            assert [i.text for i in items] == [f"{prefix}_{n}.h5:/{d}" for d in datasets]
-            for i in items:
-                assert i.get("Format") == "HDF"
-                assert i.get("NumberType") == "Float" and i.get("Precision") == "8"
-                assert i.get("Dimensions").split() == ["2", "4", "8"]
+                np.testing.assert_array_equal(got, want.ravel(order="F"))
+            for x, y, z in [(1, 0, 0), (0, 1, 0), (0, 0, 1), (nx - 1, ny - 1, nz - 1)]:
+                assert img.GetPoint(x + nx * (y + ny * z)) == pytest.approx(
+                    (x * dx, y * dx, z * dx))
+    if particles is not None:
+        r, steps = vtk_reader(os.path.join(directory, "particle_coordinate.xmf"))
+        assert steps == pytest.approx(times)
+        for t in times:
+            pts, arrays = vtk_at(r, t)
+            R, v = particles(t)
+            assert list(arrays) == ["particle_velocity"]
+            from vtkmodules.util.numpy_support import vtk_to_numpy
+            got = vtk_to_numpy(pts.GetPoints().GetData())
+            np.testing.assert_array_equal(got[:len(R)], R)
+            np.testing.assert_array_equal(arrays["particle_velocity"][:len(R)], v)
 
 
-def test_only_given_fields_written(tmp_path):
-    w = FieldWriter(tmp_path, SHAPE, DX, fields=("psi",))
-    w.write(0, 0.0, psi=analytic(0.0)["psi"])
-    w.write(1, 0.5, psi=analytic(0.5)["psi"], phi=None, u=None)
-    assert set(os.listdir(tmp_path)) == {"orderparam.xmf", "orderparam_0.h5", "orderparam_1.h5"}
+def test_vtk_reads_the_series(tmp_path):
+    write_series(tmp_path)
+    times = [0.0, 2 * DT, 4 * DT]
+
+    def f(name, comp=None):
+        return lambda t: fake_snapshot(int(round(t / DT))).get(name)
+
+    def parts(t):
+        p = fake_snapshot(int(round(t / DT))).particles
+        return p.R, p.v
+
+    check_xmf_with_vtk(tmp_path, SHAPE, DX, times,
+                       {"fluid_phase": f("psi_all"), "particle_phase": f("phi"),
+                        "velocity_field": f("u"), "flux_field": f("flux")}, parts)
+
+
+def test_continued_run_appends_and_replaces(tmp_path):
+    write_series(tmp_path, steps=(0, 2, 4))
+    before = os.stat(tmp_path / "velocity_2.h5").st_mtime_ns
+    # continue from step 4: the earlier snapshots stay listed, step 4 is not rewritten
+    w = write_series(tmp_path, steps=(4, 6), resumed=True)
+    assert os.stat(tmp_path / "velocity_2.h5").st_mtime_ns == before
+    assert w.times == {n: 2 * n * DT for n in range(4)}
+    _r, steps = vtk_reader(tmp_path / "fluid_phase.xmf")
+    assert steps == pytest.approx([0, 2 * DT, 4 * DT, 6 * DT])
+    # continue from an earlier restart (step 2): the later snapshots of the replaced run go
+    w = write_series(tmp_path, steps=(2, 4), resumed=True)
+    assert sorted(w.times) == [0, 1, 2]
+    # a new run starts a new series
+    w = write_series(tmp_path, steps=(0,))
+    assert w.times == {0: 0.0}
 
 
 def test_failed_write_leaves_nothing(tmp_path, monkeypatch):
-    w = FieldWriter(tmp_path, SHAPE, DX)
+    w = SnapshotFiles(tmp_path, NSCH, SHAPE, DX, GTS, 3)
+    bad = fake_snapshot(0, shape=(2, 4, 8))     # (NZ, NY, NX) is not the internal order
+    w.open(bad, False)
     with pytest.raises(ValueError):
-        w.write(0, 0.0, u=np.zeros(SHAPE))  # a vector needs (3, NX, NY, NZ)
-    with pytest.raises(ValueError):
-        w.write(0, 0.0, psi=np.zeros((2, 4, 8)))  # (NZ, NY, NX) is not the internal order
+        w.write(bad)
     assert os.listdir(tmp_path) == []
 
     def boom(src, dst):
         raise OSError("disk full")
 
-    monkeypatch.setattr(fieldsmod.os, "replace", boom)
+    monkeypatch.setattr(atomic.os, "replace", boom)
     with pytest.raises(OSError):
-        w.write(0, 0.0, psi=analytic(0.0)["psi"])
+        w.write(fake_snapshot(0))
     assert os.listdir(tmp_path) == []
 
 
 def test_files_readable_like_any_other(tmp_path):
     old = os.umask(0o022)
     try:
-        write_series(tmp_path, times=TIMES[:1])
+        write_series(tmp_path, steps=(0,))
     finally:
         os.umask(old)
     assert os.stat(tmp_path / "orderparam_0.h5").st_mode & 0o777 == 0o644
-    assert os.stat(tmp_path / "velocity.xmf").st_mode & 0o777 == 0o644
+    assert os.stat(tmp_path / "velocity_field.xmf").st_mode & 0o777 == 0o644
 
 
-def test_bad_arguments(tmp_path):
-    with pytest.raises(ValueError):
-        FieldWriter(tmp_path, SHAPE, DX, fields=("psi", "pressure"))
-    with pytest.raises(ValueError):
-        FieldWriter(tmp_path, (8, 4), DX)
-    with pytest.raises(ValueError):
-        FieldWriter(tmp_path, SHAPE, 0.0)
+# ------------------------------------------------------------------------- real runs
+def run_type(d, eq, particles=2, gts=2, nsnap=2):
+    """A 16^3 run of ``eq`` (any type) through the command line, in ``d``."""
+    from test_restart import cli, make_input
+    from udf import UDFManager
+    inp = make_input(d, eq if "Shear" not in eq else NSCH, particles=particles, gts=gts,
+                     nsnap=nsnap, kBT=0.0)
+    if "Shear" in eq:
+        u = UDFManager(inp)
+        u.put(eq, "constitutive_eq.type")
+        base = f"constitutive_eq.{eq}"
+        u.put("DC", f"{base}.External_field.type")
+        u.put(0.05, f"{base}.External_field.DC.Shear_rate")
+        u.write(inp)
+    assert cli(d, inp) == 0
+    return UDFManager(os.path.join(d, "output.udf"))
 
 
-def grid_times(path):
+FDM = ["Navier_Stokes_FDM", NSCH, "Shear_Navier_Stokes_Lees_Edwards_FDM", LECH]
+
+
+@pytest.mark.parametrize("eq", FDM)
+def test_every_fdm_type_with_vtk(tmp_path, eq):
+    """Every .xmf of a real run opens in VTK with the snapshots' times (step * dt), the
+    mesh, the arrays of the original, the particles where output.udf has them and psi as
+    its PSI records."""
+    out = run_type(tmp_path, eq)
+    dt = run_dt(tmp_path)
+    times = [0.0, 2 * dt, 4 * dt]
+    n = 16
+
+    def h5field(prefix, names):
+        def get(t):
+            k = int(round(t / (2 * dt)))
+            arrs = [read_snapshot(tmp_path / f"{prefix}_{k}.h5", ds) for ds in names]
+            return arrs[0] if len(arrs) == 1 else np.stack(arrs)
+        return get
+
+    psi_name = "PSI_ALL" if eq == NSCH else "PSI"
+    fields = {"particle_phase": h5field("particle", ["PHI"]),
+              "velocity_field": h5field("velocity", ["UX", "UY", "UZ"])}
+    if eq in (NSCH, LECH):
+        fields["fluid_phase"] = h5field("orderparam", [psi_name])
+    if eq == NSCH:
+        fields["flux_field"] = h5field("flux", ["FLUX_X", "FLUX_Y", "FLUX_Z"])
+    xmfs = {f for f in os.listdir(tmp_path) if f.endswith(".xmf")}
+    assert xmfs == {f + ".xmf" for f in fields} | {"particle_coordinate.xmf"}
+
+    def parts(t):
+        out.jump(int(round(t / (2 * dt))))
+        return out.getArray("Particles[].R"), out.getArray("Particles[].v")
+
+    # output.udf holds single precision: compare the particles through float32
+    def parts32(t):
+        R, v = parts(t)
+        k = int(round(t / (2 * dt)))
+        with h5py.File(tmp_path / f"particle_data_{k}.h5") as h:
+            np.testing.assert_allclose(np.stack([h["RX"], h["RY"], h["RZ"]], 1), R,
+                                       rtol=1e-6)
+            assert h["DEGREE_OBLIQUE"][0] == pytest.approx(
+                0.05 * t if "Shear" in eq else 0.0, abs=1e-12)
+            return np.stack([h["RX"], h["RY"], h["RZ"]], 1), np.stack([h["VX"], h["VY"],
+                                                                       h["VZ"]], 1)
+    check_xmf_with_vtk(tmp_path, (n, n, n), 1.0, times, fields, parts32)
+    if eq == NSCH:              # what `kapsel-py analyze sq` reads
+        from kapsel.analysis import structure_factor as sq
+        assert len(sq.snapshot_files(str(tmp_path))) == 3
+        assert sq.snapshot_times(str(tmp_path)) == pytest.approx(dict(enumerate(times)))
+        assert sq.read_psi(str(tmp_path / "orderparam_1.h5")).shape == (n, n, n)
+    if eq in (NSCH, LECH):
+        out.jump(2)
+        psi = out.getArray("PSI[]")[..., 0]
+        np.testing.assert_allclose(read_snapshot(tmp_path / "orderparam_2.h5"), psi,
+                                   atol=1e-6)
+
+
+def run_dt(d):
+    from kapsel import config
+    from kapsel.models.common import time_step
+    return time_step(config.load(os.path.join(d, "input.udf")))
+
+
+def pvsm_references(path):
+    """(files, arrays, grids) the ParaView state refers to: the XdmfReader file names, their
+    point arrays and grid names."""
     root = ET.parse(path).getroot()
-    return [float(g.find("Time").get("Value")) for g in root.findall("Domain/Grid/Grid")]
+    files, arrays, grids = set(), set(), set()
+    for proxy in root.iter("Proxy"):
+        if proxy.get("group") != "sources" or proxy.get("type") != "XdmfReader":
+            continue
+        for prop in proxy.findall("Property"):
+            values = [e.get("value") for e in prop.findall("Element")]
+            if prop.get("name") == "FileNames":
+                files |= {os.path.basename(v) for v in values}
+            elif prop.get("name") == "PointArrayStatus":
+                arrays |= set(values[0::2])
+            elif prop.get("name") == "GridInfo":
+                grids |= set(values)
+    return files, arrays, grids
 
 
-def test_continued_run_appends(tmp_path):
-    write_series(tmp_path)
-    w = FieldWriter.existing(tmp_path)  # shape, dx and times taken from disk
-    assert w.shape == SHAPE and w.dx == DX
-    assert w.snapshots["psi"] == dict(enumerate(TIMES))
-    w.write(3, 1.5, **analytic(1.5))
-    for prefix in ("orderparam", "particle", "velocity"):
-        assert grid_times(tmp_path / f"{prefix}.xmf") == [*TIMES, 1.5]
-
-    # the constructor flag does the same; a continuation from an earlier restart point
-    # (snapshot 2 again) drops the later snapshots of the run it replaces
-    w = FieldWriter(tmp_path, SHAPE, DX, fields=("psi", "phi", "u"), resume=True)
-    w.write(2, 0.8, **analytic(0.8))
-    assert grid_times(tmp_path / "orderparam.xmf") == [0.0, 0.125, 0.8]
-    np.testing.assert_array_equal(read_snapshot(tmp_path / "orderparam_2.h5"),
-                                  analytic(0.8)["psi"])
-
-    # a fresh writer starts a new series
-    w = FieldWriter(tmp_path, SHAPE, DX)
-    w.write(0, 0.0, **analytic(0.0))
-    assert grid_times(tmp_path / "velocity.xmf") == [0.0]
-
-    with pytest.raises(ValueError):  # a different grid cannot continue these files
-        FieldWriter(tmp_path, (4, 4, 2), DX, resume=True)
-    with pytest.raises(ValueError):
-        FieldWriter.existing(tmp_path / "empty")
-
-
-def test_vtk_xdmf2_reader(tmp_path):
-    """What ParaView shows: vtkXdmfReader (XDMF2) on the written .xmf files."""
-    xdmf2 = pytest.importorskip(
-        "vtkmodules.vtkIOXdmf2",
-        reason="VTK (pip install vtk) is needed to check the files with ParaView's XDMF reader")
-    from vtkmodules.util.numpy_support import vtk_to_numpy
-    from vtkmodules.vtkCommonExecutionModel import vtkStreamingDemandDrivenPipeline as SDDP
-
-    write_series(tmp_path)
-    nx, ny, nz = SHAPE
-    points = [(0, 0, 0), (1, 0, 0), (7, 0, 0), (0, 1, 0), (3, 2, 1), (7, 3, 1)]
-
-    def open_reader(name):
-        r = xdmf2.vtkXdmfReader()
-        r.SetFileName(str(tmp_path / name))
-        r.UpdateInformation()
-        steps = r.GetOutputInformation(0).Get(SDDP.TIME_STEPS())
-        assert steps is not None and tuple(steps) == pytest.approx(TIMES)
-        return r
-
-    def check_grid(img):
-        assert img.GetDimensions() == SHAPE
-        assert img.GetSpacing() == pytest.approx((DX, DX, DX))
-        assert img.GetOrigin() == pytest.approx((0, 0, 0))
-        assert img.GetNumberOfPoints() == nx * ny * nz
-
-    psi_reader = open_reader("orderparam.xmf")
-    u_reader = open_reader("velocity.xmf")
-    for t in (TIMES[1], TIMES[2]):
-        psi_reader.UpdateTimeStep(t)
-        img = psi_reader.GetOutputDataObject(0)
-        check_grid(img)
-        psi = vtk_to_numpy(img.GetPointData().GetArray("PSI"))
-        assert psi.shape == (nx * ny * nz,)
-        for x, y, z in points:
-            pid = x + nx * (y + ny * z)  # VTK point order: x fastest
-            X, Y, Z = img.GetPoint(pid)
-            assert (X, Y, Z) == pytest.approx((x * DX, y * DX, z * DX))
-            assert psi[pid] == pytest.approx(psi_at(X, Y, Z, t), abs=1e-12)
-
-        u_reader.UpdateTimeStep(t)
-        img = u_reader.GetOutputDataObject(0)
-        check_grid(img)
-        u = vtk_to_numpy(img.GetPointData().GetArray("U"))
-        assert u.shape == (nx * ny * nz, 3)
-        for x, y, z in points:
-            pid = x + nx * (y + ny * z)
-            X, Y, Z = img.GetPoint(pid)
-            assert tuple(u[pid]) == pytest.approx(u_at(X, Y, Z, t), abs=1e-12)
-        # the whole arrays, too
-        f = analytic(t)
-        np.testing.assert_allclose(psi, f["psi"].ravel(order="F"), atol=0)
-        np.testing.assert_allclose(u, f["u"].reshape(3, -1, order="F").T, atol=0)
-
-
-def test_prefix_names_and_vector_read(tmp_path):
-    w = FieldWriter(tmp_path, SHAPE, DX, fields=("orderparam", "velocity"))
-    assert w.fields == ("psi", "u")
-    f = analytic(0.5)
-    w.write(0, 0.5, **f)
-    np.testing.assert_array_equal(read_snapshot(tmp_path / "velocity_0.h5", "U"), f["u"])
-    w2 = FieldWriter(tmp_path, SHAPE, DX, fields=("psi", "u"))
-    assert w2.resume() == {"psi": {0: 0.5}, "phi": {}, "u": {0: 0.5}}
-    assert w2.resume(upto=-1)["psi"] == {}
+def test_pv_sample_state_finds_its_files(tmp_path):
+    """samples/pv_sample.pvsm (the original's sample state): every file, point array and
+    grid name it refers to is there after a short run of the sample's type."""
+    files, arrays, grids = pvsm_references(os.path.join(SAMPLES, "pv_sample.pvsm"))
+    assert files == {"fluid_phase.xmf", "particle_coordinate.xmf"}
+    assert arrays == {"fluid_phase", "particle_velocity"}
+    assert "Structured grid" in grids and "Structured grid[10]" in grids
+    run_type(tmp_path, NSCH, particles=2, gts=1, nsnap=10)
+    found_arrays, found_grids = set(), set()
+    for f in files:
+        assert (tmp_path / f).exists(), f
+        r, steps = vtk_reader(tmp_path / f)
+        assert len(steps) == 11                       # as the state's TimestepValues
+        found_arrays |= {r.GetPointArrayName(i) for i in range(r.GetNumberOfPointArrays())}
+        # the reader names the k-th repeated grid name "<name>[k]", as the state lists them
+        found_grids |= {r.GetGridName(i) for i in range(r.GetNumberOfGrids())}
+        for ref in re.findall(r"\n([\w.]+\.h5):/", (tmp_path / f).read_text()):
+            assert (tmp_path / ref).exists(), ref
+    assert arrays <= found_arrays
+    assert grids <= found_grids

@@ -118,7 +118,7 @@ def test_continuation_is_bit_identical(tmp_path, eq, kw):
                 h5py.File(tmp_path / "two" / "velocity_4.h5") as fb:
             for ds in ("UX", "UY", "UZ"):
                 assert np.array_equal(fa[ds][...], fb[ds][...])
-        xmf = (tmp_path / "two" / "velocity.xmf").read_text()
+        xmf = (tmp_path / "two" / "velocity_field.xmf").read_text()
         assert all(f"velocity_{n}.h5" in xmf for n in range(5))
 
 

@@ -120,7 +120,7 @@ def test_a_new_run_does_not_overwrite_outputs(tmp_path, capsys):
     os.remove(d / "output.udf")
     os.remove(d / "restart.udf")
     assert cli(d, inp) == 2
-    assert "particle.xmf exists; pass --overwrite" in capsys.readouterr().err
+    assert "particle_phase.xmf exists; pass --overwrite" in capsys.readouterr().err
     after = {p.name: p.stat().st_mtime_ns for p in d.iterdir()}
     assert all(after[k] == before[k] for k in after)
     assert cli(d, inp, "--overwrite") == 0

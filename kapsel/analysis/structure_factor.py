@@ -52,9 +52,13 @@ def snapshot_files(directory: str) -> list:
 
 
 def snapshot_times(directory: str) -> dict:
-    """Snapshot number -> time, from orderparam.xmf when present."""
-    xmf = os.path.join(directory, "orderparam.xmf")
-    if not os.path.exists(xmf):
+    """Snapshot number -> time, from fluid_phase.xmf (orderparam.xmf of older kapsel-py
+    runs) when present."""
+    for name in ("fluid_phase.xmf", "orderparam.xmf"):
+        xmf = os.path.join(directory, name)
+        if os.path.exists(xmf):
+            break
+    else:
         return {}
     text = open(xmf, encoding="utf-8").read()
     times = re.findall(r'<Time\s+Value="([^"]+)"', text)

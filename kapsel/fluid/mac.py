@@ -190,6 +190,11 @@ class MACSolver:
         u -= g
         return u
 
+    def projection_pressure(self, du):
+        """RHO/dt phi with D G phi = D du (cell centres): the pressure that removes the
+        divergence of an increment du, e.g. the particles' force of a step (for output)."""
+        return (self.rho / self.dt) * self._solve_phi(du).copy()
+
     def divergence(self, u, out=None):
         """B-grid divergence of u at the cell centres."""
         return op.div_b(u, self.dx, out=out, work=self._w2)

@@ -612,6 +612,11 @@ class ObliqueMAC(_ObliqueFrame, MACSolver):
     def divergence(self, u, out=None):
         return MACSolver.divergence(self, contravariant(u, self.frame_strain), out)
 
+    def projection_pressure(self, du):
+        """MACSolver.projection_pressure of a Cartesian increment on the oblique grid."""
+        self._g_op = self.frame_strain
+        return MACSolver.projection_pressure(self, contravariant(du, self.frame_strain))
+
     def stable_dt(self, u=None, eta_field=None):
         """The rectangular limit with the largest metric factor of the frame: explicit
         diffusion nu (1 + g^2/2 + |g|) ... bounded by nu (2 + s^2 / 4) / DX^2 per axis pair."""

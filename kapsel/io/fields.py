@@ -1,99 +1,252 @@
-"""Field snapshots: one HDF5 file per snapshot and field, plus an XDMF 2.0 time series.
+"""The finite-difference types' per-snapshot HDF5 files and their XDMF series, under the
+original's names (FORMAT-OUTPUT.md §4), written every snapshot whatever output.AVS says.
 
-Layout (shared/FORMAT.md, "Field snapshots"):
+Snapshot n = step / GTS (absolute: it keeps counting across a continued run):
 
-* ``orderparam_<n>.h5`` holds the single dataset ``PSI``, ``particle_<n>.h5`` the single
-  dataset ``PHI``, ``velocity_<n>.h5`` the datasets ``UX``, ``UY``, ``UZ``.  Every dataset is
-  float64 with shape (NZ, NY, NX): x varies fastest.  The file root carries the attributes
-  ``n``, ``time`` and ``dx`` (attributes, not datasets: readers that take "the first dataset"
-  still get the field), so a continued run can rebuild the series from the files alone.
-* ``orderparam.xmf``, ``particle.xmf``, ``velocity.xmf``: XDMF 2.0, a temporal collection of
-  uniform grids, each a ``3DCORECTMesh`` topology (point dimensions NZ NY NX) with
-  ``ORIGIN_DXDYDZ`` geometry (origin 0, spacing DX; both given in z, y, x order) and attributes
-  pointing at ``<file>.h5:/<DATASET>`` by relative name.  The velocity is one vector attribute
-  ``U`` assembled by a ``JOIN($0, $1, $2)`` function data item over UX, UY, UZ.
+    file                   written for                              datasets
+    orderparam_<n>.h5      Navier_Stokes_Cahn_Hilliard_FDM          PSI_ALL
+                           Shear_NS_LE_CH_FDM                       PSI (rectangular frame)
+    flux_<n>.h5            Navier_Stokes_Cahn_Hilliard_FDM          FLUX_X FLUX_Y FLUX_Z
+    particle_<n>.h5        the four FDM types, with particles       PHI
+    particle_data_<n>.h5   the four FDM types, with particles       RX RY RZ VX VY VZ DEGREE_OBLIQUE
+    velocity_<n>.h5        the four FDM types                       UX UY UZ
 
-Internally a scalar field is a float64 array indexed [x, y, z] with shape (NX, NY, NZ) and a
-vector field has shape (3, NX, NY, NZ).
+Field datasets are float64-LE of shape (NZ, NY, NX) (x fastest); ``particle_data`` holds
+rank-1 float64-LE arrays of the N wrapped positions and velocities and DEGREE_OBLIQUE of
+shape (1,) (with one particle the original writes each array with shape (2,), the particle
+then a dummy -1.0: so do we).  Besides the datasets each file carries the root attributes
+``n``, ``time`` and ``dx`` (readers that list the datasets do not see them), from which a
+continued run rebuilds the series.
 
-Every file is written under a temporary name in the output directory and then moved into
-place with :func:`os.replace`, so a reader (or a run killed mid-write) never sees a partial
-file.  The ``.xmf`` files are rewritten after the snapshot's ``.h5`` files are in place.
+The .xmf files (XDMF 2.0, the original's text: a temporal collection ``CellTime`` of
+uniform grids all named ``Structured grid``, ``3DCORECTMesh`` + ``ORIGIN_DXDYDZ``, attributes
+named after the file):
+
+    fluid_phase.xmf          orderparam_<n>.h5:/PSI_ALL (or /PSI)   scalar  fluid_phase
+    particle_phase.xmf       particle_<n>.h5:/PHI                   scalar  particle_phase
+    particle_coordinate.xmf  particle_data_<n>.h5 (Polyvertex; positions, vector
+                             particle_velocity)
+    velocity_field.xmf       velocity_<n>.h5:/UX,UY,UZ              vector  velocity_field
+    flux_field.xmf           flux_<n>.h5:/FLUX_*                    vector  flux_field
+
+Differences from the original, on purpose (README "Where output goes"):
+* the original writes every .xmf once, in advance, listing snapshots up to the end of the run
+  whether their files exist yet or not, and a continued run's .xmf lists only the new
+  snapshots; here each .xmf is rewritten (atomically) after each snapshot's files are in
+  place and lists every snapshot on disk of this time line, the earlier run's included;
+* ``flux_field.xmf`` is written only when flux files are (the original writes it for all four
+  types, pointing at files that never exist);
+* times are printed in full (shortest round-trip) precision, not 6 digits.
+
+Every file goes to the directory of output.udf (the original: the working directory).
 """
 from __future__ import annotations
 
 import os
 import re
-import secrets
 import xml.etree.ElementTree as ET
-from xml.sax.saxutils import escape
 
 import h5py
 import numpy as np
 
-__all__ = ["FieldWriter", "read_snapshot", "FIELDS"]
+from .atomic import atomic_write, atomic_write_text, fmt
 
-# field keyword -> (file prefix, dataset names, XDMF attribute name)
-FIELDS = {
-    "psi": ("orderparam", ("PSI",), "PSI"),
-    "phi": ("particle", ("PHI",), "PHI"),
-    "u": ("velocity", ("UX", "UY", "UZ"), "U"),
-}
-# the file prefixes are accepted as field names too
-ALIASES = {prefix: key for key, (prefix, _, _) in FIELDS.items()}
+__all__ = ["SnapshotFiles", "series_for", "read_snapshot", "XMF_NAMES"]
+
+XMF_NAMES = ("fluid_phase.xmf", "particle_phase.xmf", "particle_coordinate.xmf",
+             "velocity_field.xmf", "flux_field.xmf")
+F64 = "<f8"
 
 
-def _field_key(name: str) -> str:
-    key = ALIASES.get(name, name)
-    if key not in FIELDS:
-        raise ValueError(f"unknown field {name!r}; known: {sorted(FIELDS)} or {sorted(ALIASES)}")
-    return key
+class _Series:
+    """One .xmf: its name, the .h5 prefix and how its attribute is built."""
+
+    def __init__(self, name, prefix, kind, datasets):
+        self.name, self.prefix, self.kind, self.datasets = name, prefix, kind, datasets
 
 
-def _fmt(x) -> str:
-    """Shortest round-tripping text for a float (integers without a trailing '.0')."""
-    x = float(x)
-    if x.is_integer() and abs(x) < 1e15:
-        return str(int(x))
-    return repr(x)
+def series_for(cfg_type: str, n_particles: int) -> list:
+    """The files the original writes for a type (empty for the spectral types)."""
+    from ..config import FDM_TYPES
+    if cfg_type not in FDM_TYPES:
+        return []
+    out = []
+    if cfg_type == "Navier_Stokes_Cahn_Hilliard_FDM":
+        out.append(_Series("fluid_phase", "orderparam", "scalar", (("PSI_ALL", "psi_all", None),)))
+    elif cfg_type == "Shear_NS_LE_CH_FDM":
+        out.append(_Series("fluid_phase", "orderparam", "scalar", (("PSI", "psi", None),)))
+    if n_particles:
+        out.append(_Series("particle_phase", "particle", "scalar", (("PHI", "phi", None),)))
+        out.append(_Series("particle_coordinate", "particle_data", "particles", ()))
+    out.append(_Series("velocity_field", "velocity", "vector",
+                       tuple((f"U{c}", "u", i) for i, c in enumerate("XYZ"))))
+    if cfg_type == "Navier_Stokes_Cahn_Hilliard_FDM":
+        out.append(_Series("flux_field", "flux", "vector",
+                           tuple((f"FLUX_{c}", "flux", i) for i, c in enumerate("XYZ"))))
+    return out
 
 
-def _atomic_write(path: str, write) -> None:
-    """Call ``write(tmp_path)`` on a temporary file next to ``path``, then rename it to ``path``."""
-    directory, name = os.path.split(path)
-    while True:
-        tmp = os.path.join(directory, f".{name}.{os.getpid()}.{secrets.token_hex(4)}.tmp")
-        try:  # created with the usual 0666 & ~umask mode (mkstemp would give 0600)
-            os.close(os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666))
-            break
-        except FileExistsError:
-            continue
+class SnapshotFiles:
+    """Writer (kapsel.io.writers protocol) of the per-snapshot files and .xmf series."""
+
+    def __init__(self, directory, cfg_type, shape, dx, gts, n_particles):
+        self.directory = os.fspath(directory)
+        self.shape = tuple(int(s) for s in shape)
+        self.dx = float(dx)
+        self.gts = int(gts)
+        self.n_particles = int(n_particles)
+        self.series = series_for(cfg_type, n_particles)
+        self.times: dict[int, float] = {}       # snapshot number -> time, in the .xmf files
+        self._skip = None
+
+    def needs(self) -> set:
+        """Snapshot names this writer reads (kapsel.snapshot)."""
+        return {ds[1] for s in self.series for ds in s.datasets}
+
+    # ------------------------------------------------------------------ protocol
+    def open(self, snap, resumed: bool) -> None:
+        os.makedirs(self.directory, exist_ok=True)
+        self.times = {}
+        if not resumed:
+            return
+        n0 = snap.step // self.gts
+        old = _xmf_times(os.path.join(self.directory, "velocity_field.xmf"))
+        for n in range(n0 + 1):
+            if all(os.path.exists(self.path(s, n)) for s in self.series):
+                self.times[n] = _stored_time(self.path(self.series[-1], n),
+                                             old.get(n, n * self.gts * snap.dt))
+        if snap.step % self.gts == 0 and n0 in self.times:
+            self._skip = snap.step                  # written by the run being continued
+
+    def write(self, snap) -> None:
+        if snap.step == self._skip:
+            self._skip = None
+            return
+        n = snap.step // self.gts
+        for s in self.series:
+            atomic_write(self.path(s, n), lambda tmp, s=s: self._h5(tmp, s, snap, n))
+        self.times = {m: t for m, t in self.times.items() if m < n}   # a replaced time line
+        self.times[n] = float(snap.time)
+        for s in self.series:
+            atomic_write_text(os.path.join(self.directory, s.name + ".xmf"), self.xdmf(s))
+
+    def close(self, reason: str) -> None:
+        """Nothing is buffered: every file is complete once written."""
+
+    # ------------------------------------------------------------------ files
+    def path(self, s, n) -> str:
+        return os.path.join(self.directory, f"{s.prefix}_{n}.h5")
+
+    def _h5(self, tmp, s, snap, n):
+        with h5py.File(tmp, "w") as f:
+            if s.kind == "particles":
+                p = snap.particles
+                cols = {"RX": p.R[:, 0], "RY": p.R[:, 1], "RZ": p.R[:, 2],
+                        "VX": p.v[:, 0], "VY": p.v[:, 1], "VZ": p.v[:, 2]}
+                for name, c in cols.items():
+                    if p.n == 1:      # the original's single-particle layout
+                        c = np.array([c[0], -1.0])
+                    f.create_dataset(name, data=np.asarray(c, dtype=F64))
+                f.create_dataset("DEGREE_OBLIQUE", data=np.array([snap.strain], dtype=F64))
+            else:
+                for name, source, comp in s.datasets:
+                    a = snap.get(source)
+                    a = a if comp is None else a[comp]
+                    if a.shape != self.shape:
+                        raise ValueError(f"{source}: shape {a.shape}, expected {self.shape}")
+                    f.create_dataset(name, data=np.ascontiguousarray(a.T, dtype=F64))
+            f.attrs["n"] = n
+            f.attrs["time"] = float(snap.time)
+            f.attrs["dx"] = self.dx
+
+    # ------------------------------------------------------------------ XDMF
+    def xdmf(self, s) -> str:
+        """The text of one .xmf (FORMAT-OUTPUT.md §4.2)."""
+        nx, ny, nz = self.shape
+        dims = f"{nz} {ny} {nx}"
+        d = fmt(self.dx)
+        out = ['<?xml version="1.0" ?>', '<!DOCTYPE Xdmf SYSTEM "Xdmf.dtd" []>',
+               '<Xdmf Version="2.0">', '<Domain>',
+               '<Grid Name="CellTime" GridType="Collection" CollectionType="Temporal">', '']
+        npart = self.n_particles
+        m = 2 if npart == 1 else npart
+
+        def item(dimensions, ref):
+            return [f'<DataItem Dimensions="{dimensions}" NumberType="Float" Precision="8" '
+                    f'Format="HDF">', ref, '</DataItem>']
+
+        for n, t in sorted(self.times.items()):
+            h5 = f"{s.prefix}_{n}.h5"
+            out += ['<Grid Name="Structured grid" GridType="Uniform">', f'<Time Value="{fmt(t)}" />']
+            if s.kind == "particles":
+                out += [f'<Topology Name="tp" TopologyType="Polyvertex" NumberOfElements="{npart}"/>',
+                        '<Geometry GeometryType="XYZ">',
+                        f'<DataItem ItemType="Function" Dimensions="{m} 3" Function = "JOIN($0, $1, $2) ">']
+                for c in ("RX", "RY", "RZ"):
+                    out += item(m, f"{h5}:/{c}")
+                out += ['</DataItem>', '</Geometry>',
+                        '<Attribute Name = "particle_velocity" AttributeType = "Vector">',
+                        f'<DataItem ItemType="Function" Dimensions="{m} 3" Function = "JOIN($0, $1, $2) ">']
+                for c in ("VX", "VY", "VZ"):
+                    out += item(m, f"{h5}:/{c}")
+                out += ['</DataItem>', '</Attribute>', '</Grid>', '']
+                continue
+            out += [f'<Topology Name="tp" TopologyType="3DCORECTMesh" NumberOfElements="{dims}"/>',
+                    '<Geometry Name="geo" GeometryType="ORIGIN_DXDYDZ">',
+                    '<DataItem Name="Origin" Dimensions="3" NumberType="Float" Precision="4" '
+                    'Format="XML">', '0 0 0', '</DataItem>',
+                    '<DataItem Name="Spacing" Dimensions="3" NumberType="Float" Precision="4" '
+                    'Format="XML">', f'{d} {d} {d}', '</DataItem>', '</Geometry>']
+            if s.kind == "scalar":
+                out.append(f'<Attribute Name = "{s.name}" AttributeType = "Scalar" Center = "Node">')
+                out += item(dims, f"{h5}:/{s.datasets[0][0]}")
+            else:
+                out += [f'<Attribute Name = "{s.name}" AttributeType = "Vector" Center = "Node">',
+                        f'<DataItem ItemType="Function" Dimensions="{dims} 3" '
+                        f'Function = "JOIN($0, $1, $2) ">']
+                for name, _src, _c in s.datasets:
+                    out += item(dims, f"{h5}:/{name}")
+                out.append('</DataItem>')
+            out += ['</Attribute>', '</Grid>', '']
+        out += ['</Grid>', '</Domain>', '</Xdmf>', '']
+        return "\n".join(out)
+
+
+# -- reading back ---------------------------------------------------------------------------
+def _xmf_times(path: str) -> dict[int, float]:
+    """Snapshot number -> time listed in an existing .xmf ({} if none)."""
     try:
-        write(tmp)
-        with open(tmp, "rb+") as fh:
-            os.fsync(fh.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except OSError:
-            pass
-        raise
+        root = ET.parse(path).getroot()
+    except (OSError, ET.ParseError):
+        return {}
+    times = {}
+    for grid in root.iter("Grid"):
+        t = grid.find("Time")
+        item = grid.find(".//DataItem[@Format='HDF']")
+        if t is None or item is None or not item.text:
+            continue
+        m = re.search(r"_(\d+)\.h5:", item.text)
+        if m:
+            try:
+                times[int(m.group(1))] = float(t.get("Value"))
+            except (TypeError, ValueError):
+                pass
+    return times
 
 
-def _atomic_write_text(path: str, text: str) -> None:
-    def write(tmp):
-        with open(tmp, "w", encoding="utf-8") as fh:
-            fh.write(text)
-    _atomic_write(path, write)
+def _stored_time(path: str, default: float) -> float:
+    try:
+        with h5py.File(path, "r") as f:
+            t = f.attrs.get("time")
+    except OSError:
+        return float(default)
+    return float(default if t is None else t)
 
 
 def read_snapshot(path, dataset: str | None = None) -> np.ndarray:
-    """Read one dataset of a snapshot file as a float64 array indexed [x, y, z].
-
-    ``dataset`` defaults to the file's first dataset (``PSI``, ``PHI`` or ``UX``).  For a
-    velocity file ``dataset="U"`` gives the vector (3, NX, NY, NZ) from UX, UY, UZ.
-    """
+    """One field dataset of a snapshot file as a float64 array indexed [x, y, z]
+    (``dataset`` defaults to the file's first one); ``dataset="U"`` of a velocity file gives
+    the vector (3, NX, NY, NZ)."""
     with h5py.File(path, "r") as f:
         if dataset == "U" and "U" not in f:
             return np.stack([np.asarray(f[c][()], dtype=np.float64).T
@@ -105,251 +258,3 @@ def read_snapshot(path, dataset: str | None = None) -> np.ndarray:
             dataset = names[0]
         data = f[dataset][()]
     return np.ascontiguousarray(np.asarray(data, dtype=np.float64).T)
-
-
-class FieldWriter:
-    """Write field snapshots and keep the per-field XDMF time series up to date.
-
-    ``FieldWriter(directory, shape, dx, fields=("psi", "phi", "u"))`` starts a new series
-    (``fields`` may also use the file prefixes ``orderparam``, ``particle``, ``velocity``);
-    files of an earlier run are not listed (those with the same snapshot numbers are
-    overwritten as the run goes).  With ``resume=True`` (or :meth:`existing`) the snapshots
-    already on disk for ``fields`` are listed first, so a continued run appends to them; a
-    snapshot written with number n then drops resumed entries with a number above n from the
-    series (they belong to the run being replaced).
-
-    ``write(n, time, psi=None, phi=None, u=None)`` writes snapshot n of each field given
-    (None: not written).  ``snapshots[key]`` is {n: time} of each field ("psi", "phi", "u").
-    """
-
-    def __init__(self, directory, shape, dx, fields=("psi", "phi", "u"), resume: bool = False):
-        self.directory = os.fspath(directory)
-        shape = tuple(int(s) for s in shape)
-        if len(shape) != 3 or min(shape) < 1:
-            raise ValueError(f"shape must be (NX, NY, NZ) of positive sizes, got {shape}")
-        self.shape = shape
-        self.dx = float(dx)
-        if not self.dx > 0:
-            raise ValueError(f"dx must be positive, got {dx}")
-        self.fields = tuple(dict.fromkeys(_field_key(f) for f in fields))
-        self.snapshots: dict[str, dict[int, float]] = {f: {} for f in FIELDS}
-        self._resumed: dict[str, set[int]] = {f: set() for f in FIELDS}
-        os.makedirs(self.directory, exist_ok=True)
-        if resume:
-            self.resume()
-
-    @classmethod
-    def existing(cls, directory, shape=None, dx=None, fields=("psi", "phi", "u")):
-        """A writer that appends to the snapshots already in ``directory``.
-
-        ``shape`` and ``dx`` default to those stored in the existing files.
-        """
-        directory = os.fspath(directory)
-        if shape is None or dx is None:
-            for field in fields:
-                field = _field_key(field)
-                found = _scan(directory, field)
-                if found:
-                    n = max(found)
-                    if shape is None:
-                        shape = found[n][1]
-                    if dx is None:
-                        dx = _stored_dx(directory, field, n)
-                    break
-        if shape is None:
-            raise ValueError(f"{directory}: no snapshot on disk, shape must be given")
-        if dx is None:
-            raise ValueError(f"{directory}: grid spacing not found on disk, dx must be given")
-        return cls(directory, shape, dx, fields=fields, resume=True)
-
-    def resume(self, upto: int | None = None) -> dict:
-        """List the snapshots on disk of ``self.fields`` (n <= ``upto`` if given).
-
-        Returns ``self.snapshots``.  The .xmf files are rewritten at the next ``write``.
-        """
-        for field in self.fields:
-            found = _scan(self.directory, field)
-            series = {}
-            for n, (time, shp) in found.items():
-                if upto is not None and n > upto:
-                    continue
-                if shp != self.shape:
-                    raise ValueError(
-                        f"{_h5_name(field, n)}: grid {shp} differs from {self.shape}")
-                series[n] = time
-            self.snapshots[field] = dict(sorted(series.items()))
-            self._resumed[field] = set(series)
-        return self.snapshots
-
-    # -- writing -----------------------------------------------------------------------
-    def write(self, n, time, psi=None, phi=None, u=None) -> None:
-        """Write snapshot ``n`` (at ``time``) of every field given, then the XDMF files."""
-        n = int(n)
-        if n < 0:
-            raise ValueError(f"snapshot number must be >= 0, got {n}")
-        time = float(time)
-        given = {k: v for k, v in (("psi", psi), ("phi", phi), ("u", u)) if v is not None}
-        arrays = {}
-        for field, value in given.items():
-            a = np.asarray(value, dtype=np.float64)
-            want = (3,) + self.shape if field == "u" else self.shape
-            if a.shape != want:
-                raise ValueError(f"{field}: shape {a.shape}, expected {want}")
-            arrays[field] = a
-        for field, a in arrays.items():
-            _prefix, datasets, _attr = FIELDS[field]
-            comps = [a] if len(datasets) == 1 else [a[i] for i in range(3)]
-
-            def h5write(tmp, comps=comps, datasets=datasets):
-                with h5py.File(tmp, "w") as f:
-                    for name, c in zip(datasets, comps):
-                        f.create_dataset(name, data=np.ascontiguousarray(c.T))
-                    f.attrs["n"] = n
-                    f.attrs["time"] = time
-                    f.attrs["dx"] = self.dx
-
-            _atomic_write(os.path.join(self.directory, _h5_name(field, n)), h5write)
-        for field in arrays:
-            series = self.snapshots[field]
-            for m in [m for m in self._resumed[field] if m > n]:
-                series.pop(m, None)
-                self._resumed[field].discard(m)
-            self._resumed[field].discard(n)
-            series[n] = time
-            _atomic_write_text(self.xmf_path(field), self.xdmf(field))
-
-    # -- XDMF --------------------------------------------------------------------------
-    def xmf_path(self, field: str) -> str:
-        return os.path.join(self.directory, FIELDS[_field_key(field)][0] + ".xmf")
-
-    def xdmf(self, field: str) -> str:
-        """The XDMF 2.0 text of ``field``'s temporal collection."""
-        field = _field_key(field)
-        prefix, datasets, attr = FIELDS[field]
-        nx, ny, nz = self.shape
-        dims = f"{nz} {ny} {nx}"
-        d = _fmt(self.dx)
-        out = [
-            '<?xml version="1.0" ?>',
-            '<!DOCTYPE Xdmf SYSTEM "Xdmf.dtd" []>',
-            '<Xdmf Version="2.0">',
-            ' <Domain>',
-            f'  <Grid Name="{prefix}" GridType="Collection" CollectionType="Temporal">',
-        ]
-        for n, time in sorted(self.snapshots[field].items()):
-            h5 = escape(_h5_name(field, n))
-            out += [
-                f'   <Grid Name="{prefix}_{n}" GridType="Uniform">',
-                f'    <Time Value="{_fmt(time)}"/>',
-                f'    <Topology TopologyType="3DCORECTMesh" Dimensions="{dims}"/>',
-                '    <Geometry GeometryType="ORIGIN_DXDYDZ">',
-                '     <DataItem Name="Origin" Format="XML" NumberType="Float" Precision="8"'
-                ' Dimensions="3">0 0 0</DataItem>',
-                '     <DataItem Name="Spacing" Format="XML" NumberType="Float" Precision="8"'
-                f' Dimensions="3">{d} {d} {d}</DataItem>',
-                '    </Geometry>',
-            ]
-            if len(datasets) == 1:
-                out += [
-                    f'    <Attribute Name="{attr}" AttributeType="Scalar" Center="Node">',
-                    f'     <DataItem Format="HDF" NumberType="Float" Precision="8"'
-                    f' Dimensions="{dims}">{h5}:/{datasets[0]}</DataItem>',
-                    '    </Attribute>',
-                ]
-            else:
-                out += [
-                    f'    <Attribute Name="{attr}" AttributeType="Vector" Center="Node">',
-                    f'     <DataItem ItemType="Function" Function="JOIN($0, $1, $2)"'
-                    f' Dimensions="{dims} 3">',
-                ]
-                out += [
-                    f'      <DataItem Format="HDF" NumberType="Float" Precision="8"'
-                    f' Dimensions="{dims}">{h5}:/{ds}</DataItem>'
-                    for ds in datasets
-                ]
-                out += ['     </DataItem>', '    </Attribute>']
-            out.append('   </Grid>')
-        out += ['  </Grid>', ' </Domain>', '</Xdmf>', '']
-        return "\n".join(out)
-
-
-# -- reading back what is on disk ---------------------------------------------------------
-def _h5_name(field: str, n: int) -> str:
-    return f"{FIELDS[field][0]}_{n}.h5"
-
-
-def _xmf_times(directory: str, field: str) -> dict[int, float]:
-    """Snapshot number -> time from an existing .xmf (fallback for files without attrs)."""
-    prefix = FIELDS[field][0]
-    path = os.path.join(directory, prefix + ".xmf")
-    times: dict[int, float] = {}
-    try:
-        root = ET.parse(path).getroot()
-    except (OSError, ET.ParseError):
-        return times
-    pat = re.compile(rf"^{re.escape(prefix)}_(\d+)\.h5:")
-    for grid in root.iter("Grid"):
-        t = grid.find("Time")
-        item = grid.find(".//Attribute//DataItem[@Format='HDF']")
-        if t is None or item is None or item.text is None:
-            continue
-        m = pat.match(item.text.strip())
-        if m:
-            try:
-                times[int(m.group(1))] = float(t.get("Value"))
-            except (TypeError, ValueError):
-                pass
-    return times
-
-
-def _scan(directory: str, field: str) -> dict[int, tuple[float, tuple[int, int, int]]]:
-    """Complete snapshot files of ``field`` in ``directory``: n -> (time, (NX, NY, NZ)).
-
-    The time is the file's ``time`` attribute, else the one the .xmf lists, else n.
-    """
-    prefix, datasets, _attr = FIELDS[field]
-    pat = re.compile(rf"^{re.escape(prefix)}_(\d+)\.h5$")
-    try:
-        names = os.listdir(directory)
-    except OSError:
-        return {}
-    xmf_times = None
-    found = {}
-    for name in names:
-        m = pat.match(name)
-        if not m:
-            continue
-        n = int(m.group(1))
-        try:
-            with h5py.File(os.path.join(directory, name), "r") as f:
-                if not all(ds in f for ds in datasets):
-                    continue
-                shapes = {f[ds].shape for ds in datasets}
-                if len(shapes) != 1 or len(next(iter(shapes))) != 3:
-                    continue
-                nz, ny, nx = shapes.pop()
-                time = f.attrs.get("time")
-        except OSError:
-            continue
-        if time is None:
-            if xmf_times is None:
-                xmf_times = _xmf_times(directory, field)
-            time = xmf_times.get(n, float(n))
-        found[n] = (float(time), (nx, ny, nz))
-    return found
-
-
-def _stored_dx(directory: str, field: str, n: int):
-    try:
-        with h5py.File(os.path.join(directory, _h5_name(field, n)), "r") as f:
-            dx = f.attrs.get("dx")
-    except OSError:
-        dx = None
-    if dx is not None:
-        return float(dx)
-    try:
-        root = ET.parse(os.path.join(directory, FIELDS[field][0] + ".xmf")).getroot()
-        item = root.find(".//Geometry/DataItem[@Name='Spacing']")
-        return float(item.text.split()[0])
-    except (OSError, ET.ParseError, AttributeError, ValueError, IndexError):
-        return None

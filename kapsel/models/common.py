@@ -207,6 +207,33 @@ class Model:
         s0, t0 = self._clock0
         self.time = t0 + (self.step_index - s0) * self.dt
 
+    # ------------------------------------------------------------------ outputs
+    sheared = False             # a shear type: offers the "shear" record (shear_record())
+
+    def frame_strain(self) -> float:
+        """degree_oblique: the strain of the oblique frame (0 for unsheared grids)."""
+        return 0.0
+
+    def field_sources(self) -> dict:
+        """Field name -> function computing it (kapsel.snapshot lists the names)."""
+        return {}
+
+    def snapshot(self):
+        """What this model offers the output writers now (kapsel.snapshot.Snapshot)."""
+        from ..snapshot import Snapshot
+        src = {"E": self.kinetic_energy, "record": self.record_items}
+        src.update(self.field_sources())
+        if self.sheared:
+            src["shear"] = self.shear_record
+        p = self.particles
+        if p is not None and p.n:
+            from ..particles.rigid import RigidBodies
+            if isinstance(p.constraints, RigidBodies):
+                src["E_rot"] = p.constraints.rotational_energies
+        return Snapshot(step=self.step_index, time=self.time, dt=self.dt,
+                        shape=tuple(self.cfg.mesh.shape), dx=self.cfg.mesh.DX, particles=p,
+                        strain=float(self.frame_strain()), sheared=self.sheared, sources=src)
+
     # ------------------------------------------------------------------ stability
     cfl_limit = 1.0             # largest max|u| dt / DX the explicit advection takes
 

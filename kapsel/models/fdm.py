@@ -205,13 +205,45 @@ class FDMModel(Model):
             if self.eta_field is not None:
                 self._update_viscosity()
 
-    def fields(self) -> dict:
-        out = {"u": self.u}
+    # ------------------------------------------------------------------ snapshot
+    def field_sources(self) -> dict:
+        """u, pressure (at the nodes, the particles' force included), tau; phi with particles; psi, psi_all (psi is defined
+        inside the particles too, so it is the total order parameter) and flux with a phase
+        field (kapsel.snapshot)."""
+        src = {"u": lambda: self.u, "pressure": self._pressure, "tau": self._tau}
+        if self.particles.n:
+            src["phi"] = lambda: self.phi
         if self.psi is not None:
-            out["psi"] = self.psi
-        if self.phi is not None:
-            out["phi"] = self.phi
-        return out
+            src.update(psi=lambda: self.psi, psi_all=lambda: self.psi, flux=self._flux)
+        return src
+
+    def _pressure_cells(self):
+        """The fluid step's pressure plus the part that balances the particles' force of
+        the step (the projection of their rigidity increment), at the cell centres."""
+        p = self.mac.pressure.copy()
+        if self.particles.n and self.step_index > 0:
+            p += self.mac.projection_pressure(self.spm._du)
+        return p
+
+    def _pressure(self):
+        from ..fluid.diagnostics import pressure_at_nodes
+        return pressure_at_nodes(self._pressure_cells())
+
+    def _eta(self):
+        return self.eta_field if self.eta_field is not None else self.cfg.fluid.ETA
+
+    def _tau(self):
+        from ..fluid.diagnostics import stress_from_gradient, velocity_gradient_central
+        return stress_from_gradient(velocity_gradient_central(self.u, self.dx), self._eta())
+
+    def _flux(self):
+        """Order-parameter flux psi u - kappa grad mu of the current state (eq 16)."""
+        mu = self.ch.chemical_potential(self.psi, self.phi)
+        flux = np.empty((3,) + self.shape)
+        self.ch._grad(mu, flux)
+        flux *= -self.ch.kappa
+        flux += self.psi * self.u
+        return flux
 
 
 @register("Navier_Stokes_FDM")

@@ -125,6 +125,50 @@ class ShearLEModel(SpectralModel):
         phi = self.spm.phi() if self.particles.n else None
         return kinetic_energy(self.cfg.fluid.RHO, self.cfg.mesh.DX, u, phi, self.particles)
 
+    sheared = True
+
+    def frame_strain(self) -> float:
+        return float(self.fluid.frame_strain)
+
+    def field_sources(self) -> dict:
+        """u (full flow) and phi in the rectangular frame (OBL_INT interpolation), tau of the
+        full flow (spectral Cartesian derivatives on the oblique grid; d_y U_x = gamma_dot
+        added to xy), the pressure (kapsel.fluid.diagnostics.spectral_pressure with the
+        shear terms)."""
+        from ..fluid.diagnostics import viscous_stress_spectral
+        from ..fluid.oblique import to_rectangular
+        g0 = self.fluid.y0 / self.cfg.mesh.DX
+
+        memo = {}
+
+        def rect(f):
+            return to_rectangular(f, self.fluid.frame_strain, self.interpolation, g0)
+
+        def deviation():          # on the oblique grid, transformed once per snapshot
+            if "u" not in memo:
+                memo["u"] = self.spm.velocity()
+            return memo["u"]
+
+        def tau():
+            eta = self.cfg.fluid.ETA
+            t = viscous_stress_spectral(deviation(), self.cfg.mesh.DX, eta,
+                                        self.fluid.frame_strain)
+            t[1] += eta * self.fluid.shear_rate_now
+            return rect(t)
+
+        def pressure():
+            from ..fluid.diagnostics import spectral_pressure
+            f = self.cfg.fluid
+            return rect(spectral_pressure(deviation(), self.spm._du, f.RHO, self.dt,
+                                          self.cfg.mesh.DX, self.fluid.shear_rate_now,
+                                          self.fluid.frame_strain))
+
+        src = {"u": lambda: self.fluid.velocity_rectangular(self.interpolation), "tau": tau,
+               "pressure": pressure}
+        if self.particles.n:
+            src["phi"] = lambda: rect(self.spm.phi())
+        return src
+
     def shear_record(self) -> dict:
         """Shear_stress (mean since the last record), Shear_strain, Shear_rate."""
         rate = self.fluid.shear_rate_now
@@ -243,6 +287,8 @@ class ZigzagModel(SpectralModel):
         self.zigzag.impose(self.time + self.dt)
         self.tick()
 
+    sheared = True
+
     def shear_record(self) -> dict:
         sh = self.zigzag.shear
         rate = sh.rate(self.time)
@@ -359,16 +405,42 @@ class ShearFDMModel(FDMModel):
     def record_items(self) -> dict:
         return {"PSI": self._rect(self.psi)} if self.psi is not None else {}
 
-    def fields(self) -> dict:
+    def field_sources(self) -> dict:
+        """The FDM fields in the rectangular frame (OBL_INT interpolation), u with the imposed
+        flow; tau of the full flow (Cartesian derivatives on the oblique grid, then
+        interpolated; d_y U_x = gamma_dot added to xy); no flux (the original writes
+        flux_<n>.h5 for Navier_Stokes_Cahn_Hilliard_FDM only)."""
+        from ..fluid.diagnostics import pressure_at_nodes
+        src = {"u": self._u_rect,
+               "pressure": lambda: self._rect(pressure_at_nodes(self._pressure_cells())),
+               "tau": self._tau}
+        if self.particles.n:
+            src["phi"] = lambda: self._rect(self.phi)
+        if self.psi is not None:
+            src["psi"] = lambda: self._rect(self.psi)
+            src["psi_all"] = src["psi"]
+        return src
+
+    def _u_rect(self):
         u = self._rect(self.u)
         y = (np.arange(self.shape[1]) * self.dx)[None, :, None]
         u[0] += self.mac.shear_rate_now * (y - self.mac.y0)
-        out = {"u": u}
-        if self.psi is not None:
-            out["psi"] = self._rect(self.psi)
-        if self.phi is not None:
-            out["phi"] = self._rect(self.phi)
-        return out
+        return u
+
+    def _tau(self):
+        from ..fluid.diagnostics import stress_from_gradient, velocity_gradient_central
+        from ..fluid.oblique import oblique_gradient
+        g, dx = self.mac.frame_strain, self.dx
+        grad = velocity_gradient_central(self.u, dx,
+                                         gradient=lambda f, out: oblique_gradient(f, dx, g, out))
+        grad[0, 1] += self.mac.shear_rate_now
+        tau = stress_from_gradient(grad, self._eta())
+        return self._rect(tau)
+
+    sheared = True
+
+    def frame_strain(self) -> float:
+        return float(self.mac.frame_strain)
 
     def kinetic_energy(self) -> float:
         from .common import kinetic_energy

@@ -1,7 +1,7 @@
 """The pseudo-spectral type ``Navier_Stokes`` (manual §4.1, eqs 1-14): particles in a periodic
 incompressible fluid by the Smoothed Profile Method (kapsel.particles.spm.SPM on a
-kapsel.fluid.spectral.SpectralNS).  Writes output.udf records; no field files (the original
-writes HDF5 fields only for the FDM types)."""
+kapsel.fluid.spectral.SpectralNS).  Offers u, phi, tau and the pressure to the field writers
+(output.AVS); the per-snapshot HDF5 files are the FDM types' only, as in the original."""
 from __future__ import annotations
 
 from ..config import ConfigError, RunConfig
@@ -64,8 +64,25 @@ class SpectralModel(Model):
         self.fluid.set_velocity_hat(exact["u_hat"])
         self.spm.refresh()
 
-    def fields(self) -> dict:
-        return {}
+    def field_sources(self) -> dict:
+        """u, phi (with particles), tau (spectral derivatives) and the pressure
+        (kapsel.fluid.diagnostics.spectral_pressure: advection and the particles' body force
+        of the last step)."""
+        from ..fluid.diagnostics import spectral_pressure, viscous_stress_spectral
+        dx, f = self.cfg.mesh.DX, self.cfg.fluid
+        memo = {}
+
+        def u():                  # the snapshot's velocity, transformed once
+            if "u" not in memo:
+                memo["u"] = self.spm.velocity()
+            return memo["u"]
+
+        src = {"u": u,
+               "tau": lambda: viscous_stress_spectral(u(), dx, f.ETA),
+               "pressure": lambda: spectral_pressure(u(), self.spm._du, f.RHO, self.dt, dx)}
+        if self.particles.n:
+            src["phi"] = self.spm.phi
+        return src
 
 
 @register("Navier_Stokes")

@@ -102,7 +102,7 @@ class SPM:
         else:
             raise TypeError("fluid must be a SpectralNS or a MACSolver")
         self.size = int(np.prod(self.shape))
-        self._du = np.empty((3,) + self.shape) if particles.n else None
+        self._du = np.zeros((3,) + self.shape) if particles.n else None   # last increment
         self.box = np.array(self.shape, dtype=float) * self.dx
         # oblique fluid (kapsel.fluid.oblique, Lees-Edwards): profiles on the sheared grid,
         # velocities relative to the imposed shear flow, Lees-Edwards images

@@ -1,0 +1,341 @@
+"""``output.AVS ON`` with ``FileType EXTENDED``: one HDF5 trajectory, its ``.conf`` and XDMF
+files (FORMAT-OUTPUT.md §3).
+
+``<Out_dir>/<Out_name>.h5``:
+
+    root attributes  dx float32 (1,), nxnynz int64 (3,) (written field dims), origin float32
+                     (3,) = start * DX, nump / nump_obs / nump_total int32 (1,), git_version,
+                     git_ref (fixed-length NUL-terminated strings)
+    /system_data/field/x, y, z          float32 (cx, cy, cz): grid coordinates (index * DX)
+    /system_data/particle/id, spec      int32 (nump,)
+    /trajectory_data/frame_<f>/         attributes time float32 (1,), gamma float32 (1,) (frame
+                                        strain, sheared types only)
+        field/    u_x u_y u_z (Vel), phi (Phi), pressure (Pressure),
+                  tau_xx tau_xy tau_xz tau_yy tau_yz (Tau): float32 (cx, cy, cz), [x][y][z]
+        particle/ pos pos_raw vel omega force_h force_r torque_h torque_r float32 (nump, 3),
+                  QR float32 (nump, 3, 3): QR[n][a][c] = lab component c of body axis a
+
+``Crop YES`` writes the hyperslab start + m stride (m < count) of every axis.  Fields are
+the snapshot's (kapsel.snapshot) in the rectangular frame; force_h / torque_h are the
+hydrodynamic plus slip force / torque of the step just taken, force_r / torque_r the others.
+Obstacles (janus_propulsion obstacle) do not exist in kapsel-py, so nump_obs is 0 and there is
+no obstacle group.
+
+``<Out_name>.conf``: the original's text, from which its Tools/h5kapsel2xdmf.py builds the
+XDMF files; and those XDMF files written directly, as that script names them:
+``<Out_name>_fluid.xdmf`` (3DSMesh on system_data/field/x, y, z: every point where it is,
+crop included; scalar attributes and the vector ``u``) and ``<Out_name>_particle.xdmf``
+(Polyvertex of the positions; id, spec, the vectors and the tensor QR).  Each grid carries its
+frame's time (the script writes a HyperSlab start / step / count time instead).
+
+Differences from the original, on purpose: a continued run appends its frames to the file
+(frames later than the restart are dropped; the original truncates the file and counts
+frames and time from 0 again, losing the earlier trajectory); the ``time`` attribute is the
+snapshot's time (the original's f * DT * GTS restarts at 0 on resume); the .conf and .xdmf
+files are rewritten (atomically) after every frame, so they always describe the file.  The
+.h5 file is flushed after every frame and closed at the end, on interruption and on failure.
+"""
+from __future__ import annotations
+
+import os
+import sys
+
+import h5py
+import numpy as np
+
+from .atomic import atomic_write_text, fmt
+
+F32 = np.float32
+TAU = ("tau_xx", "tau_xy", "tau_xz", "tau_yy", "tau_yz")
+PARTICLE_VECTORS = ("vel", "omega", "force_h", "force_r", "torque_h", "torque_r")
+
+
+def _string_attr(obj, name, text):
+    """A scalar fixed-length NUL-terminated ASCII attribute, as the original's."""
+    b = text.encode("ascii")
+    tid = h5py.h5t.C_S1.copy()
+    tid.set_size(len(b) + 1)
+    tid.set_strpad(h5py.h5t.STR_NULLTERM)
+    obj.attrs.create(name, np.array(b, dtype=f"S{len(b) + 1}"), dtype=h5py.Datatype(tid))
+
+
+class ExtendedHDF5:
+    """Writer (kapsel.io.writers protocol) of the EXTENDED trajectory."""
+
+    def __init__(self, directory, spec, shape, dx, dt, gts, n_particles, species, sheared):
+        self.directory = os.fspath(directory)
+        self.name = spec.Out_name
+        self.path = os.path.join(self.directory, self.name + ".h5")
+        self.shape, self.dx, self.dt, self.gts = tuple(shape), float(dx), float(dt), int(gts)
+        self.sheared = bool(sheared)
+        slabs = spec.slabs or tuple((0, n, 1) for n in self.shape)
+        self.slabs = slabs
+        self.index = tuple(slice(s, s + (c - 1) * st + 1, st) for s, c, st in slabs)
+        self.dims = tuple(c for _, c, _ in slabs)
+        self.fields = [n for n, on in (("u", spec.Vel), ("phi", spec.Phi),
+                                       ("pressure", spec.Pressure), ("tau", spec.Tau)) if on]
+        self.nump = int(n_particles)
+        self.species = np.asarray(species, dtype=np.int32)
+        self.file = None
+        self.frames = 0
+        self._skip = None
+        self._times: list[float] = []
+
+    def needs(self) -> set:
+        return set(self.fields)
+
+    def console(self) -> str:
+        """The original's HDF5 block at initialisation (FORMAT-OUTPUT.md §3.8)."""
+        nx, ny, nz = self.shape
+        out = ["# *** HDF5 Parameters ***", f"# Output Name          : {self.path}",
+               f"# Mem Layout           : ({nx}, {ny}, {nz}, {nz + 2})",
+               f"# Grid spacing         : {self.dx:.3g}",
+               f"# Time between frames  : {self.dt * self.gts:.3g}"]
+        if self.fields:
+            for ax, (s, c, st) in zip("xyz", self.slabs):
+                out.append(f"# {ax}-axis slicing       : start = {s:4d}, stride = {st:4d}, "
+                           f"count = {c:4d}")
+            o = [s * self.dx for s, _, _ in self.slabs]
+            out.append(f"# Output Origin        : ({o[0]:.3g}, {o[1]:.3g}, {o[2]:.3g})")
+            for label, name in (("velocity", "u"), ("phi", "phi"), ("charge", None),
+                                ("Pressure", "pressure"), ("Stress", "tau")):
+                out.append(f"# Print {label + ' field':<15}: "
+                           f"{'YES' if name in self.fields else 'NO'}")
+        else:
+            out.append("# Field Data is being suppressed")
+        out.append("# ***********************")
+        return "\n".join(out) + "\n"
+
+    # ------------------------------------------------------------------ protocol
+    def open(self, snap, resumed: bool) -> None:
+        os.makedirs(self.directory, exist_ok=True)
+        if resumed and os.path.exists(self.path):
+            if self._continue(snap):
+                return
+            print(f"#{self.path} cannot be continued (another grid, crop or particle "
+                  f"number, or not readable): a new trajectory replaces it", file=sys.stderr)
+        self.file = h5py.File(self.path, "w")
+        self._header()
+        self.frames, self._times = 0, []
+        self.file.flush()
+        self._describe()
+
+    def _continue(self, snap) -> bool:
+        """Open the existing trajectory, drop frames later than the restart; False if it
+        was written for another grid, crop or particle count (then it is replaced)."""
+        try:
+            f = h5py.File(self.path, "a")
+        except OSError:
+            return False
+        ok = (list(f.attrs.get("nxnynz", [])) == list(self.dims)
+              and int(f.attrs.get("nump", [-1])[0]) == self.nump
+              and "trajectory_data" in f)
+        if not ok:
+            f.close()
+            return False
+        traj = f["trajectory_data"]
+        n = 0
+        times = []
+        tol = 1e-6 * max(1.0, abs(snap.time))
+        while f"frame_{n}" in traj and self._complete(traj[f"frame_{n}"]) \
+                and float(traj[f"frame_{n}"].attrs["time"][0]) <= snap.time + tol:
+            times.append(float(traj[f"frame_{n}"].attrs["time"][0]))
+            n += 1
+        m = n
+        while f"frame_{m}" in traj:
+            del traj[f"frame_{m}"]
+            m += 1
+        self.file, self.frames, self._times = f, n, times
+        if times and abs(times[-1] - snap.time) <= tol:
+            self._skip = snap.step
+        f.flush()
+        self._describe()
+        return True
+
+    def _complete(self, frame) -> bool:
+        """A frame with every dataset this run writes (not one cut by a killed run)."""
+        names = [f"field/{n}" for n in self._dataset_names()]
+        if self.nump:
+            names += [f"particle/{n}" for n in ("pos", "pos_raw", "QR") + PARTICLE_VECTORS]
+        try:
+            return "time" in frame.attrs and all(n in frame for n in names)
+        except (OSError, KeyError):
+            return False
+
+    def _dataset_names(self):
+        out = []
+        for name in self.fields:
+            out += {"u": ["u_x", "u_y", "u_z"], "tau": list(TAU)}.get(name, [name])
+        return out
+
+    def write(self, snap) -> None:
+        if snap.step == self._skip:
+            self._skip = None
+            return
+        g = self.file.create_group(f"trajectory_data/frame_{self.frames}")
+        g.attrs.create("time", np.array([snap.time], dtype=F32))
+        if self.sheared:
+            g.attrs.create("gamma", np.array([snap.strain], dtype=F32))
+        if self.fields:
+            fg = g.create_group("field")
+            for name, data in self._field_data(snap):
+                fg.create_dataset(name, data=data)
+        if self.nump:
+            pg = g.create_group("particle")
+            for name, data in particle_data(snap.particles).items():
+                pg.create_dataset(name, data=data)
+        self.frames += 1
+        self._times.append(float(np.float32(snap.time)))
+        self.file.flush()
+        self._describe()
+
+    def close(self, reason: str) -> None:
+        if self.file is not None:
+            self.file.close()
+            self.file = None
+
+    # ------------------------------------------------------------------ content
+    def _crop(self, a):
+        return np.ascontiguousarray(a[self.index], dtype=F32)
+
+    def _field_data(self, snap):
+        for name in self.fields:
+            if name == "u":
+                u = snap.get("u")
+                yield from (("u_x", self._crop(u[0])), ("u_y", self._crop(u[1])),
+                            ("u_z", self._crop(u[2])))
+            elif name == "tau":
+                tau = snap.get("tau")
+                yield from ((n, self._crop(tau[i])) for i, n in enumerate(TAU))
+            elif name == "phi" and not snap.offers("phi"):      # no particles: phi = 0
+                yield "phi", np.zeros(self.dims, dtype=F32)
+            else:
+                yield name, self._crop(snap.get(name))
+
+    def _header(self):
+        f = self.file
+        f.attrs.create("dx", np.array([self.dx], dtype=F32))
+        f.attrs.create("nxnynz", np.array(self.dims, dtype=np.int64))
+        f.attrs.create("origin", np.array([s * self.dx for s, _, _ in self.slabs], dtype=F32))
+        f.attrs.create("nump", np.array([self.nump], dtype=np.int32))
+        f.attrs.create("nump_obs", np.array([0], dtype=np.int32))
+        f.attrs.create("nump_total", np.array([self.nump], dtype=np.int32))
+        from .. import __version__
+        _string_attr(f, "git_version", f"kapsel-py {__version__}")
+        _string_attr(f, "git_ref", "kapsel-py")
+        sysd = f.create_group("system_data")
+        if self.fields:
+            fg = sysd.create_group("field")
+            axes = np.meshgrid(*[(s + st * np.arange(c)) * self.dx for s, c, st in self.slabs],
+                               indexing="ij")
+            for name, a in zip("xyz", axes):
+                fg.create_dataset(name, data=a.astype(F32))
+        if self.nump:
+            pg = sysd.create_group("particle")
+            pg.create_dataset("id", data=np.arange(self.nump, dtype=np.int32))
+            pg.create_dataset("spec", data=self.species)
+        f.create_group("trajectory_data")
+
+    # ------------------------------------------------------------------ .conf and XDMF
+    def conf(self) -> str:
+        cx, cy, cz = self.dims
+        out = ["#Configure file needed to generate xdmf trajectory", "#v1.1",
+               "[Filename]", f" {self.name}", "[Grid Dimensions]", f" {cx} {cy} {cz}",
+               "[Time Series]", f" 0.0 {self.dt * self.gts:.6f} {self.frames}",
+               "[Particle Number]", f" {self.nump}", "[Obstacle Number]", " 0", ""]
+        if self.nump:
+            out += ["[Particle Grid]", " pos", "#[Particle Grid]", "#pos_raw",
+                    "[Particle Scalar Const]", " id", "[Particle Scalar Const]", " spec"]
+            for v in PARTICLE_VECTORS:
+                out += ["[Particle Vector]", f" {v}"]
+            out += ["[Particle Tensor]", " QR", ""]
+        if self.fields:
+            out += ["[Field GridX Const]", " x", "[Field GridY Const]", " y",
+                    "[Field GridZ Const]", " z"]
+            if "u" in self.fields:
+                out += ["[Field Vector]", " u_x u_y u_z u"]
+            for name in self._scalars():
+                out += ["[Field Scalar]", f" {name}"]
+            out.append("")
+        return "\n".join(out) + "\n"
+
+    def _scalars(self):
+        names = [n for n in ("phi", "pressure") if n in self.fields]
+        return names + (list(TAU) if "tau" in self.fields else [])
+
+    def _describe(self):
+        atomic_write_text(os.path.join(self.directory, self.name + ".conf"), self.conf())
+        if self.fields:
+            atomic_write_text(os.path.join(self.directory, self.name + "_fluid.xdmf"),
+                              self.fluid_xdmf())
+        if self.nump:
+            atomic_write_text(os.path.join(self.directory, self.name + "_particle.xdmf"),
+                              self.particle_xdmf())
+
+    def _xdmf(self, collection, frame_lines):
+        out = ['<?xml version="1.0" ?>', '<!DOCTYPE Xdmf SYSTEM "Xdmf.dtd" []>',
+               '<Xdmf Version="2.0"><Domain>',
+               f' <Grid CollectionType="Temporal" GridType="Collection" Name="{collection}">']
+        for i, t in enumerate(self._times):
+            out += frame_lines(i, t)
+        out += [' </Grid>', '</Domain></Xdmf>', '']
+        return "\n".join(out)
+
+    def _item(self, dims, path, number="Float", precision=4):
+        return (f'    <DataItem NumberType="{number}" Precision="{precision}" '
+                f'Dimensions="{dims}" Format="HDF">{self.name}.h5:{path}</DataItem>')
+
+    def fluid_xdmf(self) -> str:
+        dims = " ".join(str(c) for c in self.dims)
+
+        def frame(i, t):
+            base = f"/trajectory_data/frame_{i}/field"
+            out = ['  <Grid Name="Fluid Frame" GridType="Uniform">', f'   <Time Value="{fmt(t)}"/>',
+                   f'   <Topology TopologyType="3DSMesh" NumberOfElements="{dims}"/>',
+                   '   <Geometry GeometryType="X_Y_Z">']
+            out += [self._item(dims, f"/system_data/field/{a}") for a in "xyz"]
+            out.append('   </Geometry>')
+            for name in self._scalars():
+                out += [f'   <Attribute AttributeType="Scalar" Name="{name}" Center="Node">',
+                        self._item(dims, f"{base}/{name}"), '   </Attribute>']
+            if "u" in self.fields:
+                out += ['   <Attribute AttributeType="Vector" Name="u" Center="Node">',
+                        f'    <DataItem ItemType="Function" Dimensions="{dims} 3" '
+                        f'Function="JOIN($0, $1, $2)">']
+                out += [self._item(dims, f"{base}/u_{c}") for c in "xyz"]
+                out += ['    </DataItem>', '   </Attribute>']
+            out.append('  </Grid>')
+            return out
+        return self._xdmf("KAPSEL Fluid Trajectory", frame)
+
+    def particle_xdmf(self) -> str:
+        n = self.nump
+
+        def frame(i, t):
+            base = f"/trajectory_data/frame_{i}/particle"
+            out = ['  <Grid Name="Particle Frame" GridType="Uniform">',
+                   f'   <Time Value="{fmt(t)}"/>',
+                   f'   <Topology TopologyType="Polyvertex" NodesPerElement="{n}"/>',
+                   '   <Geometry GeometryType="XYZ">', self._item(f"{n} 3", f"{base}/pos"),
+                   '   </Geometry>']
+            for name in ("id", "spec"):
+                out += [f'   <Attribute AttributeType="Scalar" Name="{name}" Center="Node">',
+                        self._item(f"{n} 1", f"/system_data/particle/{name}", "Int"),
+                        '   </Attribute>']
+            for name in PARTICLE_VECTORS:
+                out += [f'   <Attribute AttributeType="Vector" Name="{name}" Center="Node">',
+                        self._item(f"{n} 3", f"{base}/{name}"), '   </Attribute>']
+            out += ['   <Attribute AttributeType="Tensor" Name="QR" Center="Node">',
+                    self._item(f"{n} 9", f"{base}/QR"), '   </Attribute>', '  </Grid>']
+            return out
+        return self._xdmf("KAPSEL Particle Trajectory", frame)
+
+
+def particle_data(p) -> dict:
+    """The per-frame particle datasets of ParticleState ``p`` (float32)."""
+    from ..particles.quaternion import to_matrix
+    d = {"pos": p.R, "pos_raw": p.R_raw, "vel": p.v, "omega": p.omega,
+         "force_h": p.f_hydro + p.f_slip, "force_r": p.f_r,
+         "torque_h": p.torque_hydro + p.torque_slip, "torque_r": p.torque_r,
+         "QR": np.swapaxes(to_matrix(p.q), -1, -2)}
+    return {k: np.ascontiguousarray(v, dtype=F32) for k, v in d.items()}

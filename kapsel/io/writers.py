@@ -1,0 +1,236 @@
+"""Output writers: one small protocol, and the one function that lists a run's writers.
+
+A writer is an object with
+
+    open(snap, resumed)   at the start (snap: the initial kapsel.snapshot.Snapshot) or on
+                          resuming from a restart (snap: the restored state); a writer that
+                          already holds the snapshot of that step (written by the run being
+                          continued) does not write it again
+    write(snap)           at every snapshot (steps divisible by output.GTS)
+    close(reason)         at the end of the run, on interruption and on failure
+                          (reason "end", "interrupted", "failed"): flush and close
+
+and reads what it needs from the snapshot by name (kapsel.snapshot); a writer that needs
+something the model does not offer is refused by ``make_writers`` before anything is written.
+One module of kapsel/io per format: records.py (output.udf and the text logs), fields.py (the
+FDM types' per-snapshot files), extended.py (output.AVS EXTENDED), avs.py (legacy AVS).
+"""
+from __future__ import annotations
+
+import os
+import sys
+
+import numpy as np
+
+
+class Writer:
+    """Base of the writers (the protocol of the module docstring)."""
+
+    def open(self, snap, resumed: bool) -> None:
+        pass
+
+    def write(self, snap) -> None:
+        raise NotImplementedError
+
+    def close(self, reason: str) -> None:
+        pass
+
+
+class RecordWriter(Writer):
+    """output.udf (kapsel.io.records.OutputUDF): a continued run appends its records (later
+    records of the run being replaced are dropped) unless --overwrite."""
+
+    def __init__(self, args, input_doc):
+        self.args, self.input_doc = args, input_doc
+        self.output = None
+        self._skip = None
+
+    def open(self, snap, resumed):
+        from .records import OutputUDF
+        args = self.args
+        append = resumed and os.path.exists(args.output) and not args.overwrite
+        self.output = OutputUDF(args.output, args.define, self.input_doc, append=append)
+        if append:
+            kept, dropped, last = self.output.truncate_after(snap.time)
+            if last is not None and abs(last - snap.time) <= 1e-6 * max(1.0, snap.time):
+                self._skip = snap.step
+            if not args.quiet:
+                print(f"#continuing at step {snap.step} (t = {snap.time:g}): appending "
+                      f"to {args.output} ({kept} records kept"
+                      + (f", {dropped} later ones dropped" if dropped else "") + ")",
+                      file=sys.stderr)
+
+    def write(self, snap):
+        if snap.step == self._skip:
+            self._skip = None
+            return
+        out = self.output
+        items = dict(snap.get("record"))
+        if snap.offers("shear"):
+            items.update({k: v for k, v in snap.get("shear").items() if out.has_record_item(k)})
+        if snap.offers("E_rot") and out.has_record_item("E_rot"):
+            items["E_rot"] = float(np.sum(snap.get("E_rot")))
+        out.add_record(snap.step, snap.time, snap.get("E"), snap.particles, items)
+
+
+class _LogWriter(Writer):
+    """A text table next to output.udf (kapsel.io.records.TableLog): a continued run keeps
+    the rows up to the restart's step and appends."""
+
+    def __init__(self, path):
+        self.path = path
+        self.log = None
+        self._skip = None
+
+    def _make(self, snap, append):
+        raise NotImplementedError
+
+    def open(self, snap, resumed):
+        self.log = self._make(snap, resumed)
+        if resumed and _last_row_step(self.path) == snap.step:
+            self._skip = snap.step
+
+    def write(self, snap):
+        if snap.step == self._skip:
+            self._skip = None
+            return
+        self._row(snap)
+
+
+class ShearLogWriter(_LogWriter):
+    """shear_stress.dat of the sheared types."""
+
+    def _make(self, snap, append):
+        from .records import ShearLog
+        return ShearLog(self.path, append=append, until_step=snap.step)
+
+    def _row(self, snap):
+        self.log.write(snap.step, snap.time, snap.get("shear"))
+
+
+class RotationalEnergyWriter(_LogWriter):
+    """rotational_energy.dat of rigid bodies."""
+
+    def _make(self, snap, append):
+        from .records import RotationalEnergyLog
+        return RotationalEnergyLog(self.path, len(snap.get("E_rot")), append=append,
+                                   until_step=snap.step)
+
+    def _row(self, snap):
+        self.log.write(snap.step, snap.time, snap.get("E_rot"))
+
+
+def _last_row_step(path):
+    try:
+        with open(path, encoding="utf-8") as fh:
+            rows = [ln for ln in fh if ln.strip() and not ln.startswith("#")]
+        return int(rows[-1].split()[0]) if rows else None
+    except (OSError, ValueError, IndexError):
+        return None
+
+
+def output_dir(args) -> str:
+    """Where the writers put their files: the directory of output.udf."""
+    return os.path.dirname(os.path.abspath(args.output))
+
+
+def make_writers(cfg, args, input_doc, snap) -> list:
+    """The writers a run needs, from the configuration and what the model offers (``snap``:
+    its first snapshot).  Raises kapsel.config.ConfigError for output the type cannot give."""
+    out_dir = output_dir(args)
+    writers = []
+    if cfg.output.UDF:
+        writers.append(RecordWriter(args, input_doc))
+    from .fields import SnapshotFiles
+    files = SnapshotFiles(out_dir, cfg.type, cfg.mesh.shape, cfg.mesh.DX, cfg.output.GTS,
+                          snap.n_particles)
+    if files.series:
+        _require(snap, files.needs(), "the per-snapshot files")
+        writers.append(files)
+    spec = cfg.output.fields
+    if spec is not None:
+        check_output(cfg, snap)
+        writers.append(field_writer(cfg, args, snap))
+    if snap.offers("shear"):
+        writers.append(ShearLogWriter(os.path.join(out_dir, "shear_stress.dat")))
+    if snap.offers("E_rot"):
+        writers.append(RotationalEnergyWriter(os.path.join(out_dir, "rotational_energy.dat")))
+    return writers
+
+
+def field_directory(cfg, args) -> str:
+    """output.ON.Out_dir; a relative one is taken from the directory of output.udf."""
+    d = os.path.expanduser(cfg.output.fields.Out_dir)
+    return d if os.path.isabs(d) else os.path.join(output_dir(args), d)
+
+
+def field_writer(cfg, args, snap):
+    """The writer of output.AVS ON: EXTENDED (kapsel.io.extended) or legacy AVS
+    (kapsel.io.avs)."""
+    spec = cfg.output.fields
+    directory = field_directory(cfg, args)
+    species = snap.particles.species if snap.n_particles else []
+    if spec.FileType == "EXTENDED":
+        from .extended import ExtendedHDF5
+        w = ExtendedHDF5(directory, spec, cfg.mesh.shape, cfg.mesh.DX, snap.dt,
+                         cfg.output.GTS, snap.n_particles, species, snap.sheared)
+    else:
+        from .avs import LegacyAVS
+        w = LegacyAVS(directory, spec, cfg.mesh.shape, cfg.mesh.DX, cfg.output.Num_snap,
+                      snap.n_particles, snap.particles)
+    if not getattr(args, "quiet", False):
+        print(w.console(), end="", file=sys.stderr)
+    return w
+
+
+# what each print switch needs, and its name in messages
+_FIELD_NAMES = {"u": "velocity", "phi": "particle profile", "pressure": "pressure",
+                "tau": "viscous stress"}
+
+
+_FLAGS = {"u": "Vel", "pressure": "Pressure", "tau": "Tau"}
+
+
+def check_output(cfg, model) -> None:
+    """Refuse output the type cannot give (kapsel.config.ConfigError naming the switch), e.g.
+    the pressure of the spectral Lees-Edwards type: never a zero-filled placeholder.
+    ``model``: the model or its snapshot."""
+    from ..config import ConfigError
+    spec = cfg.output.fields
+    if spec is None:
+        return
+    snap = model.snapshot() if hasattr(model, "snapshot") else model
+    if spec.FileType == "EXTENDED":
+        for flag, name in (("Vel", "u"), ("Pressure", "pressure"), ("Tau", "tau")):
+            if getattr(spec, flag) and not snap.offers(name):
+                raise ConfigError(f"{cfg.type} does not compute the {_FIELD_NAMES[name]} "
+                                  f"field in kapsel-py; set it to NO",
+                                  path=f"output.ON.EXTENDED.Print_field.{flag}", value="YES")
+        return
+    missing = [n for n in ("u", "pressure", "tau") if not snap.offers(n)]
+    if missing:
+        raise ConfigError(f"the legacy AVS files hold the {', '.join(_FIELD_NAMES[n] for n in missing)}, "
+                          f"which {cfg.type} does not compute in kapsel-py; use EXTENDED and "
+                          f"switch {', '.join(_FLAGS[n] for n in missing)} off",
+                          path="output.ON.FileType", value=spec.FileType)
+
+
+def _require(snap, names, what):
+    missing = sorted(n for n in names if not snap.offers(n))
+    if missing:
+        raise RuntimeError(f"{what} need {', '.join(missing)}, which this model does not offer")
+
+
+def new_run_targets(cfg, args) -> list:
+    """(what, path) of the files a new run would replace besides -O and -R (the CLI refuses
+    to replace them without --overwrite)."""
+    from .fields import series_for
+    out_dir = output_dir(args)
+    out = [(f"the field series {s.name}.xmf", os.path.join(out_dir, s.name + ".xmf"))
+           for s in series_for(cfg.type, cfg.particles.count)]
+    spec = cfg.output.fields
+    if spec is not None:
+        ext = ".h5" if spec.FileType == "EXTENDED" else ".fld"
+        path = os.path.join(field_directory(cfg, args), spec.Out_name + ext)
+        out.append((f"the output.AVS file {path}", path))
+    return out
