@@ -69,24 +69,11 @@ def restart_hint(step, args=None) -> str:
 
 
 def planned_files(cfg, args, model, resumed: bool = False) -> list[tuple[str, str]]:
-    """(directory, what) of every file ``run`` will write, for the banner and --check.
-    Keep in step with the writers ``run`` makes below."""
-    from .io.fields import FIELDS
-    out_dir = os.path.dirname(os.path.abspath(args.output))
-    files = []
-    if cfg.output.UDF:
-        append = resumed and os.path.exists(args.output) and not args.overwrite
-        files.append((out_dir, os.path.basename(args.output)
-                      + (" (records appended)" if append else " (records)")))
-    for key in model.fields():
-        prefix = FIELDS[key][0]
-        files.append((out_dir, f"{prefix}_<n>.h5 + {prefix}.xmf"))
-    if hasattr(model, "shear_record"):
-        files.append((out_dir, "shear_stress.dat"))
-    bodies = getattr(model.particles, "constraints", None) if model.particles is not None \
-        else None
-    if hasattr(bodies, "rotational_energies"):
-        files.append((out_dir, "rotational_energy.dat"))
+    """(directory, what) of every file ``run`` will write, for the banner and --check: the
+    files of the writers ``run`` makes (kapsel.io.writers.make_writers), and the restart."""
+    from .io.writers import make_writers
+    files = [f for w in make_writers(cfg, args, None, model.snapshot(), announce=False)
+             for f in w.files(resumed)]
     if model.restart_kind is not None:
         restart = os.path.abspath(args.restart)
         files.append((os.path.dirname(restart), f"{os.path.basename(restart)} + "

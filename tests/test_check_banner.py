@@ -46,7 +46,7 @@ def test_check_prints_the_run_and_writes_nothing(tmp_path, monkeypatch, capsys):
                      "dt = ", "(auto, factor 1, from RHO = 1, ETA = 1, DX = 1)",
                      "1 steps to t = ", "1 snapshots every 1 steps",
                      f"writes in {d}: output.udf (records), ",
-                     "orderparam_<n>.h5 + orderparam.xmf", "velocity_<n>.h5",
+                     "orderparam_<n>.h5 + fluid_phase.xmf", "velocity_<n>.h5",
                      "restart.udf + restart.udf.state.npz (restart)",
                      "threads 1, seed drawn at the start of the run",
                      "memory: about ", "check passed"):

@@ -19,7 +19,7 @@ import numpy as np
 
 # field files of a run directory: kind -> (file pattern, dataset(s))
 FIELD_FILES = {
-    "psi": (r"orderparam_(\d+)\.h5", ("PSI",)),
+    "psi": (r"orderparam_(\d+)\.h5", ("PSI_ALL", "PSI")),   # the first one the file has
     "u": (r"velocity_(\d+)\.h5", ("UX", "UY", "UZ")),
 }
 FIGSIZE = (12.0, 5.0)        # inches; at DPI this is the PNG's size in pixels
@@ -34,7 +34,8 @@ class ShowError(Exception):
 # ---------------------------------------------------------------------------- reading
 def snapshot_files(run_dir: str) -> dict[int, dict]:
     """Field snapshots on disk: n -> {"time": t or None, "psi": path, "u": path} (the kinds
-    present).  Today's FDM files: orderparam_<n>.h5 (PSI), velocity_<n>.h5 (UX, UY, UZ),
+    present).  The FDM files (kapsel.io.fields): orderparam_<n>.h5 (PSI_ALL or PSI),
+    velocity_<n>.h5 (UX, UY, UZ),
     the time in the file's ``time`` attribute."""
     import h5py
     found: dict[int, dict] = {}
@@ -65,6 +66,8 @@ def read_field(path: str, kind: str) -> np.ndarray:
     import h5py
     datasets = FIELD_FILES[kind][1]
     with h5py.File(path, "r") as f:
+        if kind == "psi":
+            datasets = [next((d for d in datasets if d in f), datasets[0])]
         comps = [np.asarray(f[d][()], dtype=np.float64).T for d in datasets]
     if kind == "u":
         return np.sqrt(sum(c * c for c in comps))

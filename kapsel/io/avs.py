@@ -67,6 +67,14 @@ class LegacyAVS:
                        f"avs/{self.name}p_*.dat}}")
         return "\n".join(out) + "\n"
 
+    def files(self, resumed: bool) -> list[tuple[str, str]]:
+        n = self.name
+        out = [(self.directory, f"{n}.fld + {n}.cod + avs/{n}_<step>.dat (AVS "
+                + ("binary)" if self.binary else "ascii)"))]
+        if self.nump:
+            out.append((self.directory, f"{n}p.fld + avs/{n}p_<step>.cod + avs/{n}p_<step>.dat"))
+        return out
+
     # ------------------------------------------------------------------ protocol
     def open(self, snap, resumed: bool) -> None:
         os.makedirs(os.path.join(self.directory, "avs"), exist_ok=True)

@@ -106,6 +106,12 @@ class ExtendedHDF5:
         out.append("# ***********************")
         return "\n".join(out) + "\n"
 
+    def files(self, resumed: bool) -> list[tuple[str, str]]:
+        n = self.name
+        return [(self.directory, f"{n}.h5 (EXTENDED, frames"
+                 + (" appended)" if resumed else ")") + f" + {n}.conf + {n}_fluid.xdmf + "
+                 f"{n}_particle.xdmf")]
+
     # ------------------------------------------------------------------ protocol
     def open(self, snap, resumed: bool) -> None:
         os.makedirs(self.directory, exist_ok=True)

@@ -103,6 +103,9 @@ class SnapshotFiles:
         """Snapshot names this writer reads (kapsel.snapshot)."""
         return {ds[1] for s in self.series for ds in s.datasets}
 
+    def files(self, resumed: bool) -> list[tuple[str, str]]:
+        return [(self.directory, f"{s.prefix}_<n>.h5 + {s.name}.xmf") for s in self.series]
+
     # ------------------------------------------------------------------ protocol
     def open(self, snap, resumed: bool) -> None:
         os.makedirs(self.directory, exist_ok=True)

@@ -35,6 +35,10 @@ class Writer:
     def close(self, reason: str) -> None:
         pass
 
+    def files(self, resumed: bool) -> list[tuple[str, str]]:
+        """(directory, what) of the files this writer makes, for the banner and --check."""
+        return []
+
 
 class RecordWriter(Writer):
     """output.udf (kapsel.io.records.OutputUDF): a continued run appends its records (later
@@ -59,6 +63,12 @@ class RecordWriter(Writer):
                       f"to {args.output} ({kept} records kept"
                       + (f", {dropped} later ones dropped" if dropped else "") + ")",
                       file=sys.stderr)
+
+    def files(self, resumed):
+        args = self.args
+        append = resumed and os.path.exists(args.output) and not args.overwrite
+        return [(output_dir(args), os.path.basename(args.output)
+                 + (" (records appended)" if append else " (records)"))]
 
     def write(self, snap):
         if snap.step == self._skip:
@@ -95,6 +105,9 @@ class _LogWriter(Writer):
             self._skip = None
             return
         self._row(snap)
+
+    def files(self, resumed):
+        return [(os.path.dirname(self.path), os.path.basename(self.path))]
 
 
 class ShearLogWriter(_LogWriter):
@@ -134,9 +147,10 @@ def output_dir(args) -> str:
     return os.path.dirname(os.path.abspath(args.output))
 
 
-def make_writers(cfg, args, input_doc, snap) -> list:
+def make_writers(cfg, args, input_doc, snap, announce: bool = True) -> list:
     """The writers a run needs, from the configuration and what the model offers (``snap``:
-    its first snapshot).  Raises kapsel.config.ConfigError for output the type cannot give."""
+    its first snapshot).  Raises kapsel.config.ConfigError for output the type cannot give.
+    ``announce``: print the original's console block of the field writer (not for --check)."""
     out_dir = output_dir(args)
     writers = []
     if cfg.output.UDF:
@@ -150,7 +164,7 @@ def make_writers(cfg, args, input_doc, snap) -> list:
     spec = cfg.output.fields
     if spec is not None:
         check_output(cfg, snap)
-        writers.append(field_writer(cfg, args, snap))
+        writers.append(field_writer(cfg, args, snap, announce))
     if snap.offers("shear"):
         writers.append(ShearLogWriter(os.path.join(out_dir, "shear_stress.dat")))
     if snap.offers("E_rot"):
@@ -164,7 +178,7 @@ def field_directory(cfg, args) -> str:
     return d if os.path.isabs(d) else os.path.join(output_dir(args), d)
 
 
-def field_writer(cfg, args, snap):
+def field_writer(cfg, args, snap, announce: bool = True):
     """The writer of output.AVS ON: EXTENDED (kapsel.io.extended) or legacy AVS
     (kapsel.io.avs)."""
     spec = cfg.output.fields
@@ -178,7 +192,7 @@ def field_writer(cfg, args, snap):
         from .avs import LegacyAVS
         w = LegacyAVS(directory, spec, cfg.mesh.shape, cfg.mesh.DX, cfg.output.Num_snap,
                       snap.n_particles, snap.particles)
-    if not getattr(args, "quiet", False):
+    if announce and not getattr(args, "quiet", False):
         print(w.console(), end="", file=sys.stderr)
     return w
 
