@@ -196,7 +196,22 @@ def run(cfg, args, input_doc, model, resumed: bool = False) -> int:
                       f"step. Continue with: kapsel-py -I{args.restart} -O{args.output} "
                       f"-D{args.define} -R{args.restart}", file=sys.stderr)
                 return 1
-        if saved["step"] != model.step_index:
+        if model.step_index == total:
+            # like the original's last loop iteration, one more step after the last
+            # snapshot, and the restart holds that state (ts = MSTEP after MSTEP + 1 steps,
+            # FORMAT-OUTPUT.md §1.2, §6.3), so either program continues it without
+            # repeating a snapshot
+            try:
+                model.advance()
+                check_step(model)
+                check_finite(model)
+            except (SolverDidNotConverge, FloatingPointError, InstabilityError, ValueError,
+                    IndexError, OverflowError) as e:
+                print(f"kapsel-py: error: the step after the last snapshot failed: {e}. "
+                      f"{restart_hint(saved['step'], args)}.", file=sys.stderr)
+                return 1
+            save_restart()
+        elif saved["step"] != model.step_index:
             save_restart()
     finally:
         for s, h in old.items():

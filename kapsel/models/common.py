@@ -241,6 +241,14 @@ class Model:
     def load_fields(self, fields: dict, exact: dict | None) -> None:
         """Take the fields of a restart (see read_restart)."""
 
+    def accumulators(self) -> dict:
+        """Sums kept between records (e.g. the shear stress), as JSON values: the state file
+        carries them, since the restart is written one step after the last record."""
+        return {}
+
+    def set_accumulators(self, values: dict) -> None:
+        """Restore :meth:`accumulators` (a restart with its state file)."""
+
     def restart_state(self):
         """(kind, Saved_Data fields, exact state) of the current state."""
         exact = dict(self.exact_state())
@@ -254,6 +262,9 @@ class Model:
         gen = _noise_generator(self)
         if gen is not None:
             exact["noise"] = gen.get_state()
+        acc = self.accumulators()
+        if acc:
+            exact["accumulators"] = acc
         return self.restart_kind, fields, exact
 
     def load_restart(self, saved) -> None:
@@ -291,6 +302,8 @@ class Model:
         if gen is not None and exact and "noise" in exact:
             gen.set_state(exact["noise"])
         self.load_fields(saved.fields, exact)
+        if exact and "accumulators" in exact:
+            self.set_accumulators(exact["accumulators"])
 
 
 def _noise_generator(model):

@@ -132,27 +132,57 @@ class ShearLEModel(SpectralModel):
                 "Shear_strain": self.fluid.applied_strain, "Shear_rate": rate}
 
     # ------------------------------------------------------------------ restart
-    def restart_fields(self) -> dict:
-        d = super().restart_fields()
-        d["oblique"] = [float(self.fluid.frame_strain)]
-        return d
-
     def exact_state(self) -> dict:
         return {"u_hat": self.fluid.u_hat.copy(), "remaps": int(self.fluid.remaps)}
 
+    def accumulators(self) -> dict:
+        st = self.stress
+        return {"stress": [st.sum, st.rate_sum, st.n]}
+
+    def set_accumulators(self, values: dict) -> None:
+        st = self.stress
+        st.sum, st.rate_sum, st.n = values["stress"]
+
+    def _covariant(self, u_hat):
+        """Covariant components u_1 = u^1 + g u^2, u_2 = g u^1 + (1 + g^2) u^2, u_3 = u^3."""
+        g = self.fluid.frame_strain
+        cov = u_hat.copy()
+        cov[0] += g * u_hat[1]
+        cov[1] += g * u_hat[0] + g * g * u_hat[1]
+        return cov
+
+    def restart_fields(self) -> dict:
+        """Zeta / uk_dc of the covariant components in the oblique frame (FORMAT.md), and
+        oblique.degree_oblique the frame strain."""
+        from ..io.restart import pack_zeta
+        zeta, dc = pack_zeta(self._covariant(self.fluid.u_hat), self.cfg.mesh.DX,
+                             sheared=True)
+        return {"Zeta": zeta, "uk_dc": [float(c) for c in dc],
+                "oblique": [float(self.fluid.frame_strain)]}
+
     def load_fields(self, fields: dict, exact) -> None:
-        if not exact or "u_hat" not in exact:
-            from ..io.restart import state_path
-            raise ConfigError(
-                f"a CONTINUE restart of the sheared type is continued together with its state "
-                f"file {state_path(self.cfg.input_path)} (missing, or written for other data)",
-                path="resume.CONTINUE.Saved_Data.Zeta[]", value="(without state file)")
-        if exact["u_hat"].shape != self.fluid.u_hat.shape:
-            raise ConfigError(f"the restart's velocity has shape {exact['u_hat'].shape}, the "
-                              f"mesh needs {self.fluid.u_hat.shape}",
-                              path="resume.CONTINUE.Saved_Data.Zeta[]", value="shape")
-        self.fluid.set_time(self.time, exact.get("remaps"))
-        self.fluid.set_contravariant_hat(exact["u_hat"])
+        """The state file's u_hat, or else Zeta / uk_dc (covariant, oblique frame) back to
+        contravariant components, metric-projected, in the frame of degree_oblique."""
+        if exact and "u_hat" in exact:
+            if exact["u_hat"].shape != self.fluid.u_hat.shape:
+                raise ConfigError(f"the restart's velocity has shape {exact['u_hat'].shape}, "
+                                  f"the mesh needs {self.fluid.u_hat.shape}",
+                                  path="resume.CONTINUE.Saved_Data.Zeta[]", value="shape")
+            self.fluid.set_time(self.time, exact.get("remaps"))
+            self.fluid.set_contravariant_hat(exact["u_hat"])
+        else:
+            fl = self.fluid
+            g_saved = float((fields.get("oblique") or [0.0])[0])
+            fl.set_time(self.time, int(round((fl.shear.strain(self.time) - g_saved) / fl.s)))
+            w = self._zeta_velocity(fields)           # covariant
+            g = fl.frame_strain
+            u = w.copy()                              # contravariant: G w
+            u[0] = (1.0 + g * g) * w[0] - g * w[1]
+            u[1] = w[1] - g * w[0]
+            dc = u[:, 0, 0, 0].copy()
+            fl.project_metric(u, g)
+            u[:, 0, 0, 0] = dc
+            fl.set_contravariant_hat(u)
         self.spm.refresh()
 
 
@@ -242,6 +272,12 @@ class ZigzagModel(SpectralModel):
         self.spm.step()
         self.zigzag.impose(self.time + self.dt)
         self.tick()
+
+    def accumulators(self) -> dict:
+        return {"zigzag": [self.zigzag.stress_sum, self.zigzag.n]}
+
+    def set_accumulators(self, values: dict) -> None:
+        self.zigzag.stress_sum, self.zigzag.n = values["zigzag"]
 
     def shear_record(self) -> dict:
         sh = self.zigzag.shear
@@ -387,6 +423,15 @@ class ShearFDMModel(FDMModel):
         st = super().exact_state()
         st["remaps"] = int(self.mac.remaps)
         return st
+
+    def accumulators(self) -> dict:
+        st = self.stress
+        return {"stress": [st.sum, st.rate_sum, st.n], "field": self.field_stress_sum}
+
+    def set_accumulators(self, values: dict) -> None:
+        st = self.stress
+        st.sum, st.rate_sum, st.n = values["stress"]
+        self.field_stress_sum = values["field"]
 
     def load_fields(self, fields: dict, exact) -> None:
         self.mac.set_time(self.time, (exact or {}).get("remaps"))
