@@ -11,6 +11,7 @@ from __future__ import annotations
 import argparse
 import os
 import sys
+import time
 
 from . import __version__
 
@@ -123,6 +124,8 @@ def check_define(define, args, model) -> str | None:
 
 
 def main(argv=None) -> int:
+    from . import progress
+    progress.PROGRAM_START = time.perf_counter()
     single_threaded_blas()
     argv = list(sys.argv[1:] if argv is None else argv)
     if argv and argv[0] == "analyze":

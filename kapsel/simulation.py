@@ -109,8 +109,13 @@ def run(cfg, args, input_doc, model, resumed: bool = False) -> int:
                                       len(bodies.rotational_energies()), append=resumed,
                                       until_step=model.step_index)
     total = cfg.output.total_steps
-    progress = Progress(total, quiet=args.quiet)
     start = model.step_index
+    progress = Progress(total, quiet=args.quiet, gts=cfg.output.GTS, start_step=start)
+    table = None
+    if hasattr(model, "shear_table_row"):
+        from .progress import ShearTable
+        table = ShearTable(model.shear_table, model.shear_table_stream, quiet=args.quiet)
+        table.print_header()
 
     check_every = min(cfg.output.GTS, 10)
 
@@ -135,6 +140,8 @@ def run(cfg, args, input_doc, model, resumed: bool = False) -> int:
         if fields is not None:
             fields.write(n, model.time, **model.fields())
         save_restart()
+        if model.step_index != start:
+            progress.snapshot(model.step_index)
 
     saved = {"step": None}
 
@@ -179,6 +186,8 @@ def run(cfg, args, input_doc, model, resumed: bool = False) -> int:
                       f"{restart_hint(saved['step'], args)}. Try a smaller time_increment "
                       f"factor (or delta_t), or the implicit_scheme.", file=sys.stderr)
                 return 1
+            if table is not None:
+                table.row(model.shear_table_row())
             progress.step(model.step_index, model.time)
             if model.step_index % cfg.output.GTS == 0:
                 try:
@@ -205,6 +214,8 @@ def run(cfg, args, input_doc, model, resumed: bool = False) -> int:
                 model.advance()
                 check_step(model)
                 check_finite(model)
+                if table is not None:
+                    table.row(model.shear_table_row())
             except (SolverDidNotConverge, FloatingPointError, InstabilityError, ValueError,
                     IndexError, OverflowError) as e:
                 print(f"kapsel-py: error: the step after the last snapshot failed: {e}. "
@@ -216,5 +227,6 @@ def run(cfg, args, input_doc, model, resumed: bool = False) -> int:
     finally:
         for s, h in old.items():
             signal.signal(s, h)
-    progress.summary()
+    sys.stdout.flush()
+    progress.summary(args.output if output is not None else None, args.restart)
     return 0

@@ -121,11 +121,14 @@ def make_forces(cfg: RunConfig, particles: ParticleState, strain=None):
         bonds = chains.chain_bonds([s.beads for s in cfg.particles.species
                                     for _ in range(s.number)])
 
+    virial = np.zeros((3, 3))       # sum over pairs of f_a dr_b of the last call
+
     def forces(p):
         if pairs:
             F, _, ratio_min = pf.pair_forces(p.R, box, p.radius, inter.LJ_powers, inter.EPSILON,
                                              inter.LJ_truncate, group=group,
-                                             strain=strain() if strain is not None else 0.0)
+                                             strain=strain() if strain is not None else 0.0,
+                                             virial=virial)
         else:
             F, ratio_min = zeros.copy(), np.inf
         if g is not None:
@@ -137,6 +140,7 @@ def make_forces(cfg: RunConfig, particles: ParticleState, strain=None):
                                          f"maximum R0 = {chains.FENE_R0} (2 A)")
             F = F + Fb
         return F, zeros, ratio_min
+    forces.virial = virial
     return forces
 
 
@@ -183,6 +187,7 @@ def overlap_guard(forces, limit: float = 0.5):
             raise FloatingPointError(f"particles overlap deeply (closest pair at {ratio:.2f} "
                                      f"of the contact distance)")
         return F, T
+    guarded.virial = getattr(forces, "virial", None)
     return guarded
 
 
