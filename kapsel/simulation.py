@@ -165,7 +165,7 @@ def run(cfg, args, input_doc, model, resumed: bool = False) -> int:
         try:
             if not resumed:
                 snapshot()
-            elif model.step_index % cfg.output.GTS == 0:
+            elif model.step_index % cfg.output.GTS == 0 and model.step_index <= total:
                 snapshot(record=record_now)
         except InstabilityError as e:
             print(f"kapsel-py: error: {e} in the initial state (step {model.step_index})",
