@@ -29,7 +29,10 @@ k = 2m, 2m + 1 for z-mode m; the N/2 modes counted positive), which two dependin
 mode (:func:`pack_zeta`), and ``uk_dc`` the k = 0 coefficient.  The velocity comes back as
 u^ = i k x omega / |k|^2 (:func:`unpack_zeta`), exactly for a solenoidal field.
 Lees-Edwards: the covariant components in the oblique frame, the middle case chosen by
-n_z != 0 (``sheared=True``).
+n_z != 0 (``sheared=True``), uk_dc covariant too; back to velocity the field is
+metric-projected (kapsel.models.shear).  FORMAT.md does not say which of omega_x, omega_z
+is zeta0 in the last case (n_x = n_z = 0); we take omega_x.  The Lees-Edwards packing is
+our reading of FORMAT.md, not checked against a file the original wrote.
 """
 from __future__ import annotations
 
@@ -84,7 +87,7 @@ def component_field(v: np.ndarray) -> np.ndarray:
 class Saved:
     """``resume.<kind>.Saved_Data`` as read: clock, particle table, fields by name."""
     kind: str
-    step: int
+    step: int                                 # steps done: jikan.ts + 1
     time: float
     particles: np.ndarray | None             # (N, leaves of sParticle) or None
     fields: dict = field(default_factory=dict)
