@@ -177,7 +177,7 @@ def main(argv=None) -> int:
             model.load_restart(saved)
             if saved.exact is None and not args.quiet:
                 print(f"#{args.input}: no matching state file; continuing from the restart "
-                      f"data alone (R_raw restarts at R, the noise stream at the seed)",
+                      f"data alone (R_raw from it or else R, the noise stream at the seed)",
                       file=sys.stderr)
     except config.ConfigError as e:
         if not e.where:  # raised by a model: say where the item is in the input

@@ -14,7 +14,8 @@ history, stress accumulators -- goes to a companion file ``<restart>.state.npz``
 first; both atomically).  It carries a fingerprint of the schema data it belongs to; with
 it a continued run is bit-identical to an uninterrupted one.  Without it (a restart.udf
 written by the original program, or edited by hand), the run continues from the schema
-data alone: R_raw restarts at R, the noise stream at the run's seed.
+data alone: R_raw from its Particles[] (else R), quaternions normalised (as the original
+restores them), the noise stream at the run's seed.
 
 Step and time (FORMAT-OUTPUT.md §6.3): the original fills its restart after the step of
 its last loop iteration, so the saved state has had ``jikan.ts + 1`` steps and

@@ -279,7 +279,8 @@ class Model:
         if not same_kind(saved.kind, self.restart_kind):
             raise ConfigError(f"{self.cfg.type} continues from a {self.restart_kind} restart, "
                               f"not {saved.kind}", path="resume.Calculation", value=saved.kind)
-        if not saved.fields and saved.particles is None and saved.exact is None:
+        arrays = [v for v in saved.fields.values() if isinstance(v, np.ndarray)]
+        if not arrays and saved.particles is None and saved.exact is None:
             raise ConfigError(f"resume.{saved.kind}.Saved_Data holds no saved state: this is "
                               f"not a restart file; set resume.Calculation to NEW, or continue "
                               f"from a restart.udf written by a run",
@@ -300,7 +301,13 @@ class Model:
             except ValueError as e:
                 raise ConfigError(str(e), path=f"resume.{saved.kind}.Saved_Data.Particles[]",
                                   value=saved.particles.shape[0]) from None
-            p.R_raw[:] = exact["R_raw"] if exact and "R_raw" in exact else p.R
+            st = saved.particle_struct
+            if exact and "R_raw" in exact:
+                p.R_raw[:] = exact["R_raw"]
+            elif st is None or st.index("R_raw") is None:     # an sParticle without R_raw
+                p.R_raw[:] = p.R
+            if not exact:       # as the original restores (FORMAT-OUTPUT.md §6.4)
+                p.q /= np.linalg.norm(p.q, axis=1, keepdims=True)
             if hasattr(p.constraints, "restore"):            # rigid bodies from their beads
                 p.constraints.restore(p, exact)
         gen = _noise_generator(self)
