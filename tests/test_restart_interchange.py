@@ -156,3 +156,21 @@ def test_step_convention_of_the_restart(tmp_path):
     model, saved = load(d / "restart.udf")
     assert ts == 4 and time == pytest.approx(5 * model.dt)
     assert model.step_index == 5 and saved.exact is not None
+
+
+def test_our_zeta_is_the_documented_packing(tmp_path):
+    """What we write is what the original reads: Zeta / uk_dc of our restart equal the
+    FORMAT.md packing (the packer above) of the velocity in its state file."""
+    d = tmp_path / "p"
+    inp = make_input(d, "Navier_Stokes", particles=2, gts=2, nsnap=1)
+    assert cli(d, inp) == 0
+    rs = UDFManager(str(d / "restart.udf"))
+    base = "resume.CONTINUE.Saved_Data"
+    zeta = np.asarray(rs.getArray(f"{base}.Zeta[]"), dtype=float)
+    dc = np.asarray(rs.get(f"{base}.uk_dc"), dtype=float)
+    with np.load(state_path(str(d / "restart.udf"))) as z:
+        u_hat = z["u_hat"]
+    want, want_dc = pack_like_the_original(u_hat, rs.get("constitutive_eq.Navier_Stokes.DX"))
+    assert zeta.shape == want.shape == (16, 16, 18, 2)
+    assert np.max(np.abs(zeta - want)) <= 1e-13 * np.max(np.abs(want))
+    assert np.array_equal(dc, want_dc)
