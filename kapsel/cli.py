@@ -175,6 +175,9 @@ def main(argv=None) -> int:
             from .io.restart import read_restart
             saved = read_restart(doc, args.input, cfg.resume.calculation)
             model.load_restart(saved)
+            if not args.quiet:       # the original's line after its restore (§1.3)
+                print("############################ Parameters are restored.",
+                      file=sys.stderr)
             if saved.exact is None and not args.quiet:
                 print(f"#{args.input}: no matching state file; continuing from the restart "
                       f"data alone (R_raw from it or else R, the noise stream at the seed)",

@@ -176,7 +176,9 @@ def test_spectral_restart_continues_without_its_state_file(tmp_path, capsys):
                      "11"]) == 0
     finally:
         os.chdir(cwd)
-    assert "no matching state file" in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert "no matching state file" in err
+    assert "############################ Parameters are restored." in err.splitlines()
 
 
 def test_restart_of_another_type_is_refused(tmp_path, capsys):
