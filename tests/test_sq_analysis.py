@@ -105,7 +105,7 @@ def test_sq_analysis_py_sees_one_octant_only(tmp_path):
 
 @pytest.mark.slow
 def test_analyze_sq_and_sq_analysis_py_late_times(tmp_path):
-    """The sample as the manual runs it (1000 steps, snapshots every 100): about 60 s.
+    """The sample as the manual runs it (1000 steps, snapshots every 100): about 80 s.
     Measured: whole shells below the octant by 0.4-14 % (snapshots 4-10: -0.4, +0.4, -1.1,
     -4.2, -8.3, -11.9, -14.5 %) as the domains coarsen to a few low modes."""
     sample_run(tmp_path, gts=100)
