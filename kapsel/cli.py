@@ -12,6 +12,7 @@ from __future__ import annotations
 import argparse
 import os
 import sys
+import time
 
 from . import __version__
 
@@ -173,9 +174,12 @@ def prepare(args):
             from .io.restart import read_restart
             saved = read_restart(doc, args.input, cfg.resume.calculation)
             model.load_restart(saved)
+            if not args.quiet:       # the original's line after its restore (§1.3)
+                print("############################ Parameters are restored.",
+                      file=sys.stderr)
             if saved.exact is None and not args.quiet:
                 print(f"#{args.input}: no matching state file; continuing from the restart "
-                      f"data alone (R_raw restarts at R, the noise stream at the seed)",
+                      f"data alone (R_raw from it or else R, the noise stream at the seed)",
                       file=sys.stderr)
         from .io import writers
         writers.check_output(cfg, model)
@@ -193,6 +197,8 @@ def prepare(args):
 
 
 def main(argv=None) -> int:
+    from . import progress
+    progress.PROGRAM_START = time.perf_counter()
     single_threaded_blas()
     argv = list(sys.argv[1:] if argv is None else argv)
     if argv and argv[0] == "analyze":

@@ -75,8 +75,13 @@ class Grid:
         self.size = nx * ny * nz
         self.box = np.array(self.shape, dtype=float) * self.dx
 
+        # mode numbers 0..N/2, then negative: the N/2 (Nyquist) mode counted positive, as
+        # the original does (its derivatives and projection, and the restart's Zeta packing)
         m = [np.fft.fftfreq(nx, 1.0 / nx), np.fft.fftfreq(ny, 1.0 / ny),
              np.fft.rfftfreq(nz, 1.0 / nz)]
+        for mi, n in zip(m[:2], (nx, ny)):
+            if n % 2 == 0:
+                mi[n // 2] = n // 2
         k = [2.0 * np.pi * mi / (n * self.dx) for mi, n in zip(m, self.shape)]
         self.kx = k[0].reshape(-1, 1, 1)
         self.ky = k[1].reshape(1, -1, 1)

@@ -93,8 +93,13 @@ def run(cfg, args, input_doc, model, resumed: bool = False) -> int:
 
     writers = make_writers(cfg, args, input_doc, model.snapshot())
     total = cfg.output.total_steps
-    progress = Progress(total, quiet=args.quiet)
     start = model.step_index
+    progress = Progress(total, quiet=args.quiet, gts=cfg.output.GTS, start_step=start)
+    table = None
+    if hasattr(model, "shear_table_row"):
+        from .progress import ShearTable
+        table = ShearTable(model.shear_table, model.shear_table_stream, quiet=args.quiet)
+        table.print_header()
 
     check_every = min(cfg.output.GTS, 10)
 
@@ -105,6 +110,8 @@ def run(cfg, args, input_doc, model, resumed: bool = False) -> int:
         for w in writers:
             w.write(snap)
         save_restart()
+        if model.step_index != start:
+            progress.snapshot(model.step_index)
 
     saved = {"step": None}
 
@@ -130,8 +137,8 @@ def run(cfg, args, input_doc, model, resumed: bool = False) -> int:
             first = model.snapshot()
             for w in writers:
                 w.open(first, resumed)
-            if model.step_index % cfg.output.GTS == 0:
-                snapshot(first)
+            if model.step_index % cfg.output.GTS == 0 and model.step_index <= total:
+                snapshot(first)          # the writers skip what the continued run wrote
         except InstabilityError as e:
             print(f"kapsel-py: error: {e} in the initial state (step {model.step_index})",
                   file=sys.stderr)
@@ -151,6 +158,8 @@ def run(cfg, args, input_doc, model, resumed: bool = False) -> int:
                       f"{restart_hint(saved['step'], args)}. Try a smaller time_increment "
                       f"factor (or delta_t), or the implicit_scheme.", file=sys.stderr)
                 return 1
+            if table is not None:
+                table.row(model.shear_table_row())
             progress.step(model.step_index, model.time)
             if model.step_index % cfg.output.GTS == 0:
                 try:
@@ -169,7 +178,24 @@ def run(cfg, args, input_doc, model, resumed: bool = False) -> int:
                       f"step. Continue with: kapsel-py -I{args.restart} -O{args.output} "
                       f"-D{args.define} -R{args.restart}", file=sys.stderr)
                 return 1
-        if saved["step"] != model.step_index:
+        if model.step_index == total:
+            # like the original's last loop iteration, one more step after the last
+            # snapshot, and the restart holds that state (ts = MSTEP after MSTEP + 1 steps,
+            # FORMAT-OUTPUT.md §1.2, §6.3), so either program continues it without
+            # repeating a snapshot
+            try:
+                model.advance()
+                check_step(model)
+                check_finite(model)
+                if table is not None:
+                    table.row(model.shear_table_row())
+            except (SolverDidNotConverge, FloatingPointError, InstabilityError, ValueError,
+                    IndexError, OverflowError) as e:
+                print(f"kapsel-py: error: the step after the last snapshot failed: {e}. "
+                      f"{restart_hint(saved['step'], args)}.", file=sys.stderr)
+                return 1
+            save_restart()
+        elif saved["step"] != model.step_index:
             save_restart()
         closing = "end"
     finally:
@@ -177,5 +203,6 @@ def run(cfg, args, input_doc, model, resumed: bool = False) -> int:
             signal.signal(s, h)
         for w in writers:
             w.close(closing)
-    progress.summary()
+    sys.stdout.flush()
+    progress.summary(args.output if cfg.output.UDF else None, args.restart)
     return 0

@@ -37,9 +37,14 @@ def test_records_round_trip(tmp_path):
 
 
 def test_summary_format():
+    """The original's closing lines (FORMAT-OUTPUT.md §1.6)."""
     pr = Progress(10, quiet=True)
     for s in range(10):
         pr.step(s, 0.1 * s)
-    text = pr.summary()
-    assert text.splitlines()[0] == "#Simulation has ended!"
-    assert "#Total Running Time (s):" in text and "#Average Step Time (s):" in text
+    lines = pr.summary("output.udf", "restart.udf").splitlines()
+    assert lines[:3] == ["#output.udf end.", "#restart.udf end.", "#Simulation has ended!"]
+    assert lines[3].startswith("#Total Running Time (s): ")
+    assert lines[4].startswith("#                   (m): ")
+    assert lines[6].startswith("#Average Step Time  (s): ")
+    assert lines[7].startswith("#                   (m): ")
+    assert len(lines) == 9

@@ -31,7 +31,7 @@ def test_signal_stops_cleanly_and_the_run_continues(tmp_path, signum):
     while time.time() < deadline:        # wait for a few snapshots
         if (d / "restart.udf").exists():
             doc = UDFManager(str(d / "restart.udf"))
-            if doc.get("resume.CONTINUE_FDM.Saved_Data.jikan")[0] >= 10:
+            if doc.get("resume.CONTINUE_FDM.Saved_Data.jikan")[0] + 1 >= 10:
                 break
         time.sleep(0.2)
     proc.send_signal(signum)
@@ -40,7 +40,7 @@ def test_signal_stops_cleanly_and_the_run_continues(tmp_path, signum):
     assert "interrupted at step" in err and "Continue with: kapsel-py -Irestart.udf" in err
     assert "Traceback" not in err
     rs = UDFManager(str(d / "restart.udf"))
-    step = rs.get("resume.CONTINUE_FDM.Saved_Data.jikan")[0]
+    step = rs.get("resume.CONTINUE_FDM.Saved_Data.jikan")[0] + 1   # ts = steps done - 1
     assert step >= 10
     assert os.path.exists(state_path(str(d / "restart.udf")))
     out = UDFManager(str(d / "output.udf"))   # consistent: every record complete
@@ -77,7 +77,7 @@ def test_cfl_limit_stops_the_run_with_last_good_state(tmp_path, capsys):
     assert "the run stopped at step" in err and "CFL number" in err
     assert "Try a smaller time_increment" in err and "holds the last good state" in err
     rs = UDFManager(str(d / "restart.udf"))
-    step = rs.get("resume.CONTINUE_FDM.Saved_Data.jikan")[0]
+    step = rs.get("resume.CONTINUE_FDM.Saved_Data.jikan")[0] + 1   # ts = steps done - 1
     assert 0 < step < 200 and step % 5 == 0
     assert np.isfinite(rs.getArray("resume.CONTINUE_FDM.Saved_Data.U[]")).all()
 
@@ -98,7 +98,7 @@ def test_nan_in_the_fluid_is_caught_between_snapshots(tmp_path, capsys, monkeypa
     assert "stopped at step 30" in err and "not finite" in err
     assert "(step 20)" in err                 # the last good state on disk
     rs = UDFManager(str(d / "restart.udf"))
-    assert rs.get("resume.CONTINUE_FDM.Saved_Data.jikan")[0] == 20
+    assert rs.get("resume.CONTINUE_FDM.Saved_Data.jikan")[0] == 19   # after 20 steps
 
 
 def test_check_step_names_the_quantity():

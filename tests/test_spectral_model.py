@@ -34,7 +34,7 @@ def test_navier_stokes_runs_and_writes_records(tmp_path):
     ns_input(tmp_path)
     r = run(tmp_path, "a.udf")
     assert r.returncode == 0, r.stderr
-    assert "#Simulation has ended!" in r.stdout and "#Average Step Time (s):" in r.stdout
+    assert "#Simulation has ended!" in r.stderr and "#Average Step Time  (s):" in r.stderr
     u = UDFManager(str(tmp_path / "a.udf"))
     assert u.totalRecord() == 4
     u.jump(3)

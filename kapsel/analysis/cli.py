@@ -1,6 +1,6 @@
 """``kapsel-py analyze ...``: the analyses shipped with kapsel-py.
 
-    kapsel-py analyze sq OUTPUT_DIR [--dx 1.0] [--plot sq.png] [--table sq.txt]
+    kapsel-py analyze sq OUTPUT_DIR [--dx 1.0] [--plot sq.png] [--table sq.txt] [--octant]
     kapsel-py analyze cna OUTPUT.udf|positions.xyz|dump.lammpstrj [--cutoff r] [--record n|all]
     kapsel-py analyze erotate OUTPUT.udf
     kapsel-py analyze show RUN_DIR [--record -1|I|all] [--z K] [--udf output.udf] [--out DIR]
@@ -28,12 +28,12 @@ def cmd_sq(a) -> int:
     curves = []
     for f in files:
         n = int(os.path.basename(f).split("_")[1].split(".")[0])
-        q, s, _ = structure_factor(read_psi(f), a.dx)
+        q, s, _ = structure_factor(read_psi(f), a.dx, octant=a.octant)
         q1 = characteristic_wavenumber(q, s)
         rows.append((n, times.get(n, float("nan")), q1))
         curves.append((n, q, s))
     lines = ["# snapshot  time  q1 (characteristic wavenumber)  domain size 2pi/q1"]
-    lines += [f"{n:8d} {t:12.6g} {q1:14.6g} {2 * 3.141592653589793 / q1:14.6g}"
+    lines += [f"{n:8d} {t:12.6g} {q1:16.10g} {2 * 3.141592653589793 / q1:14.6g}"
               for n, t, q1 in rows]
     lines.append("")
     lines.append("# S(q) per snapshot: snapshot q S(q)")
@@ -94,6 +94,9 @@ def main(argv) -> int:
     s.add_argument("--dx", type=float, default=1.0, help="grid spacing (default 1)")
     s.add_argument("--plot", help="PNG file (default OUTPUT_DIR/sq.png)")
     s.add_argument("--table", help="text table (default OUTPUT_DIR/sq.txt)")
+    s.add_argument("--octant", action="store_true",
+                   help="average over the one octant of wave vectors the sample's "
+                        "sq_analysis.py uses (its numbers exactly); default: whole shells")
     s.set_defaults(fn=cmd_sq)
     c = sub.add_parser("cna", help="Common Neighbor Analysis (FCC/HCP/BCC/ICOS/OTHER)")
     c.add_argument("file", help="output.udf, an XYZ file or a LAMMPS dump")

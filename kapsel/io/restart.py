@@ -9,18 +9,31 @@ input: ``kapsel-py -Irestart.udf ...`` continues the run.
     CONTINUE_FDM_PHASE_SEPARATION   ... plus PSI, PSI_OLD, STRESS_OLD
 
 Floats are written in full (shortest round-trip) precision.  What the schema has no place
-for -- the unwrapped positions R_raw, the state of the thermal-noise generator, the
-spectral velocity u_hat itself, solver history flags -- goes to a companion file
-``<restart>.state.npz`` (written first; both atomically).  It carries a fingerprint of the
-schema data it belongs to; with it a continued run is bit-identical to an uninterrupted one.
-Without it (a restart.udf written by another program, or edited by hand), the run continues
-from the schema data alone: R_raw restarts at R, the noise stream at the run's seed.
+for -- the unwrapped positions R_raw, the state of the thermal-noise generator, solver
+history, stress accumulators -- goes to a companion file ``<restart>.state.npz`` (written
+first; both atomically).  It carries a fingerprint of the schema data it belongs to; with
+it a continued run is bit-identical to an uninterrupted one.  Without it (a restart.udf
+written by the original program, or edited by hand), the run continues from the schema
+data alone: R_raw from its Particles[] (else R), quaternions normalised (as the original
+restores them), the noise stream at the run's seed.
 
-Zeta (CONTINUE) holds the vorticity components omega_x, omega_z of the velocity in Fourier
-space (forward transform normalised by 1/N, real and imaginary parts interleaved along z,
-NZ + 2 entries) and uk_dc its k = 0 part (the mean velocity).  That packing is our reading
-of the original's; as it cannot represent the ky = 0 plane completely, kapsel-py continues
-a CONTINUE restart only together with its state file.
+Step and time (FORMAT-OUTPUT.md §6.3): the original fills its restart after the step of
+its last loop iteration, so the saved state has had ``jikan.ts + 1`` steps and
+``jikan.time`` is the time after them.  Both directions use that convention here: a state
+after n steps is written as ts = n - 1, time = t(n), and a restart's ts is read as
+ts + 1 steps done.
+
+Spectral restarts (CONTINUE / CONTINUE_ORIGINAL) hold the velocity as the original packs
+it (FORMAT.md "The spectral restart"): ``Zeta[i][j][k]`` {zeta0, zeta1}, two vorticity
+components omega = i k x u^ of the unnormalised r2c transform (real and imaginary parts at
+k = 2m, 2m + 1 for z-mode m; the N/2 modes counted positive), which two depending on the
+mode (:func:`pack_zeta`), and ``uk_dc`` the k = 0 coefficient.  The velocity comes back as
+u^ = i k x omega / |k|^2 (:func:`unpack_zeta`), exactly for a solenoidal field.
+Lees-Edwards: the covariant components in the oblique frame, the middle case chosen by
+n_z != 0 (``sheared=True``), uk_dc covariant too; back to velocity the field is
+metric-projected (kapsel.models.shear).  FORMAT.md does not say which of omega_x, omega_z
+is zeta0 in the last case (n_x = n_z = 0); we take omega_x.  The Lees-Edwards packing is
+our reading of FORMAT.md, not checked against a file the original wrote.
 """
 from __future__ import annotations
 
@@ -75,7 +88,7 @@ def component_field(v: np.ndarray) -> np.ndarray:
 class Saved:
     """``resume.<kind>.Saved_Data`` as read: clock, particle table, fields by name."""
     kind: str
-    step: int
+    step: int                                 # steps done: jikan.ts + 1
     time: float
     particles: np.ndarray | None             # (N, leaves of sParticle) or None
     fields: dict = field(default_factory=dict)
@@ -83,7 +96,7 @@ class Saved:
     particle_struct: object = None            # the sParticle class of the schema
 
     def fingerprint(self) -> str:
-        return fingerprint(self.step, self.time, self.particles, self.fields)
+        return fingerprint(self.step - 1, self.time, self.particles, self.fields)
 
 
 def fingerprint(step, time, particles, fields) -> str:
@@ -94,6 +107,8 @@ def fingerprint(step, time, particles, fields) -> str:
     if particles is not None:
         h.update(np.ascontiguousarray(particles, dtype=np.float64).tobytes())
     for name in sorted(fields):
+        if not isinstance(fields[name], np.ndarray):
+            continue                    # uk_dc, oblique: small structs, not fingerprinted
         h.update(name.encode())
         h.update(np.ascontiguousarray(fields[name], dtype=np.float64).tobytes())
     return h.hexdigest()
@@ -133,7 +148,7 @@ def write_restart(path: str, define_path: str, input_doc: UDFManager, kind: str,
     kind = schema_kind(doc, kind)
     doc.put(kind, "resume.Calculation")
     base = f"resume.{kind}.Saved_Data"
-    doc.put([int(step), float(time)], f"{base}.jikan")
+    doc.put([int(step) - 1, float(time)], f"{base}.jikan")   # ts = steps done - 1 (§6.3)
     table = None
     if particles is not None and particles.n:
         table = particle_table(particles, _sparticle_type(doc, kind))
@@ -145,7 +160,7 @@ def write_restart(path: str, define_path: str, input_doc: UDFManager, kind: str,
             arrays[name] = value
         else:
             doc.put(value, f"{base}.{name}")
-    state = {"fingerprint": np.array(fingerprint(step, time, table, arrays))}
+    state = {"fingerprint": np.array(fingerprint(int(step) - 1, time, table, arrays))}
     for name, value in (exact or {}).items():
         if isinstance(value, np.ndarray):
             state[name] = value
@@ -166,14 +181,22 @@ def read_restart(doc: UDFManager, input_path: str, kind: str) -> Saved:
     fields = {}
     for member in _saved_data_type(doc, kind).members:
         name = member.name
-        if name in ("jikan", "Particles") or member.ndim == 0:
+        if name in ("jikan", "Particles"):
+            continue
+        if member.ndim == 0:            # a struct such as uk_dc or oblique: a list of values
+            try:
+                value = doc.get(f"{base}.{name}")
+            except (KeyError, IndexError, ValueError, RuntimeError):
+                value = None
+            if value is not None:
+                fields[name] = value if isinstance(value, list) else [value]
             continue
         if doc.size(f"{base}.{name}[]"):
             arr = np.asarray(doc.getArray(f"{base}.{name}[]"), dtype=np.float64)
             if arr.ndim == member.ndim + 1 and arr.shape[-1] == 1:
                 arr = arr[..., 0]                   # a one-member class, e.g. {psi: float}
             fields[name] = arr
-    saved = Saved(kind, int(step), float(time), table, fields,
+    saved = Saved(kind, int(step) + 1, float(time), table, fields,       # ts + 1 steps done
                   particle_struct=_sparticle_type(doc, kind))
     path = state_path(input_path)
     if os.path.exists(path):
@@ -185,22 +208,92 @@ def read_restart(doc: UDFManager, input_path: str, kind: str) -> Saved:
     return saved
 
 
-def zeta_from_velocity(u: np.ndarray, dx: float):
-    """(Zeta (NX, NY, NZ + 2, 2), uk_dc (3,)) of a real velocity (3, NX, NY, NZ): the
-    vorticity components omega_x, omega_z of the 1/N-normalised r2c transform, (re, im)
-    interleaved along z; uk_dc the k = 0 part (see the module docstring)."""
-    shape = u.shape[1:]
-    uk = np.fft.rfftn(u, axes=(1, 2, 3)) / float(np.prod(shape))
-    k = [2 * np.pi * np.fft.fftfreq(n, dx) for n in shape[:2]]
-    k.append(2 * np.pi * np.fft.rfftfreq(shape[2], dx))
-    kx, ky, kz = np.meshgrid(*k, indexing="ij")
-    wx = 1j * (ky * uk[2] - kz * uk[1])
-    wz = 1j * (kx * uk[1] - ky * uk[0])
-    zeta = np.empty(shape[:2] + (2 * uk.shape[-1], 2))
-    for c, w in enumerate((wx, wz)):
+def wavenumbers(shape, dx):
+    """k_x (NX,1,1), k_y (1,NY,1), k_z (1,1,NZ/2+1) of the r2c transform as the original
+    numbers them: 2 pi n / L, n = 0..N/2 then negative (N/2 positive)."""
+    ks = []
+    for n in shape[:2]:
+        m = np.fft.fftfreq(n, 1.0 / n)
+        if n % 2 == 0:
+            m[n // 2] = n // 2
+        ks.append(2 * np.pi * m / (n * dx))
+    ks.append(2 * np.pi * np.fft.rfftfreq(shape[2], 1.0 / shape[2]) / (shape[2] * dx))
+    return ks[0].reshape(-1, 1, 1), ks[1].reshape(1, -1, 1), ks[2].reshape(1, 1, -1)
+
+
+def pack_zeta(u_hat: np.ndarray, dx: float, sheared: bool = False):
+    """(Zeta (NX, NY, NZ + 2, 2), uk_dc (3,)) of u_hat (3, NX, NY, NZ/2 + 1), the
+    unnormalised r2c transform of the velocity (Cartesian; covariant oblique components
+    for ``sheared``), in the original's packing (module docstring).  Per mode:
+
+        n_x != 0:                     zeta0 = omega_y, zeta1 = omega_z
+        n_x = 0, n_y != 0 (n_z != 0 sheared):  omega_z, omega_x  (sheared: omega_y, omega_x)
+        otherwise:                    omega_x, omega_y   (sheared: omega_x, omega_z)
+    """
+    u = np.asarray(u_hat)
+    kx, ky, kz = wavenumbers(u.shape[1:3] + (2 * (u.shape[3] - 1),), dx)
+    wx = 1j * (ky * u[2] - kz * u[1])
+    wy = 1j * (kz * u[0] - kx * u[2])
+    wz = 1j * (kx * u[1] - ky * u[0])
+    a = np.broadcast_to(kx != 0, wx.shape)
+    b = np.broadcast_to((kz if sheared else ky) != 0, wx.shape)
+    if sheared:
+        z0 = np.where(a, wy, np.where(b, wy, wx))
+        z1 = np.where(a, wz, np.where(b, wx, wz))
+    else:
+        z0 = np.where(a, wy, np.where(b, wz, wx))
+        z1 = np.where(a, wz, np.where(b, wx, wy))
+    zeta = np.empty(u.shape[1:3] + (2 * u.shape[3], 2))
+    for c, w in enumerate((z0, z1)):
         zeta[:, :, 0::2, c] = w.real
         zeta[:, :, 1::2, c] = w.imag
-    return zeta, uk[:, 0, 0, 0].real.copy()
+    return zeta, u[:, 0, 0, 0].real.copy()
+
+
+def unpack_zeta(zeta: np.ndarray, uk_dc, dx: float, sheared: bool = False) -> np.ndarray:
+    """u_hat (3, NX, NY, NZ/2 + 1) from the original's Zeta (NX, NY, NZ + 2, 2) and uk_dc
+    (inverse of :func:`pack_zeta`): the missing vorticity component from k.omega = 0, then
+    u^ = i k x omega / |k|^2, u^(0) = uk_dc.  Exact for a solenoidal field (for
+    ``sheared``, solenoidal up to a gradient: the caller applies the metric projection)."""
+    zeta = np.asarray(zeta, dtype=float)
+    nx, ny, nk = zeta.shape[:3]
+    if nk % 2 or zeta.shape[3:] != (2,):
+        raise ValueError(f"Zeta has shape {zeta.shape}, expected (NX, NY, NZ + 2, 2)")
+    z0 = zeta[:, :, 0::2, 0] + 1j * zeta[:, :, 1::2, 0]
+    z1 = zeta[:, :, 0::2, 1] + 1j * zeta[:, :, 1::2, 1]
+    kx, ky, kz = wavenumbers((nx, ny, nk - 2), dx)
+    shape = z0.shape
+    a = np.broadcast_to(kx != 0, shape)
+    kb = kz if sheared else ky
+    b = np.broadcast_to(kb != 0, shape) & ~a
+    c = ~(a | b)
+    safe_kx = np.where(kx != 0, kx, 1.0)
+    safe_kb = np.where(kb != 0, kb, 1.0)
+    w = np.zeros((3,) + shape, dtype=complex)
+    # n_x != 0: omega_y, omega_z stored, omega_x = -(k_y omega_y + k_z omega_z) / k_x
+    w[1] = np.where(a, z0, 0.0)
+    w[2] = np.where(a, z1, 0.0)
+    w[0] = np.where(a, -(ky * z0 + kz * z1) / safe_kx, 0.0)
+    if sheared:     # n_z != 0: omega_y, omega_x; omega_z = -(k_y / k_z) omega_y
+        w[1] += np.where(b, z0, 0.0)
+        w[0] += np.where(b, z1, 0.0)
+        w[2] += np.where(b, -(ky / safe_kb) * z0, 0.0)
+        w[0] += np.where(c, z0, 0.0)
+        w[2] += np.where(c, z1, 0.0)
+    else:           # n_y != 0: omega_z, omega_x; omega_y = -(k_z / k_y) omega_z
+        w[2] += np.where(b, z0, 0.0)
+        w[0] += np.where(b, z1, 0.0)
+        w[1] += np.where(b, -(kz / safe_kb) * z0, 0.0)
+        w[0] += np.where(c, z0, 0.0)
+        w[1] += np.where(c, z1, 0.0)
+    k2 = kx * kx + ky * ky + kz * kz
+    inv = np.divide(1.0, k2, out=np.zeros(k2.shape), where=k2 > 0)
+    u = np.empty_like(w)
+    u[0] = 1j * (ky * w[2] - kz * w[1]) * inv
+    u[1] = 1j * (kz * w[0] - kx * w[2]) * inv
+    u[2] = 1j * (kx * w[1] - ky * w[0]) * inv
+    u[:, 0, 0, 0] = np.asarray(uk_dc, dtype=float).reshape(3)
+    return u
 
 
 def particles_from_table(state, table: np.ndarray, struct) -> None:

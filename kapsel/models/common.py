@@ -121,11 +121,14 @@ def make_forces(cfg: RunConfig, particles: ParticleState, strain=None):
         bonds = chains.chain_bonds([s.beads for s in cfg.particles.species
                                     for _ in range(s.number)])
 
+    virial = np.zeros((3, 3))       # sum over pairs of f_a dr_b of the last call
+
     def forces(p):
         if pairs:
             F, _, ratio_min = pf.pair_forces(p.R, box, p.radius, inter.LJ_powers, inter.EPSILON,
                                              inter.LJ_truncate, group=group,
-                                             strain=strain() if strain is not None else 0.0)
+                                             strain=strain() if strain is not None else 0.0,
+                                             virial=virial)
         else:
             F, ratio_min = zeros.copy(), np.inf
         if g is not None:
@@ -137,6 +140,7 @@ def make_forces(cfg: RunConfig, particles: ParticleState, strain=None):
                                          f"maximum R0 = {chains.FENE_R0} (2 A)")
             F = F + Fb
         return F, zeros, ratio_min
+    forces.virial = virial
     return forces
 
 
@@ -183,6 +187,7 @@ def overlap_guard(forces, limit: float = 0.5):
             raise FloatingPointError(f"particles overlap deeply (closest pair at {ratio:.2f} "
                                      f"of the contact distance)")
         return F, T
+    guarded.virial = getattr(forces, "virial", None)
     return guarded
 
 
@@ -268,6 +273,14 @@ class Model:
     def load_fields(self, fields: dict, exact: dict | None) -> None:
         """Take the fields of a restart (see read_restart)."""
 
+    def accumulators(self) -> dict:
+        """Sums kept between records (e.g. the shear stress), as JSON values: the state file
+        carries them, since the restart is written one step after the last record."""
+        return {}
+
+    def set_accumulators(self, values: dict) -> None:
+        """Restore :meth:`accumulators` (a restart with its state file)."""
+
     def restart_state(self):
         """(kind, Saved_Data fields, exact state) of the current state."""
         exact = dict(self.exact_state())
@@ -281,6 +294,9 @@ class Model:
         gen = _noise_generator(self)
         if gen is not None:
             exact["noise"] = gen.get_state()
+        acc = self.accumulators()
+        if acc:
+            exact["accumulators"] = acc
         return self.restart_kind, fields, exact
 
     def load_restart(self, saved) -> None:
@@ -290,7 +306,8 @@ class Model:
         if not same_kind(saved.kind, self.restart_kind):
             raise ConfigError(f"{self.cfg.type} continues from a {self.restart_kind} restart, "
                               f"not {saved.kind}", path="resume.Calculation", value=saved.kind)
-        if not saved.fields and saved.particles is None and saved.exact is None:
+        arrays = [v for v in saved.fields.values() if isinstance(v, np.ndarray)]
+        if not arrays and saved.particles is None and saved.exact is None:
             raise ConfigError(f"resume.{saved.kind}.Saved_Data holds no saved state: this is "
                               f"not a restart file; set resume.Calculation to NEW, or continue "
                               f"from a restart.udf written by a run",
@@ -311,13 +328,21 @@ class Model:
             except ValueError as e:
                 raise ConfigError(str(e), path=f"resume.{saved.kind}.Saved_Data.Particles[]",
                                   value=saved.particles.shape[0]) from None
-            p.R_raw[:] = exact["R_raw"] if exact and "R_raw" in exact else p.R
+            st = saved.particle_struct
+            if exact and "R_raw" in exact:
+                p.R_raw[:] = exact["R_raw"]
+            elif st is None or st.index("R_raw") is None:     # an sParticle without R_raw
+                p.R_raw[:] = p.R
+            if not exact:       # as the original restores (FORMAT-OUTPUT.md §6.4)
+                p.q /= np.linalg.norm(p.q, axis=1, keepdims=True)
             if hasattr(p.constraints, "restore"):            # rigid bodies from their beads
                 p.constraints.restore(p, exact)
         gen = _noise_generator(self)
         if gen is not None and exact and "noise" in exact:
             gen.set_state(exact["noise"])
         self.load_fields(saved.fields, exact)
+        if exact and "accumulators" in exact:
+            self.set_accumulators(exact["accumulators"])
 
 
 def _noise_generator(model):

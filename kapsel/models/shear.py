@@ -64,6 +64,40 @@ def start_with_flow(cfg: RunConfig, particles, fluid) -> bool:
     return True
 
 
+# The original's shear-stress table (FORMAT-OUTPUT.md §1.4): a header on stdout at the start,
+# a row after every step.  Lees-Edwards types (rows on stdout):
+LE_TABLE = ("time", "shear_rate", "degree_oblique", "shear_strain_temporal",
+            "lj_dev_stress_temporal", "shear_stress_temporal_old",
+            "shear_stress_temporal_new", "reynolds_stress", "fluid_stress",
+            "interfacial_stress", "apparent_stress", "viscosity")
+# Shear_Navier_Stokes (rows on stderr); AC adds the inertia column and the sum
+SNS_TABLE_DC = ("time", "shear_rate_temporal", "shear_strain_temporal",
+                "shear_stress_temporal", "viscosity")
+SNS_TABLE_AC = ("time", "shear_rate_temporal", "shear_strain_temporal",
+                "shear_stress_temporal", "Inertia_stress", "total_stress")
+
+
+def le_table_row(time, rate, frame_strain, strain, lj, particle, reynolds, fluid,
+                 interfacial) -> list:
+    """One row of the Lees-Edwards table: apparent = particle + reynolds + lj + fluid +
+    interfacial, viscosity = apparent / rate.  kapsel-py has one hydrodynamic particle
+    stress per step (the first moment of the SPM force), written in both the _old and
+    _new columns (the original's two integrator stages)."""
+    apparent = particle + reynolds + lj + fluid + interfacial
+    visc = apparent / rate if rate else float("nan")
+    return [time, rate, frame_strain, strain, lj, particle, particle, reynolds, fluid,
+            interfacial, apparent, visc]
+
+
+def lj_stress_xy(forces, volume) -> float:
+    """-(1/V) sum over pairs of (f_x dr_y + f_y dr_x) / 2 of the last force evaluation
+    (0 without pair forces)."""
+    w = getattr(forces, "virial", None)
+    if w is None:
+        return 0.0
+    return -0.5 * float(w[0, 1] + w[1, 0]) / volume
+
+
 class ShearStress:
     """Accumulates the particle stress moment of the SPM steps between records."""
 
@@ -73,9 +107,11 @@ class ShearStress:
         self.sum = 0.0
         self.rate_sum = 0.0
         self.n = 0
+        self.last = 0.0
 
     def add(self, moment, rate):
-        self.sum += 0.5 * self.scale * (moment[0, 1] + moment[1, 0])
+        self.last = 0.5 * self.scale * (moment[0, 1] + moment[1, 0])   # this step's
+        self.sum += self.last
         self.rate_sum += rate
         self.n += 1
 
@@ -169,6 +205,23 @@ class ShearLEModel(SpectralModel):
             src["phi"] = lambda: rect(self.spm.phi())
         return src
 
+    shear_table = LE_TABLE
+    shear_table_stream = "stdout"
+
+    def shear_table_row(self) -> list:
+        """This step's row of the original's table (FORMAT-OUTPUT.md §1.4)."""
+        fl, g = self.fluid, self.fluid.frame_strain
+        uh = fl.u_hat
+        ux = uh[0] + g * uh[1]                           # Cartesian deviation, Fourier
+        uy = uh[1]
+        n = self.grid.size
+        uxuy = float(np.sum(self.grid.half_weight * (ux.real * uy.real + ux.imag * uy.imag)))
+        reynolds = -self.cfg.fluid.RHO * uxuy / (n * n)   # Parseval: sum_x = sum_k / N
+        rate = fl.shear.rate(self.time - self.dt)
+        return le_table_row(self.time, rate, g, fl.applied_strain,
+                            lj_stress_xy(self.spm.forces, self.grid.volume), self.stress.last,
+                            reynolds, self.cfg.fluid.ETA * rate, 0.0)
+
     def shear_record(self) -> dict:
         """Shear_stress (mean since the last record), Shear_strain, Shear_rate."""
         rate = self.fluid.shear_rate_now
@@ -176,27 +229,57 @@ class ShearLEModel(SpectralModel):
                 "Shear_strain": self.fluid.applied_strain, "Shear_rate": rate}
 
     # ------------------------------------------------------------------ restart
-    def restart_fields(self) -> dict:
-        d = super().restart_fields()
-        d["oblique"] = [float(self.fluid.frame_strain)]
-        return d
-
     def exact_state(self) -> dict:
         return {"u_hat": self.fluid.u_hat.copy(), "remaps": int(self.fluid.remaps)}
 
+    def accumulators(self) -> dict:
+        st = self.stress
+        return {"stress": [st.sum, st.rate_sum, st.n]}
+
+    def set_accumulators(self, values: dict) -> None:
+        st = self.stress
+        st.sum, st.rate_sum, st.n = values["stress"]
+
+    def _covariant(self, u_hat):
+        """Covariant components u_1 = u^1 + g u^2, u_2 = g u^1 + (1 + g^2) u^2, u_3 = u^3."""
+        g = self.fluid.frame_strain
+        cov = u_hat.copy()
+        cov[0] += g * u_hat[1]
+        cov[1] += g * u_hat[0] + g * g * u_hat[1]
+        return cov
+
+    def restart_fields(self) -> dict:
+        """Zeta / uk_dc of the covariant components in the oblique frame (FORMAT.md), and
+        oblique.degree_oblique the frame strain."""
+        from ..io.restart import pack_zeta
+        zeta, dc = pack_zeta(self._covariant(self.fluid.u_hat), self.cfg.mesh.DX,
+                             sheared=True)
+        return {"Zeta": zeta, "uk_dc": [float(c) for c in dc],
+                "oblique": [float(self.fluid.frame_strain)]}
+
     def load_fields(self, fields: dict, exact) -> None:
-        if not exact or "u_hat" not in exact:
-            from ..io.restart import state_path
-            raise ConfigError(
-                f"a CONTINUE restart of the sheared type is continued together with its state "
-                f"file {state_path(self.cfg.input_path)} (missing, or written for other data)",
-                path="resume.CONTINUE.Saved_Data.Zeta[]", value="(without state file)")
-        if exact["u_hat"].shape != self.fluid.u_hat.shape:
-            raise ConfigError(f"the restart's velocity has shape {exact['u_hat'].shape}, the "
-                              f"mesh needs {self.fluid.u_hat.shape}",
-                              path="resume.CONTINUE.Saved_Data.Zeta[]", value="shape")
-        self.fluid.set_time(self.time, exact.get("remaps"))
-        self.fluid.set_contravariant_hat(exact["u_hat"])
+        """The state file's u_hat, or else Zeta / uk_dc (covariant, oblique frame) back to
+        contravariant components, metric-projected, in the frame of degree_oblique."""
+        if exact and "u_hat" in exact:
+            if exact["u_hat"].shape != self.fluid.u_hat.shape:
+                raise ConfigError(f"the restart's velocity has shape {exact['u_hat'].shape}, "
+                                  f"the mesh needs {self.fluid.u_hat.shape}",
+                                  path="resume.CONTINUE.Saved_Data.Zeta[]", value="shape")
+            self.fluid.set_time(self.time, exact.get("remaps"))
+            self.fluid.set_contravariant_hat(exact["u_hat"])
+        else:
+            fl = self.fluid
+            g_saved = float((fields.get("oblique") or [0.0])[0])
+            fl.set_time(self.time, int(round((fl.shear.strain(self.time) - g_saved) / fl.s)))
+            w = self._zeta_velocity(fields)           # covariant
+            g = fl.frame_strain
+            u = w.copy()                              # contravariant: G w
+            u[0] = (1.0 + g * g) * w[0] - g * w[1]
+            u[1] = w[1] - g * w[0]
+            dc = u[:, 0, 0, 0].copy()
+            fl.project_metric(u, g)
+            u[:, 0, 0, 0] = dc
+            fl.set_contravariant_hat(u)
         self.spm.refresh()
 
 
@@ -245,6 +328,7 @@ class ZigzagShear:
         self.dZ2 = float(np.mean(dZ ** 2))
         self.scale = nx * nz
         self.stress_sum, self.n = 0.0, 0
+        self.last_force = self.last_inertia = 0.0
 
     def impose(self, t_new):
         """Set the zigzag modes for time t_new; accumulate the stress of the step."""
@@ -258,7 +342,9 @@ class ZigzagShear:
         fz = float(np.real(np.vdot(np.fft.fft(self.Z), F))) / (self.Z.size ** 2 * self.scale)
         dt = self.fluid.dt
         drate = (self.shear.rate(t_new) - self.shear.rate(t_new - dt)) / dt
-        self.stress_sum += (self.rho * fz - self.rho * self.Z2 * drate) / self.dZ2
+        self.last_force = self.rho * fz / self.dZ2          # this step's, for the table
+        self.last_inertia = -self.rho * self.Z2 * drate / self.dZ2
+        self.stress_sum += self.last_force + self.last_inertia
         self.n += 1
 
     def take(self, eta, rate_now):
@@ -288,6 +374,30 @@ class ZigzagModel(SpectralModel):
         self.tick()
 
     sheared = True
+
+    shear_table_stream = "stderr"
+
+    @property
+    def shear_table(self):
+        return SNS_TABLE_AC if self.zigzag.shear.kind == "AC" else SNS_TABLE_DC
+
+    def shear_table_row(self) -> list:
+        """time, the imposed rate (kept exactly by the feedback), strain, this step's
+        zigzag stress, viscosity; AC: the stress of the forcing, the fluid's inertia
+        term and their sum before the viscosity (FORMAT-OUTPUT.md §1.4)."""
+        z, sh = self.zigzag, self.zigzag.shear
+        rate = sh.rate(self.time)
+        total = z.last_force + z.last_inertia
+        if sh.kind == "AC":
+            return [self.time, rate, sh.strain(self.time), z.last_force, z.last_inertia, total]
+        return [self.time, rate, sh.strain(self.time), total,
+                total / rate if rate else float("nan")]
+
+    def accumulators(self) -> dict:
+        return {"zigzag": [self.zigzag.stress_sum, self.zigzag.n]}
+
+    def set_accumulators(self, values: dict) -> None:
+        self.zigzag.stress_sum, self.zigzag.n = values["zigzag"]
 
     def shear_record(self) -> dict:
         sh = self.zigzag.shear
@@ -363,10 +473,27 @@ class ShearFDMModel(FDMModel):
                 if self.eta_field is not None:
                     self._update_viscosity()
         self.stress.add(self.spm.moment, 0.0)
-        self.field_stress_sum += self._field_stress()
+        self._last_fields = self._field_stresses()
+        self.field_stress_sum += sum(self._last_fields)
+
+    shear_table = LE_TABLE
+    shear_table_stream = "stdout"
+
+    def shear_table_row(self) -> list:
+        """This step's row of the original's table (FORMAT-OUTPUT.md §1.4)."""
+        mac = self.mac
+        viscous, interfacial = getattr(self, "_last_fields", None) or self._field_stresses()
+        reynolds = -self.rho * float(np.mean(self.u[0] * self.u[1]))
+        return le_table_row(self.time, mac.shear.rate(self.time - self.dt), mac.frame_strain,
+                            mac.applied_strain,
+                            lj_stress_xy(self.spm.forces, float(np.prod(self.cfg.mesh.box))),
+                            self.stress.last, reynolds, viscous, interfacial)
 
     def _field_stress(self) -> float:
-        """Viscous + interfacial sigma_xy of the current fields (module docstring)."""
+        return sum(self._field_stresses())
+
+    def _field_stresses(self) -> tuple:
+        """(viscous, interfacial) sigma_xy of the current fields (module docstring)."""
         from ..fluid.oblique import oblique_gradient
         mac, dx = self.mac, self.dx
         g = mac.frame_strain
@@ -379,10 +506,11 @@ class ShearFDMModel(FDMModel):
         s += rate                                         # + gamma_dot (imposed flow)
         eta = self.eta_field if self.eta_field is not None else self.cfg.fluid.ETA
         sig = float(np.mean(eta * s))
+        inter = 0.0
         if self.psi is not None:
             oblique_gradient(self.psi, dx, g, gr)
-            sig -= self.cfg.phase.alpha * float(np.mean(gr[0] * gr[1]))
-        return sig
+            inter = -self.cfg.phase.alpha * float(np.mean(gr[0] * gr[1]))
+        return sig, inter
 
     def shear_record(self) -> dict:
         rate = self.mac.shear_rate_now
@@ -459,6 +587,15 @@ class ShearFDMModel(FDMModel):
         st = super().exact_state()
         st["remaps"] = int(self.mac.remaps)
         return st
+
+    def accumulators(self) -> dict:
+        st = self.stress
+        return {"stress": [st.sum, st.rate_sum, st.n], "field": self.field_stress_sum}
+
+    def set_accumulators(self, values: dict) -> None:
+        st = self.stress
+        st.sum, st.rate_sum, st.n = values["stress"]
+        self.field_stress_sum = values["field"]
 
     def load_fields(self, fields: dict, exact) -> None:
         self.mac.set_time(self.time, (exact or {}).get("remaps"))

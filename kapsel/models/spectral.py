@@ -41,27 +41,42 @@ class SpectralModel(Model):
     restart_kind = "CONTINUE"
 
     def restart_fields(self) -> dict:
-        """Zeta (omega_x, omega_z in Fourier space) and uk_dc (kapsel.io.restart)."""
-        from ..io.restart import zeta_from_velocity
-        zeta, dc = zeta_from_velocity(self.spm.velocity(), self.cfg.mesh.DX)
+        """Zeta and uk_dc: the fluid's u_hat in the original's packing (kapsel.io.restart)."""
+        from ..io.restart import pack_zeta
+        zeta, dc = pack_zeta(self.fluid.u_hat, self.cfg.mesh.DX)
         return {"Zeta": zeta, "uk_dc": [float(c) for c in dc], "oblique": [0.0]}
 
     def exact_state(self) -> dict:
         return {"u_hat": self.fluid.u_hat.copy()}
 
+    def _zeta_velocity(self, fields: dict):
+        """u_hat of a restart's Zeta / uk_dc (a restart without its state file, e.g. one
+        written by the original), checked against the mesh."""
+        from ..io.restart import unpack_zeta
+        where = f"resume.{self.cfg.resume.calculation}.Saved_Data"
+        if "Zeta" not in fields:
+            raise ConfigError("the restart holds no Zeta (the spectral velocity) and no "
+                              "state file goes with it", path=f"{where}.Zeta[]", value="(empty)")
+        want = self.grid.shape[:2] + (self.grid.shape[2] + 2, 2)
+        if fields["Zeta"].shape != want:
+            raise ConfigError(f"Zeta has shape {list(fields['Zeta'].shape)}, the mesh needs "
+                              f"{list(want)} (NX, NY, NZ + 2, 2)", path=f"{where}.Zeta[]",
+                              value="shape")
+        dc = fields.get("uk_dc", (0.0, 0.0, 0.0))
+        return unpack_zeta(fields["Zeta"], dc, self.cfg.mesh.DX,
+                           sheared=getattr(self.fluid, "oblique", False))
+
     def load_fields(self, fields: dict, exact) -> None:
-        if not exact or "u_hat" not in exact:
-            from ..io.restart import state_path
-            raise ConfigError(
-                f"a CONTINUE restart is continued together with its state file "
-                f"{state_path(self.cfg.input_path)} (missing, or written for other data): "
-                f"the Zeta packing alone does not determine the velocity",
-                path=f"resume.{self.cfg.resume.calculation}.Saved_Data.Zeta[]", value="(without state file)")
-        if exact["u_hat"].shape != self.fluid.u_hat.shape:
-            raise ConfigError(f"the restart's velocity has shape {exact['u_hat'].shape}, the "
-                              f"mesh needs {self.fluid.u_hat.shape}",
-                              path=f"resume.{self.cfg.resume.calculation}.Saved_Data.Zeta[]", value="shape")
-        self.fluid.set_velocity_hat(exact["u_hat"])
+        """The state file's u_hat (bit-identical continuation) or else Zeta / uk_dc."""
+        if exact and "u_hat" in exact:
+            if exact["u_hat"].shape != self.fluid.u_hat.shape:
+                raise ConfigError(f"the restart's velocity has shape {exact['u_hat'].shape}, "
+                                  f"the mesh needs {self.fluid.u_hat.shape}",
+                                  path=f"resume.{self.cfg.resume.calculation}.Saved_Data.Zeta[]",
+                                  value="shape")
+            self.fluid.set_velocity_hat(exact["u_hat"])
+        else:
+            self.fluid.set_velocity_hat(self._zeta_velocity(fields))
         self.spm.refresh()
 
     def field_sources(self) -> dict:

@@ -142,7 +142,7 @@ def pair_dVdr(r, sigma, kind="12:6", epsilon=1.0, truncate="ON"):
 
 
 def pair_forces(R, box, radius, kind="12:6", epsilon=1.0, truncate="ON", group=None,
-                strain=0.0):
+                strain=0.0, virial=None):
     """Pair forces F_i^other (eq 9) -> (F (N, 3), U_total, min_ratio).
 
     kind is LJ_powers ('12:6', '24:12', '36:18', 'macro_vdw'), epsilon is EPSILON
@@ -157,7 +157,10 @@ def pair_forces(R, box, radius, kind="12:6", epsilon=1.0, truncate="ON", group=N
     ``strain`` g: Lees-Edwards images (the image across y = Ly displaced by g Ly along x):
     the pairs are found in the oblique coordinates x - g y, where the images are periodic
     (valid while the cutoff (1 + |g|) stays below half the box).
+    ``virial``: a (3, 3) array set to sum over pairs of f_a dr_b (f the force on j), or None.
     """
+    if virial is not None:
+        virial[...] = 0.0
     R = np.asarray(R, dtype=float).reshape(-1, 3)
     n = len(R)
     F = np.zeros((n, 3))
@@ -192,6 +195,8 @@ def pair_forces(R, box, radius, kind="12:6", epsilon=1.0, truncate="ON", group=N
         V, fmag = _raw(r, sigma, p, epsilon)
         f = (fmag / r)[:, None] * dr
     U = float(np.sum(V + _shift(p, epsilon, t)))
+    if virial is not None:
+        virial[...] = f.T @ dr
     for k in range(3):
         F[:, k] = np.bincount(j, f[:, k], minlength=n) - np.bincount(i, f[:, k], minlength=n)
     return F, U, float(np.min(r / sigma))
