@@ -79,11 +79,13 @@ def describe(cfg, args, model, resumed: bool, files: list[tuple[str, str]],
              _dt(cfg, dt)]
     if resumed:
         lines.append(f"continues from step {model.step_index} (t = {_g(model.time)}) to step "
-                     f"{total}: {total - model.step_index} steps, a snapshot every "
-                     f"{cfg.output.GTS} steps")
+                     f"{total}: {max(total - model.step_index, 0)} steps, a snapshot every "
+                     f"{cfg.output.GTS} steps" + (", then one step more for the restart"
+                                                  if model.step_index <= total else ""))
     else:
         lines.append(f"{total} steps to t = {_g(total * dt)}: {cfg.output.Num_snap} snapshots "
-                     f"every {cfg.output.GTS} steps (plus the initial state)")
+                     f"every {cfg.output.GTS} steps (plus the initial state), then one step "
+                     f"more for the restart (as the original)")
     lines += _files(files)
     seed = f"seed {args.seed}" + (f" (drawn; rerun with --seed {args.seed} to reproduce)"
                                   if seed_drawn else "")

@@ -133,12 +133,12 @@ def test_check_a_continued_run(tmp_path, monkeypatch, capsys):
     monkeypatch.chdir(tmp_path)
     assert cli.main([*FLAGS, "--seed", "5", "--quiet"]) == cli.EXIT_OK
     u = UDFManager(str(tmp_path / "restart.udf"))
-    u.put(2, "output.Num_snap")
+    u.put(3, "output.Num_snap")      # the first run ended after 2 steps (one past its snapshot)
     u.write(str(tmp_path / "restart.udf"))
     before = listing(tmp_path)
     assert cli.main(["-Irestart.udf", "-Ooutput.udf", "-Ddefine.udf", "-Rrestart.udf",
                      "--check"]) == cli.EXIT_OK
     out = capsys.readouterr().out
-    assert "continues from step 1 (t = " in out and "to step 2: 1 steps" in out
+    assert "continues from step 2 (t = " in out and "to step 3: 1 steps" in out
     assert "output.udf (records appended)" in out
     assert listing(tmp_path) == before
