@@ -12,9 +12,9 @@ from udf import UDFError, UDFManager
 HERE = os.path.dirname(__file__)
 SHARED = os.path.join(HERE, "..", "..", "shared", "kapsel-udf")
 SAMPLES = os.path.join(HERE, "..", "samples")
-FIXTURES = sorted(glob.glob(os.path.join(SHARED, "*", "*.udf"))) or \
-    sorted(glob.glob(os.path.join(SAMPLES, "*.udf"))
-           + glob.glob(os.path.join(SAMPLES, "kapsel-udf", "*", "*.udf")))  # fixture copies
+FIXTURES = sorted(glob.glob(os.path.join(SAMPLES, "*.udf"))
+                  + glob.glob(os.path.join(SAMPLES, "kapsel-udf", "*", "*.udf")))  # copies of
+# every real input in ../shared/kapsel-udf (define.udf versions 3.02 to 4.1)
 DEFINE = os.path.join(SAMPLES, "define.udf")
 
 
@@ -26,7 +26,7 @@ def same(a, b):
     return a == b and type(a) is type(b)
 
 
-@pytest.mark.parametrize("path", FIXTURES, ids=lambda p: os.path.relpath(p, SHARED))
+@pytest.mark.parametrize("path", FIXTURES, ids=lambda p: os.path.relpath(p, SAMPLES))
 def test_fixture_parses_and_round_trips(path, tmp_path):
     u = UDFManager(path)
     if os.path.basename(path) == "kapsel_unit.udf":
@@ -41,6 +41,22 @@ def test_fixture_parses_and_round_trips(path, tmp_path):
     for name in u.common:
         assert same(u.common[name], v.common[name]), name
     assert v.totalRecord() == u.totalRecord()
+
+
+def test_v302_define_continues_strings_with_a_backslash(tmp_path):
+    """OCTA's v3.02 define.udf (Examples 01-10) continues a description with a backslash at
+    the end of the line; the string is joined and every later line number stays right."""
+    u = UDFManager(os.path.join(SAMPLES, "kapsel-udf", "ex02", "define.udf"))
+    sw = u.schema.item("switch")[0].type
+    dist = sw.members[sw.index("INIT_distribution")].type
+    desc = dist.members[dist.index("type")].description
+    assert desc.startswith("uniform_random:distributed uniformly in box,\trandom_walk:")
+    assert "\\" not in desc and "\n" not in desc
+    f = tmp_path / "bad.udf"
+    f.write_text('\\begin{def}\n a: string "one \\\n two"\n b: int "x\n\\end{def}\n')
+    with pytest.raises(UDFError) as e:
+        UDFManager(str(f))
+    assert e.value.line == 4   # the line of the unclosed string, after the continued one
 
 
 def test_sample_values():

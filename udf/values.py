@@ -10,6 +10,7 @@ Storage rules:
 from __future__ import annotations
 
 import math
+import re
 
 import numpy as np
 
@@ -19,6 +20,16 @@ from .schema import Primitive, Select, Struct, leaf_count, leaf_kinds
 
 
 INT_MIN, INT_MAX = -2 ** 31, 2 ** 31 - 1   # OCTA stores int as a C int
+
+
+_CONTINUATION = re.compile(r"\\\r?\n")
+
+
+def string_value(tok) -> str:
+    """The text of a STRING token: quotes removed, backslash-newline continuations joined
+    (OCTA's old define.udf files continue long descriptions that way)."""
+    s = str(tok)[1:-1]
+    return _CONTINUATION.sub("", s) if "\\" in s else s
 
 
 def _where(g):
@@ -67,15 +78,15 @@ def bind(t, ndim: int, g, path: str, file: str):
             if getattr(g, "type", None) == "NUMBER":
                 return bool(int(float(str(g))))
             if getattr(g, "type", None) == "STRING":
-                return str(g)[1:-1].lower() in ("true", "on", "yes", "1")
+                return string_value(g).lower() in ("true", "on", "yes", "1")
         if getattr(g, "type", None) != "STRING":
             raise _err(f"expected a string, found {_describe(g)}", g, file, path)
-        return str(g)[1:-1]
+        return string_value(g)
     if isinstance(t, Select):
         if getattr(g, "type", None) != "STRING":
             raise _err(f"expected one of {', '.join(t.choices)}, found {_describe(g)}",
                        g, file, path)
-        s = str(g)[1:-1]
+        s = string_value(g)
         if s not in t.choices:
             raise _err(f"unknown choice {s!r}; allowed: {', '.join(t.choices)}", g, file, path)
         return s
