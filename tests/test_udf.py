@@ -195,9 +195,61 @@ def test_error_wrong_integer(tmp_path):
 
 
 def test_error_unknown_select(tmp_path):
-    msg = error_of(broken_copy(tmp_path, 'LJ_powers:"12:6"', 'LJ_powers:"11:5"'))
+    """A select value outside its choices is refused when it is read, at the value itself:
+    an unused branch of an input may hold a stale one (ex12)."""
+    u = UDFManager(broken_copy(tmp_path, 'LJ_powers:"12:6"', 'LJ_powers:"11:5"'))
+    assert u.get("mesh.NPX") == 5
+    with pytest.raises(UDFError) as e:
+        u.get("LJ_powers")
+    msg = str(e.value)
     assert "LJ_powers" in msg and "'11:5'" in msg and "12:6" in msg
-    assert "input.udf:" in msg
+    assert "input.udf:24:11:" in msg
+
+
+def test_unused_branch_may_hold_a_stale_select(tmp_path):
+    """ex12: switch.multipole.ON.Dipole.ON.FIXED.dir is "" (not X, Y or Z); reading the
+    branch says so, reading anything else works."""
+    u = UDFManager(os.path.join(SAMPLES, "kapsel-udf", "ex12",
+                                "a2_N65_Rer025_dipole_mirror.udf"))
+    assert u.get("switch.multipole.type") == "ON"
+    assert u.get("mesh") == [6, 6, 5]
+    for path in ("switch.multipole.ON.Dipole.ON.FIXED.dir", "switch.multipole.ON",
+                 "switch"):
+        with pytest.raises(UDFError, match=r"a2_N65_Rer025_dipole_mirror.udf:59:36: unknown "
+                                           r"choice ''; allowed: X, Y, Z"):
+            u.get(path)
+
+
+def test_every_problem_of_a_file_at_once(tmp_path):
+    text = open(broken_copy(tmp_path, "A:4.00000000000000", 'A:"four"')).read()
+    text = text.replace("A_XI:2.00000000000000", "A_XI:\"2.0\"").replace("EPSILON:", "EPSILLON:")
+    (tmp_path / "input.udf").write_text(text)
+    msg = error_of(str(tmp_path / "input.udf"))
+    lines = msg.splitlines()
+    assert len(lines) == 3, msg
+    assert "expected a number" in msg and "'EPSILLON' is not defined" in msg
+
+
+def test_value_positions():
+    u = UDFManager(os.path.join(SAMPLES, "input.udf"))
+    f, line, col = u.value_where("mesh.NPY")
+    assert (line, col) == (25, 9) and f.endswith("input.udf")
+    assert u.value_where("object_type.spherical_particle.Particle_spec[0].MASS_RATIO")[1:] \
+        == (11, 7)
+
+
+def test_get_of_an_absent_item_says_it_is_absent(tmp_path):
+    """OCTA's UDFManager reads data the file holds; a file that is only the schema (an
+    output.udf of \\include{"define.udf"}) has none: get() says so instead of returning a
+    made-up default.  put() creates the item."""
+    for f in ("define.udf", "kapsel_unit.udf"):
+        shutil.copy(os.path.join(SAMPLES, f), tmp_path / f)
+    (tmp_path / "o.udf").write_text('\\include{"define.udf"}\n')
+    u = UDFManager(str(tmp_path / "o.udf"))
+    with pytest.raises(UDFError, match="'mesh' is absent"):
+        u.get("mesh.NPX")
+    u.put(6, "mesh.NPX")
+    assert u.get("mesh.NPX") == 6
 
 
 def test_error_wrong_count(tmp_path):

@@ -49,10 +49,15 @@ def _err(msg, g, file, path):
     return UDFError(f"{msg} (at {path})", file, line, col, path=path)
 
 
-def bind(t, ndim: int, g, path: str, file: str):
-    """Bind generic value ``g`` to type ``t`` with ``ndim`` array dimensions."""
+def bind(t, ndim: int, g, path: str, file: str, lazy: dict | None = None):
+    """Bind generic value ``g`` to type ``t`` with ``ndim`` array dimensions.
+
+    ``lazy``: a dict that collects, by path, the errors of select values that are not among
+    the choices, instead of raising them (the value is kept as written): a select in a
+    branch the input does not choose may hold a stale or empty value, and only the reader
+    of that path should be told (UDFManager.get raises them)."""
     if ndim:
-        return _bind_array(t, ndim, g, path, file)
+        return _bind_array(t, ndim, g, path, file, lazy)
     if isinstance(t, Primitive):
         if t.name in ("int", "float", "double"):
             if getattr(g, "type", None) != "NUMBER":
@@ -88,7 +93,10 @@ def bind(t, ndim: int, g, path: str, file: str):
                        g, file, path)
         s = string_value(g)
         if s not in t.choices:
-            raise _err(f"unknown choice {s!r}; allowed: {', '.join(t.choices)}", g, file, path)
+            e = _err(f"unknown choice {s!r}; allowed: {', '.join(t.choices)}", g, file, path)
+            if lazy is None:
+                raise e
+            lazy[path] = e
         return s
     if isinstance(t, Struct):
         if isinstance(g, Group) and g.kind == "{":
@@ -96,11 +104,11 @@ def bind(t, ndim: int, g, path: str, file: str):
                 raise _err(f"expected {len(t.members)} values for {t.describe()} "
                            f"({', '.join(m.name for m in t.members)}), found {len(g.items)}",
                            g, file, path)
-            return [bind(m.type, m.ndim, item, f"{path}.{m.name}", file)
+            return [bind(m.type, m.ndim, item, f"{path}.{m.name}", file, lazy)
                     for m, item in zip(t.members, g.items)]
         if len(t.members) == 1:  # a one-member struct may be written bare
             m = t.members[0]
-            return [bind(m.type, m.ndim, g, f"{path}.{m.name}", file)]
+            return [bind(m.type, m.ndim, g, f"{path}.{m.name}", file, lazy)]
         raise _err(f"expected {{...}} with {len(t.members)} values for {t.describe()}, "
                    f"found {_describe(g)}", g, file, path)
     raise AssertionError(t)
@@ -120,7 +128,7 @@ def _dtype(t):
     return np.int64 if all(k == "int" for k in kinds) else np.float64
 
 
-def _bind_array(t, ndim, g, path, file):
+def _bind_array(t, ndim, g, path, file, lazy=None):
     lc = leaf_count(t)
     if isinstance(g, Bulk):
         if lc is None:
@@ -128,8 +136,8 @@ def _bind_array(t, ndim, g, path, file):
         return _bulk_to_array(t, ndim, lc, g, path, file)
     if not (isinstance(g, Group) and g.kind == "["):
         raise _err(f"expected an array [...], found {_describe(g)}", g, file, path)
-    elems = [_bind_array(t, ndim - 1, x, f"{path}[{i}]", file) if ndim > 1
-             else bind(t, 0, x, f"{path}[{i}]", file) for i, x in enumerate(g.items)]
+    elems = [_bind_array(t, ndim - 1, x, f"{path}[{i}]", file, lazy) if ndim > 1
+             else bind(t, 0, x, f"{path}[{i}]", file, lazy) for i, x in enumerate(g.items)]
     if lc is None:
         return elems
     # numeric-flat: one numpy array when the nesting is regular
