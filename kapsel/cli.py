@@ -49,8 +49,14 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def fail(message: str, code: int = EXIT_BAD_INPUT) -> int:
-    print(f"kapsel-py: error: {message}", file=sys.stderr)
+    """Print each problem (one per line of ``message``) and return ``code``."""
+    for line in str(message).splitlines() or [""]:
+        print(f"kapsel-py: error: {line}", file=sys.stderr)
     return code
+
+
+class BadInput(Exception):
+    """What ``prepare`` found wrong: str() is one line per problem."""
 
 
 def single_threaded_blas() -> None:
@@ -122,6 +128,81 @@ def check_define(define, args, model) -> str | None:
     return None
 
 
+def validate(input_path: str, define_path: str | None = None):
+    """Read and check an input as a run would, building nothing and writing nothing:
+    returns (cfg, input document, define document or None); raises BadInput listing every
+    problem of the input (one per line).  ``prepare`` goes on to build the model."""
+    import udf
+    from . import config, models  # noqa: F401  (models register their types)
+    from .simulation import SOLVERS
+    try:
+        doc = udf.UDFManager(input_path)
+        cfg = config.from_document(doc, input_path)
+        define = udf.UDFManager(define_path) if define_path else None
+    except (udf.UDFError, config.ConfigError) as e:
+        raise BadInput(str(e)) from None
+    if cfg.type not in SOLVERS:
+        raise BadInput(f"constitutive_eq.type {cfg.type!r} is not implemented yet in kapsel-py "
+                       f"(implemented: {', '.join(sorted(SOLVERS)) or 'none'})")
+    return cfg, doc, define
+
+
+def describe_setup(cfg) -> str:
+    """What a run builds and about how much memory it takes (config.memory_estimate)."""
+    from .config import _size, memory_estimate
+    nx, ny, nz = cfg.mesh.shape
+    n = cfg.particles.count
+    return (f"{cfg.type} on a {nx} x {ny} x {nz} mesh"
+            + (f" with {n} {cfg.particles.object_type.replace('_', ' ')} beads" if n else "")
+            + f", about {_size(memory_estimate(cfg.mesh, cfg.type, n))} of memory")
+
+
+def build_model(cfg, args, doc, resumed: bool):
+    """The model of ``cfg`` (the restart loaded when ``resumed``); raises BadInput.  When
+    building takes more than 2 s, says what is being built and its memory estimate."""
+    import threading
+    import time
+
+    import udf
+    from . import config
+    from .simulation import SOLVERS
+    started = time.perf_counter()
+    talked = threading.Event()
+
+    def talk():
+        talked.set()
+        print(f"#setting up {describe_setup(cfg)} ...", file=sys.stderr, flush=True)
+
+    timer = None
+    if not getattr(args, "quiet", False):
+        timer = threading.Timer(2.0, talk)
+        timer.daemon = True
+        timer.start()
+    try:
+        model = SOLVERS[cfg.type](cfg, args, doc)
+        if resumed:
+            from .io.restart import read_restart
+            saved = read_restart(doc, args.input, cfg.resume.calculation)
+            model.load_restart(saved)
+            if saved.exact is None and not args.quiet:
+                print(f"#{args.input}: no matching state file; continuing from the restart "
+                      f"data alone (R_raw restarts at R, the noise stream at the seed)",
+                      file=sys.stderr)
+    except config.ConfigError as e:
+        if not e.where:  # raised by a model: say where the item is in the input
+            top = e.path.split(".")[0].split("[")[0] if e.path else ""
+            raise BadInput(f"{doc.where(top) if top else args.input}: {e}") from None
+        raise BadInput(str(e)) from None
+    except udf.UDFError as e:
+        raise BadInput(str(e)) from None
+    finally:
+        if timer is not None:
+            timer.cancel()
+    if talked.is_set():
+        print(f"#set-up done in {time.perf_counter() - started:.1f} s", file=sys.stderr)
+    return model
+
+
 def main(argv=None) -> int:
     single_threaded_blas()
     argv = list(sys.argv[1:] if argv is None else argv)
@@ -134,20 +215,11 @@ def main(argv=None) -> int:
     for flag, path in (("-I", args.input), ("-D", args.define)):
         if not os.path.isfile(path):
             return fail(f"{flag}{path}: no such file")
-
-    import udf
-    from . import config, models  # noqa: F401  (models register their types)
-    from .simulation import SOLVERS, run
     try:
-        doc = udf.UDFManager(args.input)
-        cfg = config.from_document(doc, args.input)
-        define = udf.UDFManager(args.define)  # the schema of output.udf and restart.udf
-    except (udf.UDFError, config.ConfigError) as e:
+        cfg, doc, define = validate(args.input, args.define)
+    except BadInput as e:
         return fail(str(e))
-
-    if cfg.type not in SOLVERS:
-        return fail(f"constitutive_eq.type {cfg.type!r} is not implemented yet in kapsel-py "
-                    f"(implemented: {', '.join(sorted(SOLVERS)) or 'none'})")
+    from .simulation import run
     problem = check_output_paths(args)
     if problem:
         return fail(problem)
@@ -167,21 +239,8 @@ def main(argv=None) -> int:
         import secrets
         args.seed = secrets.randbits(63)
     try:
-        model = SOLVERS[cfg.type](cfg, args, doc)
-        if resumed:
-            from .io.restart import read_restart
-            saved = read_restart(doc, args.input, cfg.resume.calculation)
-            model.load_restart(saved)
-            if saved.exact is None and not args.quiet:
-                print(f"#{args.input}: no matching state file; continuing from the restart "
-                      f"data alone (R_raw restarts at R, the noise stream at the seed)",
-                      file=sys.stderr)
-    except config.ConfigError as e:
-        if not e.where:  # raised by a model: say where the item is in the input
-            top = e.path.split(".")[0].split("[")[0] if e.path else ""
-            return fail(f"{doc.where(top) if top else args.input}: {e}")
-        return fail(str(e))
-    except udf.UDFError as e:
+        model = build_model(cfg, args, doc, resumed)
+    except BadInput as e:
         return fail(str(e))
     problem = check_define(define, args, model)
     if problem:

@@ -83,8 +83,8 @@ def run(cfg, args, input_doc, model, resumed: bool = False) -> int:
     if cfg.output.UDF:
         output = OutputUDF(args.output, args.define, input_doc, append=append)
         if append:
-            kept, dropped, last = output.truncate_after(model.time)
-            record_now = last is None or abs(last - model.time) > 1e-6 * max(1.0, model.time)
+            kept, dropped, last = output.truncate_after(model.step_index)
+            record_now = last is None or abs(last - model.step_index) > 0.5
             if not args.quiet:
                 print(f"#continuing at step {model.step_index} (t = {model.time:g}): appending "
                       f"to {args.output} ({kept} records kept"

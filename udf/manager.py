@@ -30,6 +30,10 @@ _BRACKET = re.compile(r"\[\s*(-?\d*)\s*\]")
 ALL = object()
 
 
+class AbsentItem(UDFError):
+    """An item the schema defines but the file holds no value for."""
+
+
 class Record:
     __slots__ = ("comment", "values")
 
@@ -195,7 +199,7 @@ class UDFManager:
         if name not in store:
             if not create and (is_global or self.path is not None):
                 where = "common data" if is_global else f"record {self.current}"
-                raise UDFError(f"{name!r} is absent from {self.path or 'this document'} "
+                raise AbsentItem(f"{name!r} is absent from {self.path or 'this document'} "
                                f"({where}): the schema defines it but the file holds no "
                                f"value; put() one first", path=path)
             store[name] = default(m.type, m.ndim)
@@ -340,8 +344,15 @@ class UDFManager:
         return np.array(_to_python(res)[0])
 
     def size(self, path: str, indices=None) -> int:
-        """Length of the array at ``path`` (``name`` or ``name[]`` both work)."""
-        res = self._walk(path, indices)
+        """Length of the array at ``path`` (``name`` or ``name[]`` both work); an array
+        item the file does not hold has none (0)."""
+        try:
+            res = self._walk(path, indices)
+        except AbsentItem:
+            m, _ = self.schema.item(self._parse(path, indices)[0][1])
+            if m is not None and m.ndim:
+                return 0
+            raise
         if res[0] == "array":
             _, arr, index, sub, remaining, mapped = res
             part = arr[index]
