@@ -42,11 +42,29 @@ class Record:
         self.values = values if values is not None else {}
 
 
+def user_mode() -> int:
+    """The mode a newly created file gets from the user's umask (0666 & ~umask)."""
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return 0o666 & ~mask
+
+
+def _temporary(path: str):
+    """(fd, name) of a new temporary file next to ``path`` with the user's file mode (mkstemp
+    alone makes it 0600, and the rename would keep that)."""
+    d = os.path.dirname(os.path.abspath(path))
+    fd, tmp = tempfile.mkstemp(prefix="." + os.path.basename(path) + ".", dir=d)
+    try:
+        os.fchmod(fd, user_mode())
+    except OSError:
+        pass
+    return fd, tmp
+
+
 def atomic_write_text(path: str, text) -> None:
     """Write ``text`` (a str, or a list of writer pieces) to ``path`` through a temporary
     file in the same directory and a rename: readers never see a half-written file."""
-    d = os.path.dirname(os.path.abspath(path))
-    fd, tmp = tempfile.mkstemp(prefix="." + os.path.basename(path) + ".", dir=d)
+    fd, tmp = _temporary(path)
     try:
         with os.fdopen(fd, "wb") as fh:
             if isinstance(text, str):
@@ -520,9 +538,8 @@ def _write_in_two_processes(doc: "UDFManager", target: str) -> None:
     """Format the records in two processes: a forked child writes the second half to its own
     temporary file, the parent the head and first half; the kernel then appends the child's
     file (copy_file_range) and the result is renamed into place."""
-    d = os.path.dirname(os.path.abspath(target))
     half = len(doc.records) // 2
-    fd_c, tmp_c = tempfile.mkstemp(prefix="." + os.path.basename(target) + ".", dir=d)
+    fd_c, tmp_c = _temporary(target)
     try:
         pid = os.fork()
         if pid == 0:
@@ -541,7 +558,7 @@ def _write_in_two_processes(doc: "UDFManager", target: str) -> None:
             head = doc.pieces()
         finally:
             doc.records = recs
-        fd, tmp = tempfile.mkstemp(prefix="." + os.path.basename(target) + ".", dir=d)
+        fd, tmp = _temporary(target)
         try:
             with os.fdopen(fd, "wb") as fh:
                 write_pieces(fh, head)
