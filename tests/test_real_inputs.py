@@ -129,3 +129,26 @@ def test_real_input_runs(path, tmp_path, monkeypatch, capsys):
     assert out.get("t") == 2.0                       # the record's t is its step
     restart = UDFManager("restart.udf")
     assert restart.get("resume.Calculation") != "NEW"
+
+
+def test_a_define_without_gr_masses_restarts_and_continues(tmp_path, monkeypatch):
+    """ex10's define.udf (v3.02) has no GR_masses[] / GR_moments_body[] in its restart
+    schema (a rigid run used to fail at the first restart write): restart.udf gets what the
+    schema holds, the state file the rest, and the run continues from them."""
+    import numpy as np
+    inp = run_copy(os.path.join(REAL, "ex10", "input_rigid_free1.udf"), tmp_path, steps=1)
+    monkeypatch.chdir(tmp_path)
+    flags = ["-Ooutput.udf", "-Ddefine.udf", "-Rrestart.udf", "--seed", "1", "--quiet"]
+    assert cli.main([f"-I{inp}", *flags]) == 0
+    with np.load("restart.udf.state.npz") as z:
+        assert z["Saved_Data.GR_masses"].shape == (1,)
+        assert z["Saved_Data.GR_moments_body"].shape == (1, 9)
+    rs = UDFManager("restart.udf")
+    assert rs.size("resume.CONTINUE.Saved_Data.GR_body[]") == 65
+    rs.put(2, "output.Num_snap")
+    rs.write("restart.udf")
+    assert cli.main(["-Irestart.udf", *flags]) == 0
+    out = UDFManager("output.udf")
+    assert out.totalRecord() == 3
+    out.jump(2)
+    assert out.get("t") == 2.0
