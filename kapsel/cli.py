@@ -151,10 +151,16 @@ def describe_setup(cfg) -> str:
     """What a run builds and about how much memory it takes (config.memory_estimate)."""
     from .config import _size, memory_estimate
     nx, ny, nz = cfg.mesh.shape
-    n = cfg.particles.count
-    return (f"{cfg.type} on a {nx} x {ny} x {nz} mesh"
-            + (f" with {n} {cfg.particles.object_type.replace('_', ' ')} beads" if n else "")
-            + f", about {_size(memory_estimate(cfg.mesh, cfg.type, n))} of memory")
+    p = cfg.particles
+    n = p.count
+    what = ""
+    if n and p.object_type == "spherical_particle":
+        what = f" with {n} particles"
+    elif n:
+        kind = "chains" if p.object_type == "chain" else "rigid bodies"
+        what = f" with {n} beads in {sum(s.number for s in p.species)} {kind}"
+    return (f"{cfg.type} on a {nx} x {ny} x {nz} mesh{what}, about "
+            f"{_size(memory_estimate(cfg.mesh, cfg.type, n))} of memory")
 
 
 def build_model(cfg, args, doc, resumed: bool):

@@ -103,8 +103,7 @@ def test_validate_builds_nothing_and_writes_nothing(tmp_path, monkeypatch):
     cfg, doc, define = cli.validate(path, "define.udf")
     assert cfg.type == "Navier_Stokes_Cahn_Hilliard_FDM" and define.schema.record_items
     assert sorted(os.listdir(tmp_path)) == ["define.udf", "input.udf", "kapsel_unit.udf"]
-    assert "32 x 32 x 32 mesh with 8 spherical particle beads, about" in \
-        cli.describe_setup(cfg)
+    assert "32 x 32 x 32 mesh with 8 particles, about" in cli.describe_setup(cfg)
 
 
 # ---- 5. units -------------------------------------------------------------------------
@@ -196,7 +195,7 @@ def test_a_slow_setup_says_what_it_builds(tmp_path, monkeypatch, capsys):
     assert cli.build_model(cfg, args, doc, resumed=False) == "model"
     err = capsys.readouterr().err
     assert "#setting up Navier_Stokes_Cahn_Hilliard_FDM on a 32 x 32 x 32 mesh with 8 " \
-           "spherical particle beads, about" in err and "of memory ..." in err
+           "particles, about" in err and "of memory ..." in err
     assert "#set-up done in" in err
 
 
