@@ -99,7 +99,8 @@ def place_bodies(offsets, radius, box, rng, candidates=64, attempts=200) -> np.n
                 break
         else:
             raise ValueError(f"could not place rigid body {g} ({len(off)} beads of radius "
-                             f"{radius:g}) without overlap in the box {tuple(L)}")
+                             f"{radius:g}) without overlap in the box "
+                             f"{' x '.join(f'{float(x):g}' for x in np.ravel(L))}")
     return centres
 
 
