@@ -69,7 +69,8 @@ class OutputUDF:
     def truncate_after(self, step: int) -> tuple[int, int, float | None]:
         """Drop the records later than ``step`` (those of a run being continued from an
         earlier restart; a record's ``t`` is its step, as the original writes it); returns
-        (records kept, records dropped, t of the last kept record or None).  The kept bytes are not rewritten except for the cut, which is
+        (records kept, records dropped, t of the last kept record or None).  The kept
+        bytes are not rewritten except for the cut, which is
         atomic."""
         old = UDFManager(self.path)
         times = []
