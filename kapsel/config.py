@@ -408,18 +408,21 @@ def from_document(doc: udf.UDFManager, input_path: str = "") -> RunConfig:
             phase = _phase_field(r, base)
 
     # ---- particles (A, A_XI and the positions are in units of DX: radius = A DX) -------
-    obj = r.get("object_type.type")
+    obj = None
+    with r.block():
+        obj = r.get("object_type.type")
     A = A_XI = None
     with r.block():
         A = r.positive("A")
     with r.block():
         A_XI = r.positive("A_XI")
     species = []
-    with r.block():
-        species = _species(r, obj)
+    if obj is not None:
+        with r.block():
+            species = _species(r, obj)
     scale = DX if DX is not None else 1.0
     particles = None
-    if A is not None and A_XI is not None:
+    if A is not None and A_XI is not None and obj is not None:
         particles = Particles(obj, tuple(species), A * scale, A_XI * scale)
     if eq_type in SHEAR_TYPES and obj != "spherical_particle" and sum(
             s.particles for s in species):
@@ -455,8 +458,9 @@ def from_document(doc: udf.UDFManager, input_path: str = "") -> RunConfig:
 
     # ---- switches ----------------------------------------------------------------------
     switches = None
-    with r.block():
-        switches = _switches(r, obj, species, mesh, particles)
+    if obj is not None:
+        with r.block():
+            switches = _switches(r, obj, species, mesh, particles)
 
     # ---- time, output, resume --------------------------------------------------------
     time = None
