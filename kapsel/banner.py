@@ -10,17 +10,14 @@ from __future__ import annotations
 import math
 
 
-
 def _g(x: float) -> str:
     return f"{float(x):.6g}"
 
 
 def memory_estimate(cfg) -> float:
-    """Peak bytes of the run: the per-point and per-particle figures the input check uses."""
+    """Peak bytes of the run: the figure the input check budgets with (config.py)."""
     from . import config
-    points = math.prod(cfg.mesh.shape)
-    per_point = config.BYTES_PER_POINT["phase" if cfg.has_phase_field else "fluid"]
-    return float(points) * per_point + float(cfg.particles.count) * config.BYTES_PER_PARTICLE
+    return config.memory_estimate(cfg.mesh, cfg.type, cfg.particles.count)
 
 
 def _solvers(cfg) -> str:

@@ -55,8 +55,14 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def fail(message: str, code: int = EXIT_BAD_INPUT) -> int:
-    print(f"kapsel-py: error: {message}", file=sys.stderr)
+    """Print each problem (one per line of ``message``) and return ``code``."""
+    for line in str(message).splitlines() or [""]:
+        print(f"kapsel-py: error: {line}", file=sys.stderr)
     return code
+
+
+class BadInput(Exception):
+    """What ``prepare`` found wrong: str() is one line per problem."""
 
 
 def single_threaded_blas() -> None:
@@ -128,46 +134,62 @@ def check_define(define, args, model) -> str | None:
     return None
 
 
-def prepare(args):
-    """Everything a run does before its first write: read the input and the -D schema,
-    build the configuration and the model (every check), check the output paths.
-    Returns the exit code of a refusal (the message printed), or
-    (cfg, doc, model, resumed, seed_drawn).  Writes nothing."""
-    if args.threads < 1:
-        return fail(f"--threads must be at least 1, got {args.threads}")
-    for flag, path in (("-I", args.input), ("-D", args.define)):
-        if not os.path.isfile(path):
-            return fail(f"{flag}{path}: no such file")
-
+def validate(input_path: str, define_path: str | None = None):
+    """Read and check an input as a run would, building nothing and writing nothing:
+    returns (cfg, input document, define document or None); raises BadInput listing every
+    problem of the input (one per line).  ``prepare`` goes on to build the model."""
     import udf
     from . import config, models  # noqa: F401  (models register their types)
     from .simulation import SOLVERS
     try:
-        doc = udf.UDFManager(args.input)
-        cfg = config.from_document(doc, args.input)
-        define = udf.UDFManager(args.define)  # the schema of output.udf and restart.udf
+        doc = udf.UDFManager(input_path)
+        cfg = config.from_document(doc, input_path)
+        define = udf.UDFManager(define_path) if define_path else None
     except (udf.UDFError, config.ConfigError) as e:
-        return fail(str(e))
-
+        raise BadInput(str(e)) from None
     if cfg.type not in SOLVERS:
-        return fail(f"constitutive_eq.type {cfg.type!r} is not implemented yet in kapsel-py "
-                    f"(implemented: {', '.join(sorted(SOLVERS)) or 'none'})")
-    problem = check_output_paths(args)
-    if problem:
-        return fail(problem)
-    resumed = cfg.resume.calculation != "NEW"
-    if not resumed and not args.overwrite:
-        targets = [(f"-O{args.output}", args.output), (f"-R{args.restart}", args.restart)]
-        from .io.writers import new_run_targets
-        targets += new_run_targets(cfg, args)
-        for what, path in targets:
-            if os.path.exists(path):
-                return fail(f"{what} exists; pass --overwrite to replace it (or continue a "
-                            f"run from its restart file)")
-    seed_drawn = args.seed is None
-    if args.seed is None:   # drawn here, reported once the input is known to be good
-        import secrets
-        args.seed = secrets.randbits(63)
+        raise BadInput(f"constitutive_eq.type {cfg.type!r} is not implemented yet in kapsel-py "
+                       f"(implemented: {', '.join(sorted(SOLVERS)) or 'none'})")
+    return cfg, doc, define
+
+
+def describe_setup(cfg) -> str:
+    """What a run builds and about how much memory it takes (config.memory_estimate)."""
+    from .config import _size, memory_estimate
+    nx, ny, nz = cfg.mesh.shape
+    p = cfg.particles
+    n = p.count
+    what = ""
+    if n and p.object_type == "spherical_particle":
+        what = f" with {n} particles"
+    elif n:
+        kind = "chains" if p.object_type == "chain" else "rigid bodies"
+        what = f" with {n} beads in {sum(s.number for s in p.species)} {kind}"
+    return (f"{cfg.type} on a {nx} x {ny} x {nz} mesh{what}, about "
+            f"{_size(memory_estimate(cfg.mesh, cfg.type, n))} of memory")
+
+
+def build_model(cfg, args, doc, resumed: bool):
+    """The model of ``cfg`` (the restart loaded when ``resumed``); raises BadInput.  When
+    building takes more than 2 s, says what is being built and its memory estimate."""
+    import threading
+    import time
+
+    import udf
+    from . import config
+    from .simulation import SOLVERS
+    started = time.perf_counter()
+    talked = threading.Event()
+
+    def talk():
+        talked.set()
+        print(f"#setting up {describe_setup(cfg)} ...", file=sys.stderr, flush=True)
+
+    timer = None
+    if not getattr(args, "quiet", False):
+        timer = threading.Timer(2.0, talk)
+        timer.daemon = True
+        timer.start()
     try:
         model = SOLVERS[cfg.type](cfg, args, doc)
         if resumed:
@@ -186,9 +208,51 @@ def prepare(args):
     except config.ConfigError as e:
         if not e.where:  # raised by a model: say where the item is in the input
             top = e.path.split(".")[0].split("[")[0] if e.path else ""
-            return fail(f"{doc.where(top) if top else args.input}: {e}")
-        return fail(str(e))
+            raise BadInput(f"{doc.where(top) if top else args.input}: {e}") from None
+        raise BadInput(str(e)) from None
     except udf.UDFError as e:
+        raise BadInput(str(e)) from None
+    finally:
+        if timer is not None:
+            timer.cancel()
+    if talked.is_set():
+        print(f"#set-up done in {time.perf_counter() - started:.1f} s", file=sys.stderr)
+    return model
+
+
+def prepare(args):
+    """Everything a run does before its first write: read the input and the -D schema,
+    build the configuration and the model (every check), check the output paths.
+    Returns the exit code of a refusal (the message printed), or
+    (cfg, doc, model, resumed, seed_drawn).  Writes nothing."""
+    if args.threads < 1:
+        return fail(f"--threads must be at least 1, got {args.threads}")
+    for flag, path in (("-I", args.input), ("-D", args.define)):
+        if not os.path.isfile(path):
+            return fail(f"{flag}{path}: no such file")
+    try:
+        cfg, doc, define = validate(args.input, args.define)
+    except BadInput as e:
+        return fail(str(e))
+    problem = check_output_paths(args)
+    if problem:
+        return fail(problem)
+    resumed = cfg.resume.calculation != "NEW"
+    if not resumed and not args.overwrite:
+        targets = [(f"-O{args.output}", args.output), (f"-R{args.restart}", args.restart)]
+        from .io.writers import new_run_targets
+        targets += new_run_targets(cfg, args)
+        for what, path in targets:
+            if os.path.exists(path):
+                return fail(f"{what} exists; pass --overwrite to replace it (or continue a "
+                            f"run from its restart file)")
+    seed_drawn = args.seed is None
+    if args.seed is None:   # drawn here, reported once the input is known to be good
+        import secrets
+        args.seed = secrets.randbits(63)
+    try:
+        model = build_model(cfg, args, doc, resumed)
+    except BadInput as e:
         return fail(str(e))
     problem = check_define(define, args, model)
     if problem:

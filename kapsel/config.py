@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import math
 import os
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -24,10 +25,23 @@ SHEAR_TYPES = ("Shear_Navier_Stokes", "Shear_Navier_Stokes_Lees_Edwards",
                "Shear_Navier_Stokes_Lees_Edwards_FDM", "Shear_NS_LE_CH_FDM")
 
 
+def plain(value):
+    """``value`` with numpy scalars and arrays turned into Python numbers and lists, so
+    messages say 256, not np.float64(256.0)."""
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    if isinstance(value, np.generic):
+        return value.item()
+    if isinstance(value, (list, tuple)):
+        return type(value)(plain(v) for v in value)
+    return value
+
+
 class ConfigError(Exception):
     """An invalid or unsupported input value: one line for the user."""
 
     def __init__(self, message: str, where: str = "", path: str = "", value=None):
+        value = plain(value)
         self.path, self.value, self.where = path, value, where
         text = ""
         if where:
@@ -35,6 +49,17 @@ class ConfigError(Exception):
         if path:
             text += path + (f" = {value!r}" if value is not None else "") + ": "
         super().__init__(text + message)
+
+
+class InputErrors(ConfigError):
+    """Every problem of an input, found before anything is built or written: str() is one
+    line per problem."""
+
+    def __init__(self, problems: list):
+        self.problems = list(problems)
+        first = self.problems[0]
+        self.path, self.value, self.where = first.path, first.value, first.where
+        Exception.__init__(self, "\n".join(str(p) for p in self.problems))
 
 
 @dataclass(frozen=True)
@@ -216,12 +241,28 @@ class RunConfig:
 
 # ---------------------------------------------------------------------------------------
 class _Reader:
-    """Reads values by path and remembers where they came from for messages."""
+    """Reads values by path, remembers where they came from for messages, and collects the
+    problems of the input so that the user gets all of them at once.
+
+    ``fail`` raises (the check that found it cannot go on); ``block()`` catches it and
+    records it, so the next, independent part of the input is still checked; ``report``
+    records and goes on; ``unsupported`` collects features kapsel-py does not have, named
+    together in one message by ``finish``."""
 
     def __init__(self, doc: udf.UDFManager):
         self.doc = doc
+        self.problems: list = []
+        self.unsupported: list = []     # (what, path, value, how to switch it off)
 
     def where(self, path: str) -> str:
+        """'file:line:col' of the value at ``path`` itself (of the item holding it when the
+        value cannot be located more closely)."""
+        try:
+            at = self.doc.value_where(path)
+        except UDFError:
+            at = None
+        if at is not None:
+            return f"{at[0]}:{at[1]}:{at[2]}"
         return self.doc.where(path.split(".")[0].split("[")[0])
 
     def get(self, path: str):
@@ -233,18 +274,56 @@ class _Reader:
         try:
             return self.doc.get(path)
         except UDFError as e:
+            if e.line is not None:      # a bad value of the file (a select outside its choices)
+                raise ConfigError(e.message, f"{e.file}:{e.line}:{e.column}") from None
             raise ConfigError(f"missing or unreadable in this input ({e.message})",
                               self.where(path), path) from None
 
     def has(self, path: str) -> bool:
+        """Whether the input's schema (its define.udf version) has ``path``: sections newer
+        than the define file are optional, as in the original (PHYSICS-EXTRA §1.2)."""
         try:
             self.doc.get(path)
             return True
-        except UDFError:
-            return False
+        except UDFError as e:
+            return e.line is not None   # present but bad: get() will say so
+
+    def optional(self, path: str, default):
+        return self.get(path) if self.has(path) else default
 
     def fail(self, path, value, message):
         raise ConfigError(message, self.where(path), path, value)
+
+    def report(self, path, value, message) -> None:
+        self.problems.append(ConfigError(message, self.where(path), path, value))
+
+    def unsupported_feature(self, what: str, path: str, value, off: str) -> None:
+        self.unsupported.append((what, path, plain(value), off))
+
+    @contextmanager
+    def block(self):
+        try:
+            yield
+        except ConfigError as e:
+            self.problems.append(e)
+
+    def finish(self) -> None:
+        """Raise every problem found (unsupported features first, in one line)."""
+        problems = list(self.problems)
+        if self.unsupported:
+            what, path, value, off = self.unsupported[0]
+            parts = []
+            for what, path, value, off in self.unsupported:
+                at = self.where(path)
+                parts.append(f"{what} ({path} = {value!r} at {':'.join(at.split(':')[-2:])}; "
+                             f"{off})")
+            problems.insert(0, ConfigError(
+                "not supported by kapsel-py (README, 'Not supported'): " + "; ".join(parts),
+                self.where(self.unsupported[0][1])))
+        if len(problems) == 1:
+            raise problems[0]
+        if problems:
+            raise InputErrors(problems)
 
     def positive(self, path):
         v = self.get(path)
@@ -266,242 +345,342 @@ class _Reader:
 
 
 def load(input_path: str) -> RunConfig:
-    """Read and validate ``input_path``; raises UDFError (syntax) or ConfigError (values)."""
+    """Read and validate ``input_path``; raises UDFError (syntax) or ConfigError (values;
+    InputErrors when there are several)."""
     doc = udf.UDFManager(input_path)
     return from_document(doc, input_path)
 
 
 def from_document(doc: udf.UDFManager, input_path: str = "") -> RunConfig:
+    """The run configuration of an input document.  Every check that needs no mesh or
+    particle arrays is done here, cheap ones first; all problems are raised together
+    (InputErrors), unsupported features named in one line."""
     r = _Reader(doc)
     _check_is_input(doc, input_path)
     eq_type = r.get("constitutive_eq.type")
     base = f"constitutive_eq.{eq_type}"
     if eq_type == "Electrolyte":
-        r.fail("constitutive_eq.type", eq_type,
-               "the Electrolyte type (charged particles) is not supported by kapsel-py")
+        r.unsupported_feature("the Electrolyte type (charged particles and ions)",
+                              "constitutive_eq.type", eq_type, "no other type replaces it")
 
     # ---- mesh ------------------------------------------------------------------------
-    nps = []
+    nps, DX = [], None
     for ax in ("NPX", "NPY", "NPZ"):
-        p = f"mesh.{ax}"
-        v = r.get(p)
-        if v < 1:
-            r.fail(p, v, "must be at least 1 (the mesh has 2^NP points per direction)")
-        if v > 12:
-            r.fail(p, v, "is too large (2^NP > 4096 points per direction)")
-        nps.append(v)
-    mesh = Mesh(*nps, DX=r.positive(f"{base}.DX"))
+        with r.block():
+            p = f"mesh.{ax}"
+            v = r.get(p)
+            if v < 1:
+                r.fail(p, v, "must be at least 1 (the mesh has 2^NP points per direction)")
+            if v > 12:
+                r.fail(p, v, "is too large (2^NP > 4096 points per direction)")
+            nps.append(v)
+    with r.block():
+        DX = r.positive(f"{base}.DX")
+    mesh = Mesh(*nps, DX=DX) if len(nps) == 3 and DX is not None else None
 
     # ---- fluid -----------------------------------------------------------------------
-    fl = dict(RHO=r.positive(f"{base}.RHO"), ETA=r.positive(f"{base}.ETA"),
-              kBT=r.non_negative(f"{base}.kBT"), alpha_v=r.non_negative(f"{base}.alpha_v"),
-              alpha_o=r.non_negative(f"{base}.alpha_o"))
-    if eq_type in FDM_TYPES:
-        sp = f"{base}.NS_solver"
-        fl["ns_solver"] = r.get(f"{sp}.type")
-        if fl["ns_solver"] == "implicit_scheme":
-            tol = r.finite(f"{sp}.implicit_scheme.tolerance")
-            _check_tolerance(r, f"{sp}.implicit_scheme.tolerance", tol)
-            fl["tolerance"] = 10.0 ** tol
-            it = r.get(f"{sp}.implicit_scheme.maximum_iteration")
-            if it < 1:
-                r.fail(f"{sp}.implicit_scheme.maximum_iteration", it, "must be at least 1")
-            fl["maximum_iteration"] = it
-            vc = f"{sp}.implicit_scheme.viscosity_change"
-            if eq_type in PHASE_TYPES and r.has(vc) and r.get(vc) == "ON":
-                fl["viscosity_change"] = True
-                fl["ETA_A"] = r.positive(f"{vc.rsplit('.', 1)[0]}.ON.ETA_A")
-                fl["ETA_B"] = r.positive(f"{vc.rsplit('.', 1)[0]}.ON.ETA_B")
-    fluid = Fluid(**fl)
+    fluid = None
+    with r.block():
+        fl = {}
+        for name, check in (("RHO", r.positive), ("ETA", r.positive), ("kBT", r.non_negative),
+                            ("alpha_v", r.non_negative), ("alpha_o", r.non_negative)):
+            with r.block():
+                fl[name] = check(f"{base}.{name}")
+        if eq_type in FDM_TYPES:
+            sp = f"{base}.NS_solver"
+            fl["ns_solver"] = r.get(f"{sp}.type")
+            if fl["ns_solver"] == "implicit_scheme":
+                with r.block():
+                    tol = r.finite(f"{sp}.implicit_scheme.tolerance")
+                    _check_tolerance(r, f"{sp}.implicit_scheme.tolerance", tol)
+                    fl["tolerance"] = 10.0 ** tol
+                with r.block():
+                    it = r.get(f"{sp}.implicit_scheme.maximum_iteration")
+                    if it < 1:
+                        r.fail(f"{sp}.implicit_scheme.maximum_iteration", it,
+                               "must be at least 1")
+                    fl["maximum_iteration"] = it
+                vc = f"{sp}.implicit_scheme.viscosity_change"
+                if eq_type in PHASE_TYPES and r.has(vc) and r.get(vc) == "ON":
+                    fl["viscosity_change"] = True
+                    fl["ETA_A"] = r.positive(f"{vc.rsplit('.', 1)[0]}.ON.ETA_A")
+                    fl["ETA_B"] = r.positive(f"{vc.rsplit('.', 1)[0]}.ON.ETA_B")
+        if all(k in fl for k in ("RHO", "ETA", "kBT", "alpha_v", "alpha_o")):
+            fluid = Fluid(**fl)
 
     # ---- shear -----------------------------------------------------------------------
     shear = None
     if eq_type in SHEAR_TYPES:
-        ef = f"{base}.External_field"
-        kind = r.get(f"{ef}.type")
-        rate = r.finite(f"{ef}.{kind}.Shear_rate")
-        freq = r.non_negative(f"{ef}.AC.Frequency") if kind == "AC" else 0.0
-        shear = Shear(kind, rate, freq)
+        with r.block():
+            ef = f"{base}.External_field"
+            kind = r.get(f"{ef}.type")
+            rate = r.finite(f"{ef}.{kind}.Shear_rate")
+            freq = r.non_negative(f"{ef}.AC.Frequency") if kind == "AC" else 0.0
+            shear = Shear(kind, rate, freq)
 
     # ---- phase field -----------------------------------------------------------------
     phase = None
     if eq_type in PHASE_TYPES:
-        cp = f"{base}.CH_solver"
-        ch = r.get(f"{cp}.type")
-        tol, it = 1e-9, 1000
-        if ch == "implicit_scheme":
+        with r.block():
+            phase = _phase_field(r, base)
+
+    # ---- particles (A, A_XI and the positions are in units of DX: radius = A DX) -------
+    obj = None
+    with r.block():
+        obj = r.get("object_type.type")
+    A = A_XI = None
+    with r.block():
+        A = r.positive("A")
+    with r.block():
+        A_XI = r.positive("A_XI")
+    species = []
+    if obj is not None:
+        with r.block():
+            species = _species(r, obj)
+    scale = DX if DX is not None else 1.0
+    particles = None
+    if A is not None and A_XI is not None and obj is not None:
+        particles = Particles(obj, tuple(species), A * scale, A_XI * scale)
+    if eq_type in SHEAR_TYPES and obj != "spherical_particle" and sum(
+            s.particles for s in species):
+        r.unsupported_feature(f"{obj} objects under shear (Lees-Edwards images of chains and "
+                              f"rigid bodies)", "object_type.type", obj,
+                              "sheared types take spherical_particle")
+    count = sum(s.particles for s in species)
+    if mesh is not None:
+        with r.block():     # before anything else about the mesh: a typo may ask for TBs
+            check_memory(r, mesh, eq_type, count)
+    if mesh is not None and particles is not None and count:
+        with r.block():
+            _check_particles_fit(r, mesh, particles)
+
+    # ---- interactions ----------------------------------------------------------------
+    inter = None
+    with r.block():
+        lj = r.get("LJ_powers")
+        if lj == "electro_osmotic_flow":
+            r.unsupported_feature("the electro-osmotic flow potential", "LJ_powers", lj,
+                                  "set 12:6, 24:12, 36:18 or macro_vdw")
+        inter = Interactions(EPSILON=r.non_negative("EPSILON"), LJ_powers=lj,
+                             LJ_truncate=r.get("switch.LJ_truncate"), G=r.finite("gravity.G"),
+                             G_direction=r.get("gravity.G_direction"))
+        if obj == "chain" and count:
+            # FENE bonds (kapsel.particles.chains) scale with EPSILON and need the LJ repulsion
+            if inter.EPSILON <= 0:
+                r.report("EPSILON", inter.EPSILON, "chains need EPSILON > 0 (the FENE bond "
+                                                   "constant is 30 EPSILON / (2 A)^2)")
+            if inter.LJ_truncate == "NONE":
+                r.report("switch.LJ_truncate", "NONE", "chains need the excluded volume of the "
+                                                       "LJ forces (ON or OFF)")
+
+    # ---- switches ----------------------------------------------------------------------
+    switches = None
+    if obj is not None:
+        with r.block():
+            switches = _switches(r, obj, species, mesh, particles)
+
+    # ---- time, output, resume --------------------------------------------------------
+    time = None
+    with r.block():
+        kind = r.get("time_increment.type")
+        if kind == "auto":
+            time = TimeIncrement("auto", factor=r.positive("time_increment.auto.factor"))
+        else:
+            time = TimeIncrement("manual", delta_t=r.positive("time_increment.manual.delta_t"))
+        if fluid is not None and mesh is not None:
+            _check_time_step(r, time, fluid, mesh)
+    output = None
+    with r.block():
+        gts, nsnap = r.get("output.GTS"), r.get("output.Num_snap")
+        if gts < 1:
+            r.report("output.GTS", gts, "must be at least 1 (steps between snapshots)")
+        if nsnap < 1:
+            r.report("output.Num_snap", nsnap,
+                     "must be at least 1 (the run is GTS x Num_snap steps)")
+        avs = r.get("output.AVS") == "ON"
+        fields = _field_output(r, mesh) if avs and mesh is not None else None
+        output = Output(gts, nsnap, r.get("output.UDF") == "ON", avs, fields)
+    resume = None
+    with r.block():
+        resume = Resume(r.get("resume.Calculation"))
+    r.finish()
+    return RunConfig(type=eq_type, mesh=mesh, fluid=fluid, particles=particles,
+                     interactions=inter, switches=switches, time=time, output=output,
+                     resume=resume, phase=phase, shear=shear, input_path=input_path)
+
+
+def _phase_field(r: _Reader, base: str) -> PhaseField:
+    cp = f"{base}.CH_solver"
+    ch = r.get(f"{cp}.type")
+    tol, it = 1e-9, 1000
+    if ch == "implicit_scheme":
+        with r.block():
             t = r.finite(f"{cp}.implicit_scheme.tolerance")
             _check_tolerance(r, f"{cp}.implicit_scheme.tolerance", t)
             tol = 10.0 ** t
+        with r.block():
             it = r.get(f"{cp}.implicit_scheme.maximum_iteration")
             if it < 1:
                 r.fail(f"{cp}.implicit_scheme.maximum_iteration", it, "must be at least 1")
-        pot = r.get(f"{base}.Potential.type")
-        pp = f"{base}.Potential.{pot}"
-        common = dict(composition_ratio=r.finite(f"{pp}.composition_ratio"),
-                      initial_fluctuation=r.non_negative(f"{pp}.initial_fluctuation"),
-                      d=r.finite(f"{pp}.d"), w=r.finite(f"{pp}.w"),
-                      alpha=r.non_negative(f"{pp}.alpha"), kappa=r.positive(f"{pp}.kappa"))
-        for extra in ("k", "z"):  # walls and fluid-interface penalties of newer define.udf
-            if r.has(f"{pp}.{extra}") and r.get(f"{pp}.{extra}") != 0:
-                r.fail(f"{pp}.{extra}", r.get(f"{pp}.{extra}"),
-                       "is not supported by kapsel-py (set it to 0)")
-        if pot == "Landau":
-            phase = PhaseField(ch, tol, it, pot, a=r.finite(f"{pp}.a"), b=r.finite(f"{pp}.b"),
-                               **common)
-        else:
-            phase = PhaseField(ch, tol, it, pot, na=r.positive(f"{pp}.na"),
-                               nb=r.positive(f"{pp}.nb"), chi=r.finite(f"{pp}.chi"), **common)
-            c = phase.composition_ratio
-            if not 0 < c < 1:
-                r.fail(f"{pp}.composition_ratio", c,
-                       "must lie strictly between 0 and 1 for the Flory-Huggins potential "
-                       "(psi is a volume fraction)")
+    pot = r.get(f"{base}.Potential.type")
+    pp = f"{base}.Potential.{pot}"
+    common = dict(composition_ratio=r.finite(f"{pp}.composition_ratio"),
+                  initial_fluctuation=r.non_negative(f"{pp}.initial_fluctuation"),
+                  d=r.finite(f"{pp}.d"), w=r.finite(f"{pp}.w"),
+                  alpha=r.non_negative(f"{pp}.alpha"), kappa=r.positive(f"{pp}.kappa"))
+    # the wetting terms the original reads when the define declares them (PHYSICS-EXTRA
+    # §1.3); `k` of the shipped define.udf is never read by the original, nor here
+    for extra in ("z", "w_wall"):
+        if r.has(f"{pp}.{extra}") and r.get(f"{pp}.{extra}") != 0:
+            r.unsupported_feature(f"the {pot} wetting term {extra}", f"{pp}.{extra}",
+                                  r.get(f"{pp}.{extra}"), "set it to 0")
+    if pot == "Landau":
+        return PhaseField(ch, tol, it, pot, a=r.finite(f"{pp}.a"), b=r.finite(f"{pp}.b"),
+                          **common)
+    phase = PhaseField(ch, tol, it, pot, na=r.positive(f"{pp}.na"),
+                       nb=r.positive(f"{pp}.nb"), chi=r.finite(f"{pp}.chi"), **common)
+    c = phase.composition_ratio
+    if not 0 < c < 1:
+        r.fail(f"{pp}.composition_ratio", c,
+               "must lie strictly between 0 and 1 for the Flory-Huggins potential "
+               "(psi is a volume fraction)")
+    return phase
 
-    # ---- particles -------------------------------------------------------------------
-    obj = r.get("object_type.type")
-    A = r.positive("A")
-    A_XI = r.positive("A_XI")
+
+def _species(r: _Reader, obj: str) -> list:
+    """The species of the object type in use (the other types' specs are not read)."""
+    doc = r.doc
     species = []
     if obj == "spherical_particle":
         sp = "object_type.spherical_particle.Particle_spec"
         for i in range(doc.size(f"{sp}[]")):
             p = f"{sp}[{i}]"
-            n = r.get(f"{p}.Particle_number")
-            if n < 0:
-                r.fail(f"{p}.Particle_number", n, "must be zero or positive")
-            for opt, off in (("janus_axis", "NONE"), ("janus_propulsion", "OFF")):
-                if r.has(f"{p}.{opt}") and r.get(f"{p}.{opt}") != off and n > 0:
-                    r.fail(f"{p}.{opt}", r.get(f"{p}.{opt}"),
-                           f"self-propelled (janus) particles are not supported by kapsel-py; "
-                           f"set it to {off}")
-            species.append(Species(n, 1, r.positive(f"{p}.MASS_RATIO"),
-                                   r.get(f"{p}.Surface_charge")))
-    elif obj == "chain":
+            with r.block():
+                n = r.get(f"{p}.Particle_number")
+                if n < 0:
+                    r.fail(f"{p}.Particle_number", n, "must be zero or positive")
+                prop = r.optional(f"{p}.janus_propulsion", "OFF")
+                if prop != "OFF" and n > 0:
+                    r.unsupported_feature("self-propelled (janus) particles",
+                                          f"{p}.janus_propulsion", prop, "set it to OFF")
+                species.append(Species(n, 1, r.positive(f"{p}.MASS_RATIO"),
+                                       r.get(f"{p}.Surface_charge")))
+    elif obj == "chain":       # chains: the original forces janus propulsion OFF
         sp = "object_type.chain.Chain_spec"
         for i in range(doc.size(f"{sp}[]")):
             p = f"{sp}[{i}]"
-            nb, nc = r.get(f"{p}.Beads_number"), r.get(f"{p}.Chain_number")
-            if nb < 1 or nc < 0:
-                r.fail(f"{p}", [nb, nc], "Beads_number must be >= 1 and Chain_number >= 0")
-            if r.has(f"{p}.janus_axis") and r.get(f"{p}.janus_axis") != "NONE" and nc > 0:
-                r.fail(f"{p}.janus_axis", r.get(f"{p}.janus_axis"),
-                       "self-propelled (janus) chain beads are not supported by kapsel-py; "
-                       "set it to NONE")
-            species.append(Species(nc, nb, r.positive(f"{p}.MASS_RATIO"),
-                                   r.get(f"{p}.Surface_charge")))
+            with r.block():
+                nb, nc = r.get(f"{p}.Beads_number"), r.get(f"{p}.Chain_number")
+                if nb < 1 or nc < 0:
+                    r.fail(f"{p}", [nb, nc], "Beads_number must be >= 1 and Chain_number >= 0")
+                species.append(Species(nc, nb, r.positive(f"{p}.MASS_RATIO"),
+                                       r.get(f"{p}.Surface_charge")))
     else:
         sp = "object_type.rigid.Rigid_spec"
         for i in range(doc.size(f"{sp}[]")):
             p = f"{sp}[{i}]"
-            nb, nc = r.get(f"{p}.Beads_number"), r.get(f"{p}.Chain_number")
-            if nb < 1 or nc < 0:
-                r.fail(f"{p}", [nb, nc], "Beads_number must be >= 1 and Chain_number >= 0")
-            species.append(Species(nc, nb, r.positive(f"{p}.MASS_RATIO"),
-                                   r.get(f"{p}.Surface_charge"),
-                                   rigid_motion=r.get(f"{p}.Rigid_motion"),
-                                   rigid_velocity=tuple(r.get(f"{p}.Rigid_velocity")),
-                                   rigid_omega=tuple(r.get(f"{p}.Rigid_omega"))))
-    particles = Particles(obj, tuple(species), A, A_XI)
-    check_memory(r, mesh, eq_type, particles.count)
+            with r.block():
+                nb, nc = r.get(f"{p}.Beads_number"), r.get(f"{p}.Chain_number")
+                if nb < 1 or nc < 0:
+                    r.fail(f"{p}", [nb, nc], "Beads_number must be >= 1 and Chain_number >= 0")
+                species.append(Species(nc, nb, r.positive(f"{p}.MASS_RATIO"),
+                                       r.get(f"{p}.Surface_charge"),
+                                       rigid_motion=r.get(f"{p}.Rigid_motion"),
+                                       rigid_velocity=tuple(r.get(f"{p}.Rigid_velocity")),
+                                       rigid_omega=tuple(r.get(f"{p}.Rigid_omega"))))
+    return species
+
+
+def _check_particles_fit(r: _Reader, mesh: Mesh, particles: Particles) -> None:
+    """Particles of radius A DX must fit in the box N DX, and their volume fraction must be
+    possible.  (Checked on the numbers alone: nothing is allocated.)"""
     box = mesh.box
-    if particles.count:
-        if 2 * A >= box.min():
-            r.fail("A", A, f"a particle of diameter {2 * A:g} does not fit in the box "
-                           f"{' x '.join(f'{x:g}' for x in box)}")
-        fraction = particles.count * (4 / 3) * math.pi * A ** 3 / math.prod(box.tolist())
-        if fraction > 0.74:
-            r.fail("object_type", particles.count,
-                   f"{particles.count} particles of radius {A:g} cannot fit in the box "
-                   f"(volume fraction {fraction:.2f} > 0.74, the densest packing)")
+    a = particles.A
+    n = particles.count
+    if 2 * a >= box.min():
+        r.fail("A", r.get("A"), f"a particle of diameter 2 A DX = {2 * a:g} does not fit in "
+                                f"the box {_dims(box)}")
+    fraction = n * (4 / 3) * math.pi * math.prod(a / L for L in box.tolist())
+    if fraction > 0.74:
+        r.fail("object_type", n, f"{n} particles of radius A DX = {a:g} cannot fit in the box "
+                                 f"{_dims(box)} (volume fraction {fraction:.3g} > 0.74, the "
+                                 f"densest packing)")
 
-    # ---- interactions ----------------------------------------------------------------
-    inter = Interactions(EPSILON=r.non_negative("EPSILON"), LJ_powers=r.get("LJ_powers"),
-                         LJ_truncate=r.get("switch.LJ_truncate"), G=r.finite("gravity.G"),
-                         G_direction=r.get("gravity.G_direction"))
-    if obj == "chain" and particles.count:
-        # FENE bonds (kapsel.particles.chains) scale with EPSILON and need the LJ repulsion
-        if inter.EPSILON <= 0:
-            r.fail("EPSILON", inter.EPSILON, "chains need EPSILON > 0 (the FENE bond constant "
-                                             "is 30 EPSILON / (2 A)^2)")
-        if inter.LJ_truncate == "NONE":
-            r.fail("switch.LJ_truncate", "NONE", "chains need the excluded volume of the LJ "
-                                                 "forces (ON or OFF)")
 
-    # ---- switches ----------------------------------------------------------------------
+def _dims(box) -> str:
+    return " x ".join(f"{float(x):g}" for x in box)
+
+
+def _switches(r: _Reader, obj: str, species: list, mesh, particles) -> Switches:
+    doc = r.doc
+    count = sum(s.particles for s in species)
+    box = mesh.box if mesh is not None else None
     dist = r.get("switch.INIT_distribution.type")
     rw = r.get("switch.INIT_distribution.random_walk.iteration")
     if dist == "random_walk" and rw < 0:
-        r.fail("switch.INIT_distribution.random_walk.iteration", rw, "must be zero or positive")
+        r.report("switch.INIT_distribution.random_walk.iteration", rw,
+                 "must be zero or positive")
     user = np.asarray(doc.getArray("switch.INIT_distribution.user_specify.Particles[]"),
                       dtype=float).reshape(-1, 13)
-    if obj != "spherical_particle" and dist in ("FCC", "BCC") and particles.count:
-        r.fail("switch.INIT_distribution.type", dist,
-               f"lattice placement is for spherical particles; {obj} objects are placed by "
-               f"uniform_random / random_walk (random, non-overlapping) or user_specify")
-    if dist == "user_specify" and particles.count and len(user) < particles.count:
-        r.fail("switch.INIT_distribution.user_specify.Particles[]", len(user),
-               f"user_specify needs one entry per particle ({particles.count} particles)")
-    if dist == "user_specify" and particles.count:
-        _check_user_positions(r, user[:particles.count], box, A)
+    user_path = "switch.INIT_distribution.user_specify.Particles[]"
+    if obj != "spherical_particle" and dist in ("FCC", "BCC") and count:
+        r.report("switch.INIT_distribution.type", dist,
+                 f"lattice placement is for spherical particles; {obj} objects are placed by "
+                 f"uniform_random / random_walk (random, non-overlapping) or user_specify")
+    if dist == "user_specify" and count and len(user) < count:
+        r.report(user_path, len(user),
+                 f"user_specify needs one entry per particle ({count} particles)")
+    elif dist == "user_specify" and count and box is not None and particles is not None:
+        with r.block():
+            groups = None
+            if obj == "rigid":     # beads of one body may overlap by design (ex10)
+                groups = np.repeat(np.arange(sum(s.number for s in species)),
+                                   [s.beads for s in species for _ in range(s.number)])
+            _check_user_positions(r, user[:count], box, particles.A, groups)
+    if obj == "rigid" and count and box is not None and particles is not None:
+        with r.block():
+            _check_bodies_fit(r, species, user[:count] if dist == "user_specify" and
+                              len(user) >= count else None, box, particles.A,
+                              r.get("switch.INIT_orientation"))
     pin, pin_rot = (), ()
-    if r.has("switch.pin.type") and r.get("switch.pin.type") == "YES":
+    if r.optional("switch.pin.type", "NO") == "YES":
         pin = tuple(r.get("switch.pin.YES.pin[]"))
         pin_rot = tuple(r.get("switch.pin.YES.pin_rot[]"))
         for p_, ids in (("switch.pin.YES.pin[]", pin), ("switch.pin.YES.pin_rot[]", pin_rot)):
-            bad = [i for i in ids if not 0 <= i < particles.count]
-            if bad and not particles.count:
-                r.fail(p_, bad, "pins particles but the input has none (Particle_number 0); "
-                                "set switch.pin to NO")
-            if bad:
-                r.fail(p_, bad, f"particle ids must lie in 0..{particles.count - 1}")
+            bad = [i for i in ids if not 0 <= i < count]
+            if bad and not count:
+                r.report(p_, bad, "pins particles but the input has none (Particle_number 0); "
+                                  "set switch.pin to NO")
+            elif bad:
+                r.report(p_, bad, f"particle ids must lie in 0..{count - 1}")
         if obj == "rigid" and (pin or pin_rot):
-            r.fail("switch.pin.type", "YES", "pinning is for spherical particles and chain "
-                                             "beads; hold rigid bodies with Rigid_motion fix "
-                                             "or switch.free_rigid")
+            r.report("switch.pin.type", "YES", "pinning is for spherical particles and chain "
+                                               "beads; hold rigid bodies with Rigid_motion fix "
+                                               "or switch.free_rigid")
     free_rigid = ()
-    if r.has("switch.free_rigid.type") and r.get("switch.free_rigid.type") == "YES":
-        if obj != "rigid":
-            r.fail("switch.free_rigid.type", "YES", "free_rigid applies to object_type rigid "
-                                                    "only; set it to NO")
+    if obj == "rigid" and r.optional("switch.free_rigid.type", "NO") == "YES":
+        # read for spheres and chains too by the original, but only acting on rigid bodies
         rows = []
         for k, dof in enumerate(r.get("switch.free_rigid.YES.DOF[]")):
             sid, vel, om = dof
             if not 0 <= sid < len(species):
-                r.fail(f"switch.free_rigid.YES.DOF[{k}].spec_id", sid,
-                       f"must be a Rigid_spec index, 0..{len(species) - 1}")
+                r.report(f"switch.free_rigid.YES.DOF[{k}].spec_id", sid,
+                         f"must be a Rigid_spec index, 0..{len(species) - 1}")
+                continue
             rows.append((sid, tuple(x == "YES" for x in vel), tuple(x == "YES" for x in om)))
         free_rigid = tuple(rows)
-    for opt, off in (("switch.wall.type", "NONE"), ("switch.quincke.type", "OFF"),
-                     ("switch.multipole.type", "OFF")):
-        if r.has(opt) and r.get(opt) != off:
-            r.fail(opt, r.get(opt), f"is not supported by kapsel-py; set it to {off}")
+    for opt, off, what in (("switch.wall.type", "NONE", "flat walls"),
+                           ("switch.quincke.type", "OFF", "Quincke rotation"),
+                           ("switch.multipole.type", "OFF", "multipole (dipole) interactions")):
+        v = r.optional(opt, off)
+        if v != off:
+            r.unsupported_feature(what, opt, v, f"set it to {off}")
     fix = tuple(r.get(f"switch.FIX_CELL.{ax}") == "ON" for ax in "xyz")
-    switches = Switches(ROTATION=r.get("switch.ROTATION") == "ON", init_distribution=dist,
-                        random_walk_iterations=rw, user_particles=user,
-                        init_orientation=r.get("switch.INIT_orientation"), fix_cell=fix,
-                        pin=pin, pin_rot=pin_rot, free_rigid=free_rigid,
-                        OBL_INT=r.get("switch.ns_solver.OBL_INT"))
-
-    # ---- time, output, resume --------------------------------------------------------
-    kind = r.get("time_increment.type")
-    if kind == "auto":
-        time = TimeIncrement("auto", factor=r.positive("time_increment.auto.factor"))
-    else:
-        time = TimeIncrement("manual", delta_t=r.positive("time_increment.manual.delta_t"))
-    _check_time_step(r, time, fluid, mesh)
-    gts, nsnap = r.get("output.GTS"), r.get("output.Num_snap")
-    if gts < 1:
-        r.fail("output.GTS", gts, "must be at least 1 (steps between snapshots)")
-    if nsnap < 1:
-        r.fail("output.Num_snap", nsnap, "must be at least 1 (the run is GTS x Num_snap steps)")
-    avs = r.get("output.AVS") == "ON"
-    output = Output(gts, nsnap, r.get("output.UDF") == "ON", avs,
-                    _field_output(r, mesh) if avs else None)
-    resume = Resume(r.get("resume.Calculation"))
-    return RunConfig(type=eq_type, mesh=mesh, fluid=fluid, particles=particles,
-                     interactions=inter, switches=switches, time=time, output=output,
-                     resume=resume, phase=phase, shear=shear, input_path=input_path)
+    obl = r.optional("switch.ns_solver.OBL_INT", "linear")
+    return Switches(ROTATION=r.get("switch.ROTATION") == "ON", init_distribution=dist,
+                    random_walk_iterations=rw, user_particles=user,
+                    init_orientation=r.get("switch.INIT_orientation"), fix_cell=fix,
+                    pin=pin, pin_rot=pin_rot, free_rigid=free_rigid, OBL_INT=obl)
 
 
 def _field_output(r: _Reader, mesh: Mesh) -> FieldOutput:
@@ -576,12 +755,17 @@ def _size(nbytes: float) -> str:
     return f"{nbytes / 2 ** 10:.3g} kB"
 
 
+def memory_estimate(mesh: Mesh, eq_type: str, n_particles: int) -> float:
+    """Peak bytes of a run (BYTES_PER_POINT, BYTES_PER_PARTICLE)."""
+    points = float(np.prod(mesh.shape, dtype=float))
+    return points * BYTES_PER_POINT["phase" if eq_type in PHASE_TYPES else "fluid"] \
+        + float(n_particles) * BYTES_PER_PARTICLE
+
+
 def check_memory(r: _Reader, mesh: Mesh, eq_type: str, n_particles: int) -> None:
     """Refuse a mesh (or particle count) whose run would not fit in memory: a typo such as
     NPX = 12 must not start a run that swaps for hours."""
-    points = float(np.prod(mesh.shape, dtype=float))
-    need = points * BYTES_PER_POINT["phase" if eq_type in PHASE_TYPES else "fluid"] \
-        + float(n_particles) * BYTES_PER_PARTICLE
+    need = memory_estimate(mesh, eq_type, n_particles)
     limit = memory_limit()
     if need > limit:
         nx, ny, nz = mesh.shape
@@ -603,9 +787,11 @@ def _check_is_input(doc: udf.UDFManager, input_path: str) -> None:
                           where)
 
 
-def _check_user_positions(r: _Reader, user: np.ndarray, box: np.ndarray, A: float) -> None:
+def _check_user_positions(r: _Reader, user: np.ndarray, box: np.ndarray, A: float,
+                          groups=None) -> None:
     """user_specify rows must be finite and the particles must not overlap deeply (closer
-    than half the contact distance 2A, where the run's overlap guard would stop it)."""
+    than half the contact distance 2A, where the run's overlap guard would stop it).
+    ``groups``: the body of each bead (rigid bodies): beads of one body may overlap."""
     path = "switch.INIT_distribution.user_specify.Particles[]"
     bad = np.flatnonzero(~np.isfinite(user).all(axis=1))
     if bad.size:
@@ -615,11 +801,45 @@ def _check_user_positions(r: _Reader, user: np.ndarray, box: np.ndarray, A: floa
         d = R[i + 1:] - R[i]
         d -= box * np.round(d / box)
         r2 = np.einsum("ij,ij->i", d, d)
+        if groups is not None:
+            r2[groups[i + 1:] == groups[i]] = np.inf
         j = int(np.argmin(r2))
         if r2[j] < A * A:
+            what = f"particles {i} and {i + 1 + j}" if groups is None else \
+                f"beads {i} and {i + 1 + j} of rigid bodies {int(groups[i])} and " \
+                f"{int(groups[i + 1 + j])}"
             r.fail(path, [R[i].tolist(), R[i + 1 + j].tolist()],
-                   f"particles {i} and {i + 1 + j} are {math.sqrt(r2[j]):.3g} apart, less than "
-                   f"half the contact distance 2A = {2 * A:g} (they overlap)")
+                   f"{what} are {math.sqrt(r2[j]):.3g} apart, less than half the contact "
+                   f"distance 2A = {2 * A:g} (they overlap)")
+
+
+def _check_bodies_fit(r: _Reader, species, user, box: np.ndarray, A: float,
+                      orientation: str) -> None:
+    """Every rigid body must fit in the box: user_specify shapes by their actual extent
+    (the span of their beads plus a diameter, along each axis), the program's straight
+    rods of touching beads by their length 2A x beads (along x for space_align, in any
+    direction otherwise)."""
+    beads = [s.beads for s in species for _ in range(s.number)]
+    if user is not None:
+        at = 0
+        for b, nb in enumerate(beads):
+            R = user[at:at + nb, 0:3]
+            at += nb
+            extent = R.max(axis=0) - R.min(axis=0) + 2 * A
+            if (extent >= box).any():
+                r.fail("switch.INIT_distribution.user_specify.Particles[]", None,
+                       f"rigid body {b} ({nb} beads of radius {A:g}) spans "
+                       f"{_dims(extent)}, more than the box {_dims(box)} along "
+                       f"{'xyz'[int(np.argmax(extent >= box))]}")
+        return
+    longest = max(beads)
+    room = box[0] if orientation == "space_align" else box.min()
+    if longest * 2 * A >= room:
+        r.fail("object_type.rigid.Rigid_spec", None,
+               f"a rigid body of {longest} beads of radius {A:g} is a rod of length "
+               f"{longest * 2 * A:g}, which does not fit in the box {_dims(box)}"
+               + (" along x (INIT_orientation space_align)" if orientation == "space_align"
+                  else ""))
 
 
 def _check_tolerance(r: _Reader, path: str, exponent: float) -> None:
@@ -637,10 +857,11 @@ def _check_time_step(r: _Reader, time: TimeIncrement, fluid: Fluid, mesh: Mesh) 
         return
     from .timestep import auto_dt
     try:
-        dt = auto_dt(time.factor, fluid.RHO, fluid.ETA, mesh.DX)
+        dt = auto_dt(time.factor, fluid.RHO, fluid.ETA, mesh.DX, mesh.shape)
     except (ZeroDivisionError, OverflowError):
         dt = float("nan")
     if not (dt > 0 and math.isfinite(dt)):
         r.fail("time_increment.auto.factor", time.factor,
-               f"the automatic time step factor * RHO / (ETA (pi/DX)^2) with RHO = {fluid.RHO:g}, "
-               f"ETA = {fluid.ETA:g}, DX = {mesh.DX:g} is not a finite positive time step")
+               f"the automatic time step factor RHO / (ETA KMAX2) (FORMAT.md) with "
+               f"RHO = {fluid.RHO:g}, ETA = {fluid.ETA:g}, DX = {mesh.DX:g} is not a finite "
+               f"positive time step")

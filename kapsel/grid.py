@@ -53,7 +53,7 @@ class Grid:
     k2 : |k|^2 (cshape);  inv_k2 : 1/|k|^2 with 0 at k = 0
     dealias : 2/3-rule mask (cshape, bool): keeps |m_a| <= (N_a - 1) // 3 on every axis
         (``dealias_f``: the same as float 0/1)
-    k_max : pi / DX, the Nyquist wavenumber (``kapsel.timestep.auto_dt``);  k_trunc : largest
+    k_max : pi / DX, the Nyquist wavenumber;  k_trunc : largest
         wavenumber along one axis kept by the 2/3 rule
     volume : Lx Ly Lz
     """
@@ -317,10 +317,10 @@ class Grid:
 
     # ------------------------------------------------------------------ time step
     def auto_dt(self, factor, rho, eta):
-        """Automatic time step (manual §5.5), ``kapsel.timestep.auto_dt`` at this DX:
-        dt = factor RHO / (ETA k_max^2), k_max = pi / DX."""
+        """Automatic time step (manual §5.5), ``kapsel.timestep.auto_dt`` on this mesh:
+        dt = factor RHO / (ETA KMAX2) (FORMAT.md)."""
         from .timestep import auto_dt
-        return auto_dt(factor, rho, eta, self.dx)
+        return auto_dt(factor, rho, eta, self.dx, self.shape)
 
     def __repr__(self):
         return f"Grid(shape={self.shape}, dx={self.dx}, threads={self.threads})"

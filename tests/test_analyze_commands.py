@@ -54,6 +54,7 @@ def test_erotate_two_bodies(tmp_path, capsys):
     u.put([[2, 2, 1.0, 0.0, "free", [0.0, 0.0, 0.0], [0.0, 0.0, 0.0]]],
           "object_type.rigid.Rigid_spec[]")
     u.newRecord()
+    u.put(0.0, "t")                      # every output.udf record has its t
     P = np.zeros((4, 34))
     P[:, 3:6] = [[0, 0, 0], [2, 0, 0], [10, 10, 10], [10, 12, 10]]  # R_raw
     u.put(P, "Particles[]")

@@ -131,20 +131,20 @@ def test_pinned_chain_bead_stays(tmp_path):
     (dict(EPSILON=0.0), "EPSILON"),
     (dict(switch__LJ_truncate="NONE"), "switch.LJ_truncate"),
     (dict(switch__INIT_distribution__type="BCC"), "switch.INIT_distribution.type"),
-    (dict(switch__free_rigid__type="YES"), "switch.free_rigid.type"),
 ])
 def test_unsupported_chain_options_are_named(tmp_path, puts, path):
     with pytest.raises(config.ConfigError, match=path):
         config.load(chain_input(tmp_path, **puts))
 
 
-def test_janus_chains_are_refused(tmp_path):
+def test_janus_axis_of_chains_is_accepted(tmp_path):
+    """The original reads a chain's janus_axis but forces its propulsion OFF
+    (PHYSICS-EXTRA §1.2): an axis alone propels nothing, so the input runs."""
     path = chain_input(tmp_path)
     u = UDFManager(path)
     u.put("Z", "object_type.chain.Chain_spec[0].janus_axis")
     u.write(path)
-    with pytest.raises(config.ConfigError, match=r"Chain_spec\[0\].janus_axis"):
-        config.load(path)
+    assert config.load(path).particles.object_type == "chain"
 
 
 @pytest.mark.parametrize("eq", ["Navier_Stokes", "Navier_Stokes_FDM"])

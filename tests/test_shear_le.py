@@ -396,4 +396,5 @@ def test_chains_under_lees_edwards_are_refused(tmp_path, capsys, eq):
     u.write(inp)
     assert cli(tmp_path, inp) == 2
     err = capsys.readouterr().err
-    assert "object_type.type = 'chain'" in err and "spherical particles only" in err
+    assert "object_type.type = 'chain'" in err and "not supported by kapsel-py" in err
+    assert "sheared types take spherical_particle" in err

@@ -7,6 +7,13 @@ from kapsel.grid import Grid
 from kapsel.timestep import auto_dt
 
 
+def measured_dt(factor, rho, eta, dx):
+    """The time step these measurements were made at: factor RHO / (ETA (pi / DX)^2).  (Not
+    the automatic time step of a run, kapsel.timestep.auto_dt; a fixed dt keeps the tables
+    in the comments valid.)"""
+    return factor * rho / (eta * (np.pi / dx) ** 2)
+
+
 def taylor_green(grid, U=0.1):
     x, y, z = grid.coordinates()
     k = 2 * np.pi / grid.box[0]
@@ -71,11 +78,19 @@ def test_grid_wavenumbers_dealias_volume():
     np.testing.assert_allclose(g2.k2, g2.kx ** 2 + g2.ky ** 2 + g2.kz ** 2)
 
 
-def test_auto_dt():
-    assert auto_dt(1.0, 1.0, 1.0, 1.0) == pytest.approx(1 / np.pi ** 2)
-    assert auto_dt(0.5, 2.0, 4.0, 0.5) == pytest.approx(0.5 * 2.0 / (4.0 * (np.pi / 0.5) ** 2))
+def test_auto_dt_is_the_originals():
+    """FORMAT.md: dt = factor / (NU KMAX2), KMAX2 = sum_d (2 pi TRN_d / (N_d DX))^2,
+    TRN_d = floor((N_d + 2) / 3): 0.0714552 for a 32^3 mesh at factor 1 (the original's
+    figure); 64 x 32 x 16: TRN = 22, 11, 6, KMAX2 = 2 (2 pi 11/32)^2 + (2 pi 6/16)^2."""
+    assert auto_dt(1.0, 1.0, 1.0, 1.0, (32, 32, 32)) == pytest.approx(0.0714552, abs=5e-8)
+    k2 = 2 * (2 * np.pi * 11 / 32) ** 2 + (2 * np.pi * 6 / 16) ** 2
+    assert auto_dt(1.0, 1.0, 1.0, 1.0, (64, 32, 16)) == pytest.approx(1 / k2, rel=1e-12)
+    assert auto_dt(1.0, 1.0, 1.0, 1.0, (64, 32, 16)) == pytest.approx(0.0671975, abs=5e-8)
+    # factor, NU = ETA / RHO and DX enter as factor RHO DX^2 / ETA
+    assert auto_dt(0.5, 2.0, 4.0, 0.5, (32, 32, 32)) == pytest.approx(
+        0.0714551598 * 0.5 * 2.0 * 0.25 / 4.0, rel=1e-9)
     g = Grid((16, 16, 16), dx=0.5)
-    assert g.auto_dt(0.3, 1.2, 0.7) == auto_dt(0.3, 1.2, 0.7, 0.5)
+    assert g.auto_dt(0.3, 1.2, 0.7) == auto_dt(0.3, 1.2, 0.7, 0.5, (16, 16, 16))
 
 
 def test_projection_solenoidal():
@@ -109,7 +124,7 @@ def test_taylor_green_decay(scheme):
     """2D Taylor-Green in 3D: u x omega is a gradient, so u decays as exp(-2 nu k^2 t)."""
     g = Grid((16, 16, 8), dx=1.0)
     nu, rho = 0.7, 1.3
-    dt = auto_dt(1.0, rho, rho * nu, g.dx)
+    dt = measured_dt(1.0, rho, rho * nu, g.dx)
     ns = SpectralNS(g, rho, rho * nu, dt, scheme=scheme)
     u0, k = taylor_green(g)
     ns.set_velocity(u0)
@@ -134,7 +149,7 @@ def test_taylor_green_3d_momentum_energy():
     u[0] = U * np.sin(k * x) * np.cos(k * y) * np.cos(k * z)
     u[1] = -U * np.cos(k * x) * np.sin(k * y) * np.cos(k * z)
     rho, eta = 1.0, 0.5
-    ns = SpectralNS(g, rho, eta, auto_dt(1.0, rho, eta, 1.0))
+    ns = SpectralNS(g, rho, eta, measured_dt(1.0, rho, eta, 1.0))
     ns.set_velocity(u)
     np.testing.assert_allclose(ns.velocity(), u, atol=1e-15)  # already solenoidal
     assert ns.kinetic_energy() == pytest.approx(0.5 * rho * np.sum(u ** 2), rel=1e-12)
@@ -202,7 +217,7 @@ def test_add_solenoidal_gradient_only_changes_mean():
 def test_projection_and_fix_cell():
     g = Grid((16, 16, 16))
     rng = np.random.default_rng(1)
-    ns = SpectralNS(g, 1.0, 1.0, g.auto_dt(1, 1, 1), fix_cell=(True, False, True))
+    ns = SpectralNS(g, 1.0, 1.0, measured_dt(1, 1, 1, g.dx), fix_cell=(True, False, True))
     du = rng.normal(size=(3,) + g.shape) + np.array([0.3, -0.2, 0.1])[:, None, None, None]
     ns.add_solenoidal(du)
     assert ns.divergence_max() < 1e-12 * np.abs(du).max()

@@ -12,9 +12,9 @@ from udf import UDFError, UDFManager
 HERE = os.path.dirname(__file__)
 SHARED = os.path.join(HERE, "..", "..", "shared", "kapsel-udf")
 SAMPLES = os.path.join(HERE, "..", "samples")
-FIXTURES = sorted(glob.glob(os.path.join(SHARED, "*", "*.udf"))) or \
-    sorted(glob.glob(os.path.join(SAMPLES, "*.udf"))
-           + glob.glob(os.path.join(SAMPLES, "kapsel-udf", "*", "*.udf")))  # fixture copies
+FIXTURES = sorted(glob.glob(os.path.join(SAMPLES, "*.udf"))
+                  + glob.glob(os.path.join(SAMPLES, "kapsel-udf", "*", "*.udf")))  # copies of
+# every real input in ../shared/kapsel-udf (define.udf versions 3.02 to 4.1)
 DEFINE = os.path.join(SAMPLES, "define.udf")
 
 
@@ -26,7 +26,7 @@ def same(a, b):
     return a == b and type(a) is type(b)
 
 
-@pytest.mark.parametrize("path", FIXTURES, ids=lambda p: os.path.relpath(p, SHARED))
+@pytest.mark.parametrize("path", FIXTURES, ids=lambda p: os.path.relpath(p, SAMPLES))
 def test_fixture_parses_and_round_trips(path, tmp_path):
     u = UDFManager(path)
     if os.path.basename(path) == "kapsel_unit.udf":
@@ -41,6 +41,22 @@ def test_fixture_parses_and_round_trips(path, tmp_path):
     for name in u.common:
         assert same(u.common[name], v.common[name]), name
     assert v.totalRecord() == u.totalRecord()
+
+
+def test_v302_define_continues_strings_with_a_backslash(tmp_path):
+    """OCTA's v3.02 define.udf (Examples 01-10) continues a description with a backslash at
+    the end of the line; the string is joined and every later line number stays right."""
+    u = UDFManager(os.path.join(SAMPLES, "kapsel-udf", "ex02", "define.udf"))
+    sw = u.schema.item("switch")[0].type
+    dist = sw.members[sw.index("INIT_distribution")].type
+    desc = dist.members[dist.index("type")].description
+    assert desc.startswith("uniform_random:distributed uniformly in box,\trandom_walk:")
+    assert "\\" not in desc and "\n" not in desc
+    f = tmp_path / "bad.udf"
+    f.write_text('\\begin{def}\n a: string "one \\\n two"\n b: int "x\n\\end{def}\n')
+    with pytest.raises(UDFError) as e:
+        UDFManager(str(f))
+    assert e.value.line == 4   # the line of the unclosed string, after the continued one
 
 
 def test_sample_values():
@@ -179,9 +195,61 @@ def test_error_wrong_integer(tmp_path):
 
 
 def test_error_unknown_select(tmp_path):
-    msg = error_of(broken_copy(tmp_path, 'LJ_powers:"12:6"', 'LJ_powers:"11:5"'))
+    """A select value outside its choices is refused when it is read, at the value itself:
+    an unused branch of an input may hold a stale one (ex12)."""
+    u = UDFManager(broken_copy(tmp_path, 'LJ_powers:"12:6"', 'LJ_powers:"11:5"'))
+    assert u.get("mesh.NPX") == 5
+    with pytest.raises(UDFError) as e:
+        u.get("LJ_powers")
+    msg = str(e.value)
     assert "LJ_powers" in msg and "'11:5'" in msg and "12:6" in msg
-    assert "input.udf:" in msg
+    assert "input.udf:24:11:" in msg
+
+
+def test_unused_branch_may_hold_a_stale_select(tmp_path):
+    """ex12: switch.multipole.ON.Dipole.ON.FIXED.dir is "" (not X, Y or Z); reading the
+    branch says so, reading anything else works."""
+    u = UDFManager(os.path.join(SAMPLES, "kapsel-udf", "ex12",
+                                "a2_N65_Rer025_dipole_mirror.udf"))
+    assert u.get("switch.multipole.type") == "ON"
+    assert u.get("mesh") == [6, 6, 5]
+    for path in ("switch.multipole.ON.Dipole.ON.FIXED.dir", "switch.multipole.ON",
+                 "switch"):
+        with pytest.raises(UDFError, match=r"a2_N65_Rer025_dipole_mirror.udf:59:36: unknown "
+                                           r"choice ''; allowed: X, Y, Z"):
+            u.get(path)
+
+
+def test_every_problem_of_a_file_at_once(tmp_path):
+    text = open(broken_copy(tmp_path, "A:4.00000000000000", 'A:"four"')).read()
+    text = text.replace("A_XI:2.00000000000000", "A_XI:\"2.0\"").replace("EPSILON:", "EPSILLON:")
+    (tmp_path / "input.udf").write_text(text)
+    msg = error_of(str(tmp_path / "input.udf"))
+    lines = msg.splitlines()
+    assert len(lines) == 3, msg
+    assert "expected a number" in msg and "'EPSILLON' is not defined" in msg
+
+
+def test_value_positions():
+    u = UDFManager(os.path.join(SAMPLES, "input.udf"))
+    f, line, col = u.value_where("mesh.NPY")
+    assert (line, col) == (25, 9) and f.endswith("input.udf")
+    assert u.value_where("object_type.spherical_particle.Particle_spec[0].MASS_RATIO")[1:] \
+        == (11, 7)
+
+
+def test_get_of_an_absent_item_says_it_is_absent(tmp_path):
+    """OCTA's UDFManager reads data the file holds; a file that is only the schema (an
+    output.udf of \\include{"define.udf"}) has none: get() says so instead of returning a
+    made-up default.  put() creates the item."""
+    for f in ("define.udf", "kapsel_unit.udf"):
+        shutil.copy(os.path.join(SAMPLES, f), tmp_path / f)
+    (tmp_path / "o.udf").write_text('\\include{"define.udf"}\n')
+    u = UDFManager(str(tmp_path / "o.udf"))
+    with pytest.raises(UDFError, match="'mesh' is absent"):
+        u.get("mesh.NPX")
+    u.put(6, "mesh.NPX")
+    assert u.get("mesh.NPX") == 6
 
 
 def test_error_wrong_count(tmp_path):

@@ -28,3 +28,27 @@ class UDFError(Exception):
                     where += f":{self.column}"
             where += ": "
         return where + self.message
+
+
+class UDFErrors(UDFError):
+    """Several problems of one file, reported together: str() is one line per problem."""
+
+    def __init__(self, errors: list):
+        self.errors = list(errors)
+        first = self.errors[0]
+        super().__init__(first.message, first.file, first.line, first.column, first.path)
+        self.args = (self.format(),)
+
+    def format(self) -> str:
+        errors = getattr(self, "errors", None)
+        if not errors:
+            return super().format()
+        return "\n".join(e.format() for e in errors)
+
+
+def raise_all(errors: list) -> None:
+    """Raise the one error, or all of them together; nothing if the list is empty."""
+    if len(errors) == 1:
+        raise errors[0]
+    if errors:
+        raise UDFErrors(errors)

@@ -19,7 +19,7 @@ import tempfile
 
 import numpy as np
 
-from .errors import UDFError
+from .errors import UDFError, raise_all
 from .parser import build_schema, load_sections
 from .schema import Primitive, Schema, Struct, leaf_count, leaf_slice
 from .values import bind, default, from_python, nest
@@ -30,6 +30,10 @@ _BRACKET = re.compile(r"\[\s*(-?\d*)\s*\]")
 ALL = object()
 
 
+class AbsentItem(UDFError):
+    """An item the schema defines but the file holds no value for."""
+
+
 class Record:
     __slots__ = ("comment", "values")
 
@@ -38,11 +42,29 @@ class Record:
         self.values = values if values is not None else {}
 
 
+def user_mode() -> int:
+    """The mode a newly created file gets from the user's umask (0666 & ~umask)."""
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return 0o666 & ~mask
+
+
+def _temporary(path: str):
+    """(fd, name) of a new temporary file next to ``path`` with the user's file mode (mkstemp
+    alone makes it 0600, and the rename would keep that)."""
+    d = os.path.dirname(os.path.abspath(path))
+    fd, tmp = tempfile.mkstemp(prefix="." + os.path.basename(path) + ".", dir=d)
+    try:
+        os.fchmod(fd, user_mode())
+    except OSError:
+        pass
+    return fd, tmp
+
+
 def atomic_write_text(path: str, text) -> None:
     """Write ``text`` (a str, or a list of writer pieces) to ``path`` through a temporary
     file in the same directory and a rename: readers never see a half-written file."""
-    d = os.path.dirname(os.path.abspath(path))
-    fd, tmp = tempfile.mkstemp(prefix="." + os.path.basename(path) + ".", dir=d)
+    fd, tmp = _temporary(path)
     try:
         with os.fdopen(fd, "wb") as fh:
             if isinstance(text, str):
@@ -77,6 +99,8 @@ class UDFManager:
         self.header_text = ""
         self.common: dict = {}
         self.common_where: dict = {}
+        self.common_raw: dict = {}         # name -> parsed value, for value positions
+        self.invalid_choices: dict = {}    # path -> UDFError of a select value not allowed
         self.records: list[Record] = []
         self.current = -1
         # OCTA stores `float` as single precision; output files may do the same (restart
@@ -94,22 +118,33 @@ class UDFManager:
                 self.schema_texts.append(sec.text)
         if schema_from is not None:
             return
+        errors = []      # every problem of the file, reported together
         for sec in sections:
             if sec.kind == "data":
                 for name, ndim, g, line, col in sec.items:
-                    m = self._member(name, sec.file, line, col, want_global=True)
-                    _no_repeat(name, self.common_where, sec.file, line, col)
-                    self.common[name] = bind(m.type, m.ndim, g, name, sec.file)
+                    try:
+                        m = self._member(name, sec.file, line, col, want_global=True)
+                        _no_repeat(name, self.common_where, sec.file, line, col)
+                        self.common[name] = bind(m.type, m.ndim, g, name, sec.file,
+                                                 self.invalid_choices)
+                    except UDFError as e:
+                        errors.append(e)
+                        continue
                     self.common_where[name] = (sec.file, line, col)
+                    self.common_raw[name] = g
             elif sec.kind == "record":
                 rec = Record(sec.comment or "")
                 seen = {}
                 for name, ndim, g, line, col in sec.items:
-                    m = self._member(name, sec.file, line, col, want_global=False)
-                    _no_repeat(name, seen, sec.file, line, col)
-                    seen[name] = (sec.file, line, col)
-                    rec.values[name] = bind(m.type, m.ndim, g, name, sec.file)
+                    try:
+                        m = self._member(name, sec.file, line, col, want_global=False)
+                        _no_repeat(name, seen, sec.file, line, col)
+                        seen[name] = (sec.file, line, col)
+                        rec.values[name] = bind(m.type, m.ndim, g, name, sec.file)
+                    except UDFError as e:
+                        errors.append(e)
                 self.records.append(rec)
+        raise_all(errors)
         self.current = 0 if self.records else -1
 
     def _member(self, name, file, line, col, want_global):
@@ -180,17 +215,68 @@ class UDFManager:
                                f"({len(self.records)} records)", path=path)
             store = self.records[self.current].values
         if name not in store:
-            if not create:
-                store[name] = default(m.type, m.ndim)
-            else:
-                store[name] = default(m.type, m.ndim)
+            if not create and (is_global or self.path is not None):
+                where = "common data" if is_global else f"record {self.current}"
+                raise AbsentItem(f"{name!r} is absent from {self.path or 'this document'} "
+                               f"({where}): the schema defines it but the file holds no "
+                               f"value; put() one first", path=path)
+            store[name] = default(m.type, m.ndim)
         return store, m
 
     def _walk(self, path, indices):
         """Yield (value, type, ndim) at the end of the path, mapping over '[]'."""
         ops = self._parse(path, indices)
+        if self.invalid_choices:
+            self._check_choices(ops, path)
         store, m = self._root(ops[0][1], path)
         return self._apply(store[ops[0][1]], m.type, m.ndim, ops[1:], path)
+
+    def _check_choices(self, ops, path):
+        """A select value outside its choices is an error when it is read (the reader
+        kept it so that unused branches of an input may hold stale values)."""
+        m, is_global = self.schema.item(ops[0][1])
+        if not is_global:
+            return
+        want = _canonical(ops)
+        for bad, err in self.invalid_choices.items():
+            have = _canonical(self._parse(bad, None))
+            n = min(len(want), len(have))
+            if all(a == b or "all" in (a[0], b[0]) for a, b in zip(want[:n], have[:n])):
+                raise err
+
+    def value_where(self, path: str):
+        """(file, line, column) of the value at ``path`` in the common data as written in
+        the file (the innermost value the path reaches; a numeric array lifted out as a
+        whole gives its start); None if the item is not in the file."""
+        ops = self._parse(path, None)
+        name = ops[0][1]
+        if name not in self.common_raw:
+            return None
+        file = self.common_where[name][0]
+        g = self.common_raw[name]
+        m, _ = self.schema.item(name)
+        t, ndim = m.type, m.ndim
+        for op in ops[1:]:
+            items = getattr(g, "items", None)
+            kind = getattr(g, "kind", None)
+            if op[0] == "member":
+                if ndim or not isinstance(t, Struct) or t.index(op[1]) is None:
+                    break
+                i = t.index(op[1])
+                mem = t.members[i]
+                if kind == "{" and i < len(items):
+                    g = items[i]
+                elif len(t.members) != 1:
+                    break
+                t, ndim = mem.type, mem.ndim
+            elif op[0] == "idx" and kind == "[" and ndim and -len(items) <= op[1] < len(items):
+                g, ndim = items[op[1]], ndim - 1
+            else:
+                break
+        line, col = getattr(g, "line", None), getattr(g, "column", None)
+        if line is None:
+            return None
+        return file, line, col
 
     def _apply(self, v, t, ndim, ops, path):
         if isinstance(v, np.ndarray):
@@ -276,8 +362,15 @@ class UDFManager:
         return np.array(_to_python(res)[0])
 
     def size(self, path: str, indices=None) -> int:
-        """Length of the array at ``path`` (``name`` or ``name[]`` both work)."""
-        res = self._walk(path, indices)
+        """Length of the array at ``path`` (``name`` or ``name[]`` both work); an array
+        item the file does not hold has none (0)."""
+        try:
+            res = self._walk(path, indices)
+        except AbsentItem:
+            m, _ = self.schema.item(self._parse(path, indices)[0][1])
+            if m is not None and m.ndim:
+                return 0
+            raise
         if res[0] == "array":
             _, arr, index, sub, remaining, mapped = res
             part = arr[index]
@@ -301,7 +394,7 @@ class UDFManager:
             else:
                 raise UDFError(f"put({path!r}): give indices for every []", path=path)
         name = ops[0][1]
-        store, m = self._root(name, path)
+        store, m = self._root(name, path, create=True)
         if len(ops) == 1:
             store[name] = from_python(m.type, m.ndim, value, path)
             return
@@ -445,9 +538,8 @@ def _write_in_two_processes(doc: "UDFManager", target: str) -> None:
     """Format the records in two processes: a forked child writes the second half to its own
     temporary file, the parent the head and first half; the kernel then appends the child's
     file (copy_file_range) and the result is renamed into place."""
-    d = os.path.dirname(os.path.abspath(target))
     half = len(doc.records) // 2
-    fd_c, tmp_c = tempfile.mkstemp(prefix="." + os.path.basename(target) + ".", dir=d)
+    fd_c, tmp_c = _temporary(target)
     try:
         pid = os.fork()
         if pid == 0:
@@ -466,7 +558,7 @@ def _write_in_two_processes(doc: "UDFManager", target: str) -> None:
             head = doc.pieces()
         finally:
             doc.records = recs
-        fd, tmp = tempfile.mkstemp(prefix="." + os.path.basename(target) + ".", dir=d)
+        fd, tmp = _temporary(target)
         try:
             with os.fdopen(fd, "wb") as fh:
                 write_pieces(fh, head)
@@ -490,6 +582,10 @@ def _write_in_two_processes(doc: "UDFManager", target: str) -> None:
     finally:
         if os.path.exists(tmp_c):
             os.unlink(tmp_c)
+
+
+def _canonical(ops):
+    return [op if op[0] != "member" else ("member", op[1]) for op in ops]
 
 
 def _split_args(args):

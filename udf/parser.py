@@ -70,7 +70,8 @@ class Section:
 
 
 def _unquote(tok) -> str:
-    return str(tok)[1:-1]
+    from .values import string_value
+    return string_value(tok)
 
 
 # ---------------------------------------------------------------------------------------

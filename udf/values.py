@@ -10,6 +10,7 @@ Storage rules:
 from __future__ import annotations
 
 import math
+import re
 
 import numpy as np
 
@@ -19,6 +20,16 @@ from .schema import Primitive, Select, Struct, leaf_count, leaf_kinds
 
 
 INT_MIN, INT_MAX = -2 ** 31, 2 ** 31 - 1   # OCTA stores int as a C int
+
+
+_CONTINUATION = re.compile(r"\\\r?\n")
+
+
+def string_value(tok) -> str:
+    """The text of a STRING token: quotes removed, backslash-newline continuations joined
+    (OCTA's old define.udf files continue long descriptions that way)."""
+    s = str(tok)[1:-1]
+    return _CONTINUATION.sub("", s) if "\\" in s else s
 
 
 def _where(g):
@@ -38,10 +49,15 @@ def _err(msg, g, file, path):
     return UDFError(f"{msg} (at {path})", file, line, col, path=path)
 
 
-def bind(t, ndim: int, g, path: str, file: str):
-    """Bind generic value ``g`` to type ``t`` with ``ndim`` array dimensions."""
+def bind(t, ndim: int, g, path: str, file: str, lazy: dict | None = None):
+    """Bind generic value ``g`` to type ``t`` with ``ndim`` array dimensions.
+
+    ``lazy``: a dict that collects, by path, the errors of select values that are not among
+    the choices, instead of raising them (the value is kept as written): a select in a
+    branch the input does not choose may hold a stale or empty value, and only the reader
+    of that path should be told (UDFManager.get raises them)."""
     if ndim:
-        return _bind_array(t, ndim, g, path, file)
+        return _bind_array(t, ndim, g, path, file, lazy)
     if isinstance(t, Primitive):
         if t.name in ("int", "float", "double"):
             if getattr(g, "type", None) != "NUMBER":
@@ -67,17 +83,20 @@ def bind(t, ndim: int, g, path: str, file: str):
             if getattr(g, "type", None) == "NUMBER":
                 return bool(int(float(str(g))))
             if getattr(g, "type", None) == "STRING":
-                return str(g)[1:-1].lower() in ("true", "on", "yes", "1")
+                return string_value(g).lower() in ("true", "on", "yes", "1")
         if getattr(g, "type", None) != "STRING":
             raise _err(f"expected a string, found {_describe(g)}", g, file, path)
-        return str(g)[1:-1]
+        return string_value(g)
     if isinstance(t, Select):
         if getattr(g, "type", None) != "STRING":
             raise _err(f"expected one of {', '.join(t.choices)}, found {_describe(g)}",
                        g, file, path)
-        s = str(g)[1:-1]
+        s = string_value(g)
         if s not in t.choices:
-            raise _err(f"unknown choice {s!r}; allowed: {', '.join(t.choices)}", g, file, path)
+            e = _err(f"unknown choice {s!r}; allowed: {', '.join(t.choices)}", g, file, path)
+            if lazy is None:
+                raise e
+            lazy[path] = e
         return s
     if isinstance(t, Struct):
         if isinstance(g, Group) and g.kind == "{":
@@ -85,11 +104,11 @@ def bind(t, ndim: int, g, path: str, file: str):
                 raise _err(f"expected {len(t.members)} values for {t.describe()} "
                            f"({', '.join(m.name for m in t.members)}), found {len(g.items)}",
                            g, file, path)
-            return [bind(m.type, m.ndim, item, f"{path}.{m.name}", file)
+            return [bind(m.type, m.ndim, item, f"{path}.{m.name}", file, lazy)
                     for m, item in zip(t.members, g.items)]
         if len(t.members) == 1:  # a one-member struct may be written bare
             m = t.members[0]
-            return [bind(m.type, m.ndim, g, f"{path}.{m.name}", file)]
+            return [bind(m.type, m.ndim, g, f"{path}.{m.name}", file, lazy)]
         raise _err(f"expected {{...}} with {len(t.members)} values for {t.describe()}, "
                    f"found {_describe(g)}", g, file, path)
     raise AssertionError(t)
@@ -109,7 +128,7 @@ def _dtype(t):
     return np.int64 if all(k == "int" for k in kinds) else np.float64
 
 
-def _bind_array(t, ndim, g, path, file):
+def _bind_array(t, ndim, g, path, file, lazy=None):
     lc = leaf_count(t)
     if isinstance(g, Bulk):
         if lc is None:
@@ -117,8 +136,8 @@ def _bind_array(t, ndim, g, path, file):
         return _bulk_to_array(t, ndim, lc, g, path, file)
     if not (isinstance(g, Group) and g.kind == "["):
         raise _err(f"expected an array [...], found {_describe(g)}", g, file, path)
-    elems = [_bind_array(t, ndim - 1, x, f"{path}[{i}]", file) if ndim > 1
-             else bind(t, 0, x, f"{path}[{i}]", file) for i, x in enumerate(g.items)]
+    elems = [_bind_array(t, ndim - 1, x, f"{path}[{i}]", file, lazy) if ndim > 1
+             else bind(t, 0, x, f"{path}[{i}]", file, lazy) for i, x in enumerate(g.items)]
     if lc is None:
         return elems
     # numeric-flat: one numpy array when the nesting is regular

@@ -66,18 +66,18 @@ class OutputUDF:
         if not append or not os.path.exists(path):
             atomic_write_text(path, self.doc.pieces())
 
-    def truncate_after(self, time: float) -> tuple[int, int, float | None]:
-        """Drop the records later than ``time`` (those of a run being continued from an
-        earlier restart); returns (records kept, records dropped, time of the last kept
-        record or None).  The kept bytes are not rewritten except for the cut, which is
+    def truncate_after(self, step: int) -> tuple[int, int, float | None]:
+        """Drop the records later than ``step`` (those of a run being continued from an
+        earlier restart; a record's ``t`` is its step, as the original writes it); returns
+        (records kept, records dropped, t of the last kept record or None).  The kept
+        bytes are not rewritten except for the cut, which is
         atomic."""
         old = UDFManager(self.path)
         times = []
         for n in range(old.totalRecord()):
             old.jump(n)
             times.append(float(old.get("t")))
-        tol = 1e-6 * max(1.0, abs(time))           # t is stored at single precision
-        keep = sum(1 for t in times if t <= time + tol)
+        keep = sum(1 for t in times if t <= step + 0.5)   # t: a step, at single precision
         if keep < len(times):
             with open(self.path, "rb") as fh:
                 data = fh.read()
@@ -105,7 +105,7 @@ class OutputUDF:
         self.doc.records = []
         self.doc.newRecord(f"step {step}")
         self.doc.put(float(energy), "E")
-        self.doc.put(float(time), "t")
+        self.doc.put(float(step), "t")   # the original's t: the step number (FORMAT.md)
         if particles is not None and particles.n and self.particle_type is not None:
             self.doc.put(particle_table(particles, self.particle_type), "Particles[]")
         bodies = getattr(getattr(particles, "constraints", None), "state", None)

@@ -50,6 +50,7 @@ from udf import UDFManager
 from .records import OUT_FIELDS, particle_table
 
 STATE_SUFFIX = ".state.npz"
+FIELD_PREFIX = "Saved_Data."   # Saved_Data items the user's define.udf has no place for
 
 
 def schema_kind(doc: UDFManager, kind: str) -> str:
@@ -153,14 +154,20 @@ def write_restart(path: str, define_path: str, input_doc: UDFManager, kind: str,
     if particles is not None and particles.n:
         table = particle_table(particles, _sparticle_type(doc, kind))
         doc.put(table, f"{base}.Particles[]")
-    arrays = {}
+    arrays, unplaced = {}, {}
+    saved_type = _saved_data_type(doc, kind)
     for name, value in fields.items():
+        if saved_type.index(name) is None:
+            unplaced[name] = value      # an older define.udf (v3.x has no GR_masses[])
+            continue
         if isinstance(value, np.ndarray):
             doc.put(value, f"{base}.{name}[]")
             arrays[name] = value
         else:
             doc.put(value, f"{base}.{name}")
     state = {"fingerprint": np.array(fingerprint(int(step) - 1, time, table, arrays))}
+    for name, value in unplaced.items():
+        state[FIELD_PREFIX + name] = np.asarray(value)
     for name, value in (exact or {}).items():
         if isinstance(value, np.ndarray):
             state[name] = value
@@ -203,6 +210,8 @@ def read_restart(doc: UDFManager, input_path: str, kind: str) -> Saved:
         with np.load(path, allow_pickle=False) as z:
             state = {k: z[k] for k in z.files}
         if str(state.pop("fingerprint", "")) == saved.fingerprint():
+            for k in [k for k in state if k.startswith(FIELD_PREFIX)]:
+                saved.fields.setdefault(k[len(FIELD_PREFIX):], state.pop(k))
             saved.exact = {k: (json.loads(str(v)) if v.dtype.kind == "U" else v)
                            for k, v in state.items()}
     return saved

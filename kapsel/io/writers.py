@@ -55,8 +55,8 @@ class RecordWriter(Writer):
         append = resumed and os.path.exists(args.output) and not args.overwrite
         self.output = OutputUDF(args.output, args.define, self.input_doc, append=append)
         if append:
-            kept, dropped, last = self.output.truncate_after(snap.time)
-            if last is not None and abs(last - snap.time) <= 1e-6 * max(1.0, snap.time):
+            kept, dropped, last = self.output.truncate_after(snap.step)
+            if last is not None and abs(last - snap.step) <= 0.5:   # t is the record's step
                 self._skip = snap.step
             if not args.quiet:
                 print(f"#continuing at step {snap.step} (t = {snap.time:g}): appending "

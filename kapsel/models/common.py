@@ -19,7 +19,7 @@ def time_step(cfg: RunConfig) -> float:
     if cfg.time.kind == "manual":
         return cfg.time.delta_t
     from ..timestep import auto_dt
-    return auto_dt(cfg.time.factor, cfg.fluid.RHO, cfg.fluid.ETA, cfg.mesh.DX)
+    return auto_dt(cfg.time.factor, cfg.fluid.RHO, cfg.fluid.ETA, cfg.mesh.DX, cfg.mesh.shape)
 
 
 def random_seed(args) -> int:

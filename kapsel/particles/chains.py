@@ -110,7 +110,8 @@ def random_walk_chains(beads_per_chain, radius, box, rng, candidates=64, attempt
     a = float(radius)
     sigma = 2.0 * a
     if sigma >= 0.5 * L.min():
-        raise ValueError(f"bond length {sigma:g} (2 A) must be below half the box {tuple(L)}")
+        raise ValueError(f"bond length {sigma:g} (2 A) must be below half the box "
+                         f"{' x '.join(f'{float(x):g}' for x in np.ravel(L))}")
     counts = [int(c) for c in beads_per_chain]
     out = np.empty((sum(counts), 3))
     placed = 0
@@ -140,5 +141,6 @@ def random_walk_chains(beads_per_chain, radius, box, rng, candidates=64, attempt
                 break
         else:
             raise ValueError(f"could not place a chain of {nb} beads of radius {a:g} without "
-                             f"overlap in the box {tuple(L)} (too crowded)")
+                             f"overlap in the box "
+                             f"{' x '.join(f'{float(x):g}' for x in np.ravel(L))} (too crowded)")
     return out

@@ -45,7 +45,7 @@ def _check_feasible(L, a):
     if len(a) == 0:
         return
     if 2.0 * a.max() > L.min():
-        raise ValueError(f"particle diameter {2 * a.max():g} is larger than the box {tuple(L)}")
+        raise ValueError(f"particle diameter {2 * a.max():g} is larger than the box {_dims(L)}")
     phi = volume_fraction(a, L)
     if phi > MAX_VOLUME_FRACTION:
         raise ValueError(f"volume fraction {phi:.4f} exceeds close packing {MAX_VOLUME_FRACTION}: "
@@ -166,8 +166,8 @@ def random_walk(n, radius, box, iterations, rng=None, step=None):
     R = (idx + 0.5) * (L / c)
     bi, bj, _ = overlapping_pairs(R, a, L)
     if len(bi):
-        raise ValueError(f"random_walk: simple cubic start lattice {tuple(c)} (spacing "
-                         f"{tuple(np.round(L / c, 4))}) overlaps spheres at volume fraction "
+        raise ValueError(f"random_walk: simple cubic start lattice {_dims(c)} (spacing "
+                         f"{_dims(L / c)}) overlaps spheres at volume fraction "
                          f"{volume_fraction(a, L):.4f}")
     step = 0.5 * a.min() if step is None else float(step)
     amax = a.max()
@@ -206,7 +206,7 @@ def lattice(kind, n, radius, box):
     R = wrap(sites * (L / m), L)
     bi, bj, br = overlapping_pairs(R, a, L)
     if len(bi):
-        raise ValueError(f"{kind}: {m}^3-cell lattice in box {tuple(L)} puts spheres at "
+        raise ValueError(f"{kind}: {m}^3-cell lattice in box {_dims(L)} puts spheres at "
                          f"distance {br.min():.4g} < a_i + a_j (volume fraction "
                          f"{volume_fraction(a, L):.4f})")
     return R
@@ -242,3 +242,8 @@ def orientations(kind, n, rng=None, user_q=None):
         q = _rng(rng).standard_normal((n, 4))
         return quat.normalise(q)
     raise ValueError(f"INIT_orientation must be user_specify, random or space_align, got {kind!r}")
+
+
+def _dims(v) -> str:
+    """'32 x 32 x 64': plain numbers for messages."""
+    return " x ".join(f"{float(x):.4g}" for x in np.ravel(v))

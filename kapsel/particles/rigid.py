@@ -99,7 +99,8 @@ def place_bodies(offsets, radius, box, rng, candidates=64, attempts=200) -> np.n
                 break
         else:
             raise ValueError(f"could not place rigid body {g} ({len(off)} beads of radius "
-                             f"{radius:g}) without overlap in the box {tuple(L)}")
+                             f"{radius:g}) without overlap in the box "
+                             f"{' x '.join(f'{float(x):g}' for x in np.ravel(L))}")
     return centres
 
 
@@ -317,9 +318,10 @@ def build_bodies(cfg, p, rng) -> RigidBodies:
     per_body = dict(free_v=free_v[body_species], free_o=free_o[body_species],
                     v_fixed=v_fixed[body_species], o_fixed=o_fixed[body_species])
     kind, okind = cfg.switches.init_distribution, cfg.switches.init_orientation
-    if beads.max() * 2.0 * A > box.min():
-        raise ValueError(f"a rigid body of {beads.max()} beads of radius {A:g} does not fit "
-                         f"in the box {tuple(box)}")
+    if kind != "user_specify" and beads.max() * 2.0 * A > box.min():
+        # (kapsel.config refuses it first; user_specify shapes are checked by their extent)
+        raise ValueError(f"a rigid body of {int(beads.max())} beads of radius {A:g} does not "
+                         f"fit in the box {' x '.join(f'{x:g}' for x in box.tolist())}")
     if kind == "user_specify":
         user = cfg.switches.user_particles[:p.n]
         bodies = RigidBodies.from_beads(user[:, 0:3], body, p.mass, p.inertia, body_species,

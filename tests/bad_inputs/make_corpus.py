@@ -150,6 +150,13 @@ FILES = {
     "pin_id_out_of_range.udf": edit(('"NO",\n  {\n   [2 ]', '"YES",\n  {\n   [5 ]')),
     "random_walk_negative.udf": edit(('"uniform_random",\n  {100}',
                                       '"random_walk",\n  {-100}')),
+    # --- several problems at once, each on its own line at its value
+    "several_problems.udf": edit(("mesh:{4,4,4}", "mesh:{0,4,4}"),
+                                 ("A:4.00000000000000", "A:0.0"),
+                                 ("output:{1,1,", "output:{0,1,")),
+    # --- unsupported features, named together in one line
+    "unsupported_together.udf": edit(('"Navier_Stokes_Cahn_Hilliard_FDM"', '"Electrolyte"'),
+                                     (SPEC, SPEC.replace('"OFF"', '"TUMBLER"'))),
     # --- resume
     "continue_without_saved_data.udf": edit(('"NEW",', '"CONTINUE_FDM_PHASE_SEPARATION",')),
     # --- command line (valid input, bad flags: see the table in test_bad_input.py)
