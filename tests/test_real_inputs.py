@@ -3,8 +3,8 @@ define.udf versions 3.02 to 4.1, copied from ../shared/kapsel-udf) is either acc
 unchanged, or refused up front -- exit 2, one line, nothing written -- only for features
 kapsel-py does not have (README, "Not supported"), all named in that line.
 
-The accepted ones then run for a few steps in a copy with GTS x Num_snap shrunk (and AVS
-output switched off until the AVS writer exists); the two that are too large for a test
+The accepted ones then run for a few steps in a copy with GTS x Num_snap shrunk, with the
+field output (output.AVS) the input asks for; the two that are too large for a test
 (ex02: 256 x 256 x 512 with 3204 particles; ex11: 128^3 with 4096 particles) are checked
 unchanged and run on a reduced mesh with fewer particles (REDUCED)."""
 import glob
@@ -36,7 +36,6 @@ UNSUPPORTED = {
     "ex14/input.udf": ["flat walls"],
     "sample/input.udf": [],
 }
-AVS = "AVS field output"     # refused until the AVS writer is merged (issue 13)
 
 # inputs too large for a test run: (mesh, particles of the one species) of the run copy
 REDUCED = {"ex02/gravity.udf": ((5, 5, 5), 20),
@@ -85,7 +84,7 @@ def test_real_input_unchanged_is_accepted_or_refused_for_unsupported_features_on
     named = [part for part in line.split(": ", 2)[-1].split("; ") if " = " in part]
     for f in features:
         assert f in line, (f, line)
-    others = [p for p in named if not any(f in p for f in features) and AVS not in p]
+    others = [p for p in named if not any(f in p for f in features)]
     assert not others, others                    # no feature refused that is not expected
     # through the command line: exit 2, that one line, no traceback, nothing written
     code = cli.main([f"-I{inp}", "-Ooutput.udf", "-Ddefine.udf", "-Rrestart.udf"])
@@ -96,15 +95,15 @@ def test_real_input_unchanged_is_accepted_or_refused_for_unsupported_features_on
 
 
 def run_copy(path, d, steps=2):
-    """A copy of the input that runs ``steps`` steps (one snapshot), AVS off, reduced
-    where REDUCED says; returns its file name."""
+    """A copy of the input that runs ``steps`` steps (one snapshot), reduced where REDUCED
+    says (with AVS off there: its crop is the full mesh's); returns its file name."""
     name = name_of(path)
     inp = copy_example(path, d)
     u = UDFManager(str(d / inp))
     u.put(steps, "output.GTS")
     u.put(1, "output.Num_snap")
-    u.put("OFF", "output.AVS")
     if name in REDUCED:
+        u.put("OFF", "output.AVS")
         mesh, n = REDUCED[name]
         u.put(list(mesh), "mesh")
         u.put(n, "object_type.spherical_particle.Particle_spec[0].Particle_number")
