@@ -63,9 +63,23 @@ def single_threaded_blas() -> None:
 
 def check_output_paths(args) -> str | None:
     """Where output.udf, the field files and restart.udf go must be a writable directory,
-    and -O and -R must differ: checked before anything is written."""
+    and -O and -R must differ: checked before anything is written.  -O and -R must name
+    regular files (or nothing yet): a symbolic link would be replaced by the atomic
+    rename, a FIFO or device node (e.g. /dev/null) must never be replaced."""
+    import stat
     seen = {}
     for flag, path in (("-O", args.output), ("-R", args.restart)):
+        if os.path.islink(path):
+            return (f"{flag}{path}: is a symbolic link (to {os.readlink(path)}); kapsel-py "
+                    f"replaces its files atomically and would replace the link: give the "
+                    f"target's path")
+        if os.path.exists(path) and not os.path.isdir(path):
+            mode = os.stat(path).st_mode
+            if not stat.S_ISREG(mode):
+                kind = ("a FIFO" if stat.S_ISFIFO(mode) else "a device node"
+                        if stat.S_ISCHR(mode) or stat.S_ISBLK(mode) else "a socket"
+                        if stat.S_ISSOCK(mode) else "not a regular file")
+                return f"{flag}{path}: is {kind}, not a regular file; it is never replaced"
         d = os.path.dirname(os.path.abspath(path))
         if not os.path.isdir(d):
             if os.path.exists(d):
@@ -80,6 +94,92 @@ def check_output_paths(args) -> str | None:
             return f"{seen[real]} and {flag} name the same file {path}"
         seen[real] = flag
     return None
+
+
+def _layout(t, ndim=0):
+    """The structure of a schema type that decides how its data is written and read back
+    (member names, array ranks, primitive kinds, select choices; not units or comments)."""
+    from udf.schema import Primitive, Select, Struct
+    if isinstance(t, Struct):
+        return ndim, tuple((m.name, _layout(m.type, m.ndim)) for m in t.members)
+    if isinstance(t, Select):
+        return ndim, ("select", tuple(t.choices))
+    if isinstance(t, Primitive):
+        return ndim, t.name
+    return ndim, repr(t)
+
+
+def check_same_schema(doc, define, args) -> str | None:
+    """Every item of the input that output.udf and restart.udf copy must be defined alike in
+    the -D schema: otherwise those files hold data their own schema cannot read (issue 12),
+    and a continued run would replace a good restart file with an unreadable one."""
+    differ = []
+    for name in doc.common:
+        mine = doc.schema.global_items.get(name)
+        theirs = define.schema.global_items.get(name)
+        if mine is None or theirs is None:
+            continue
+        if _layout(mine.type, mine.ndim) != _layout(theirs.type, theirs.ndim):
+            differ.append(name)
+    if differ:
+        return (f"-D{args.define}: defines {', '.join(differ)} differently from the schema "
+                f"{args.input} was written with; output and restart files would not be "
+                f"readable. Pass the define file the input includes")
+    return None
+
+
+def existing_outputs(args, cfg) -> str | None:
+    """A new run refuses to replace existing output unless --overwrite (checked under the
+    run lock, so two runs cannot both pass it)."""
+    targets = [(f"-O{args.output}", args.output), (f"-R{args.restart}", args.restart)]
+    if cfg.is_fdm:
+        out_dir = os.path.dirname(os.path.abspath(args.output))
+        targets += [(f"the field series {name}", os.path.join(out_dir, name))
+                    for name in ("orderparam.xmf", "particle.xmf", "velocity.xmf")]
+    for what, path in targets:
+        if os.path.exists(path):
+            return (f"{what} exists; pass --overwrite to replace it (or continue a run from "
+                    f"its restart file)")
+    return None
+
+
+class _DirLock:
+    """flock(2) on a directory's own descriptor: no file is created, and the system drops
+    the lock however the process ends."""
+
+    def __init__(self, fd):
+        self.fd = fd
+
+    def close(self):
+        if self.fd is not None:
+            os.close(self.fd)
+            self.fd = None
+
+
+def lock_output_dirs(args):
+    """Hold an exclusive lock on every directory kapsel-py writes into (that of -O, with the
+    field files, and that of -R) for the whole run, so that two runs cannot write into one
+    directory at once.  Returns (locks, None) or (None, message)."""
+    import fcntl
+    held = []
+    dirs = sorted({os.path.realpath(os.path.dirname(os.path.abspath(p)))
+                   for p in (args.output, args.restart)})
+    for d in dirs:
+        try:
+            fd = os.open(d, os.O_RDONLY)
+        except OSError as e:
+            return None, f"cannot open {d} to lock it for the run: {e.strerror}"
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            os.close(fd)
+            for h in held:
+                h.close()
+            return None, (f"another kapsel-py run is writing into {d}; two runs must not "
+                          f"write into one directory: wait for it to end, or give -O/-R in "
+                          f"another directory")
+        held.append(_DirLock(fd))
+    return held, None
 
 
 def check_define(define, args, model) -> str | None:
@@ -131,6 +231,17 @@ def main(argv=None) -> int:
     args = build_parser().parse_args(argv)
     if args.threads < 1:
         return fail(f"--threads must be at least 1, got {args.threads}")
+    if args.seed is not None and not 0 <= args.seed < 2 ** 63:
+        return fail(f"--seed must be an integer from 0 to 2^63 - 1, got {args.seed}")
+    try:
+        return _main(args)
+    except KeyboardInterrupt:
+        print("kapsel-py: interrupted during start-up, before the first step; there is "
+              "nothing to continue from", file=sys.stderr)
+        return EXIT_RUN_FAILED
+
+
+def _main(args) -> int:
     for flag, path in (("-I", args.input), ("-D", args.define)):
         if not os.path.isfile(path):
             return fail(f"{flag}{path}: no such file")
@@ -152,16 +263,24 @@ def main(argv=None) -> int:
     if problem:
         return fail(problem)
     resumed = cfg.resume.calculation != "NEW"
+    locks, problem = lock_output_dirs(args)      # from here to the end of the run
+    if problem:
+        return fail(problem)
+    try:
+        return _checked_run(args, cfg, doc, define, resumed)
+    finally:
+        for fh in locks:
+            fh.close()
+
+
+def _checked_run(args, cfg, doc, define, resumed) -> int:
+    import udf
+    from . import config
+    from .simulation import SOLVERS, run
     if not resumed and not args.overwrite:
-        targets = [(f"-O{args.output}", args.output), (f"-R{args.restart}", args.restart)]
-        if cfg.is_fdm:
-            out_dir = os.path.dirname(os.path.abspath(args.output))
-            targets += [(f"the field series {name}", os.path.join(out_dir, name))
-                        for name in ("orderparam.xmf", "particle.xmf", "velocity.xmf")]
-        for what, path in targets:
-            if os.path.exists(path):
-                return fail(f"{what} exists; pass --overwrite to replace it (or continue a "
-                            f"run from its restart file)")
+        problem = existing_outputs(args, cfg)
+        if problem:
+            return fail(problem)
     announce_seed = args.seed is None and not args.quiet
     if args.seed is None:   # drawn here, reported once the input is known to be good
         import secrets
@@ -183,7 +302,7 @@ def main(argv=None) -> int:
         return fail(str(e))
     except udf.UDFError as e:
         return fail(str(e))
-    problem = check_define(define, args, model)
+    problem = check_same_schema(doc, define, args) or check_define(define, args, model)
     if problem:
         return fail(problem)
     if announce_seed:

