@@ -97,13 +97,14 @@ def check_output_paths(args) -> str | None:
 
 
 def _layout(t, ndim=0):
-    """The structure of a schema type that decides how its data is written and read back
-    (member names, array ranks, primitive kinds, select choices; not units or comments)."""
+    """The structure of a schema type that decides whether its data, written positionally,
+    reads back (array ranks, member counts, primitive kinds; not names, select choices,
+    units or comments: e.g. resume.CONTINUE may be called CONTINUE_ORIGINAL)."""
     from udf.schema import Primitive, Select, Struct
     if isinstance(t, Struct):
-        return ndim, tuple((m.name, _layout(m.type, m.ndim)) for m in t.members)
+        return ndim, tuple(_layout(m.type, m.ndim) for m in t.members)
     if isinstance(t, Select):
-        return ndim, ("select", tuple(t.choices))
+        return ndim, "select"
     if isinstance(t, Primitive):
         return ndim, t.name
     return ndim, repr(t)
@@ -125,6 +126,20 @@ def check_same_schema(doc, define, args) -> str | None:
         return (f"-D{args.define}: defines {', '.join(differ)} differently from the schema "
                 f"{args.input} was written with; output and restart files would not be "
                 f"readable. Pass the define file the input includes")
+    return None
+
+
+def check_own_output(args, model) -> str | None:
+    """A continued run appends to -O only if that file is its own: the run id in its first
+    line (kapsel.io.records.run_id) must be the one in the restart's state file."""
+    from .io.records import run_id
+    if args.overwrite or not model.run_id_known or not os.path.exists(args.output):
+        return None
+    theirs = run_id(args.output)
+    if theirs is not None and theirs != model.run_id:
+        return (f"-O{args.output} belongs to another run (run {theirs}); {args.input} "
+                f"continues run {model.run_id}: give that run's output file, or pass "
+                f"--overwrite to start a new {args.output}")
     return None
 
 
@@ -302,7 +317,8 @@ def _checked_run(args, cfg, doc, define, resumed) -> int:
         return fail(str(e))
     except udf.UDFError as e:
         return fail(str(e))
-    problem = check_same_schema(doc, define, args) or check_define(define, args, model)
+    problem = (check_same_schema(doc, define, args) or check_define(define, args, model)
+               or (resumed and check_own_output(args, model)))
     if problem:
         return fail(problem)
     if announce_seed:

@@ -73,15 +73,24 @@ def run(cfg, args, input_doc, model, resumed: bool = False) -> int:
     ``resumed``: the model continues a restart (its clock is past 0); output.udf then gets
     the records of the continued run appended (later records of the earlier run, if any,
     are dropped), unless --overwrite asks for a new file."""
-    from .io.records import OutputUDF
+    from .io.records import OutputUDF, run_comment
     from .progress import Progress
 
+    total = cfg.output.total_steps
+    if resumed and model.step_index >= total:
+        print(f"kapsel-py: {args.input} is at step {model.step_index}, the last step of its "
+              f"run (output.Num_snap {cfg.output.Num_snap} x output.GTS {cfg.output.GTS} = "
+              f"{total}): nothing to do. To run longer, raise output.Num_snap in "
+              f"{args.input} and run kapsel-py -I{args.input} -O{args.output} "
+              f"-D{args.define} -R{args.restart}", file=sys.stderr)
+        return 0
     out_dir = os.path.dirname(os.path.abspath(args.output))
     append = resumed and os.path.exists(args.output) and not args.overwrite
     output = None
     record_now = True
     if cfg.output.UDF:
-        output = OutputUDF(args.output, args.define, input_doc, append=append)
+        output = OutputUDF(args.output, args.define, input_doc, append=append,
+                           comment=run_comment(model.run_id, model.seed))
         if append:
             kept, dropped, last = output.truncate_after(model.time)
             record_now = last is None or abs(last - model.time) > 1e-6 * max(1.0, model.time)
@@ -108,7 +117,6 @@ def run(cfg, args, input_doc, model, resumed: bool = False) -> int:
         rot_log = RotationalEnergyLog(os.path.join(out_dir, "rotational_energy.dat"),
                                       len(bodies.rotational_energies()), append=resumed,
                                       until_step=model.step_index)
-    total = cfg.output.total_steps
     progress = Progress(total, quiet=args.quiet)
     start = model.step_index
 

@@ -130,3 +130,55 @@ def test_ctrl_c_during_start_up(tmp_path):
     assert proc.returncode == 1, err
     assert "Traceback" not in err and "interrupted during start-up" in err, err
     assert not (d / "output.udf").exists()
+
+
+# ---------------------------------------------------------------- 4. another run's output
+def test_continuation_refuses_another_runs_output(tmp_path, capsys, monkeypatch):
+    a = small(tmp_path, "a", nsnap=3)
+    b = small(tmp_path, "b", nsnap=3)
+    assert cli(a, "input.udf") == 0
+    assert cli(b, "input.udf") == 0
+    theirs = (b / "output.udf").read_bytes()
+    rs = UDFManager(str(a / "restart.udf"))
+    rs.put(5, "output.Num_snap")
+    rs.write(str(a / "restart.udf"))          # same data: the state file still matches
+    monkeypatch.chdir(a)
+    assert main(["-Irestart.udf", f"-O{b / 'output.udf'}", "-Ddefine.udf", "-Rrestart.udf",
+                 "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert "belongs to another run" in err and "--overwrite" in err
+    assert (b / "output.udf").read_bytes() == theirs
+    # its own output.udf is accepted and continued
+    assert main(["-Irestart.udf", "-Ooutput.udf", "-Ddefine.udf", "-Rrestart.udf",
+                 "--quiet"]) == 0
+    assert UDFManager(str(a / "output.udf")).totalRecord() == 6
+
+
+# ---------------------------------------------------------------- 9. seed, finished runs
+def test_quiet_run_records_its_seed_and_reproduces(tmp_path):
+    d = small(tmp_path, nsnap=2, kBT=0.5)     # with thermal noise: the seed matters
+    r = run(d, "-Iinput.udf", "-Ooutput.udf", "-Ddefine.udf", "-Rrestart.udf", "--quiet")
+    assert r.returncode == 0 and r.stderr == "", r.stderr
+    first = (d / "output.udf").read_text().splitlines()[0]
+    assert first.startswith("// kapsel-py run ") and "random seed " in first
+    seed = int(first.split("random seed ")[1].split()[0])
+    with np.load(state_path(str(d / "restart.udf"))) as z:
+        assert str(z["seed"]) == f'"{seed}"'
+    again = small(tmp_path, "again", nsnap=2, kBT=0.5)
+    r = run(again, "-Iinput.udf", "-Ooutput.udf", "-Ddefine.udf", "-Rrestart.udf", "--quiet",
+            "--seed", str(seed))
+    assert r.returncode == 0, r.stderr
+    body = lambda p: p.read_text().split("\n", 1)[1]       # noqa: E731  (after the run line)
+    assert body(d / "output.udf") == body(again / "output.udf")
+
+
+def test_continuing_a_finished_run_says_so(tmp_path, capsys, monkeypatch):
+    d = small(tmp_path, nsnap=2)
+    assert cli(d, "input.udf") == 0
+    before = {p.name: p.read_bytes() for p in d.iterdir()}
+    monkeypatch.chdir(d)
+    assert main(["-Irestart.udf", "-Ooutput.udf", "-Ddefine.udf", "-Rrestart.udf",
+                 "--quiet"]) == 0
+    err = capsys.readouterr().err
+    assert "the last step of its run" in err and "raise output.Num_snap in restart.udf" in err
+    assert {p.name: p.read_bytes() for p in d.iterdir()} == before

@@ -52,7 +52,10 @@ def particle_table(state, struct: Struct) -> np.ndarray:
 class OutputUDF:
     """Writer of output.udf following the schema of ``define_path``."""
 
-    def __init__(self, path: str, define_path: str, input_doc: UDFManager, append=False):
+    def __init__(self, path: str, define_path: str, input_doc: UDFManager, append=False,
+                 comment: str = ""):
+        """``comment``: a first line (without //) for a new file: kapsel-py writes the run
+        id and the seed there (``run_id`` reads it back)."""
         self.path = path
         self.doc = UDFManager(schema_from=define_path)
         self.doc.single_precision_records = True
@@ -64,7 +67,8 @@ class OutputUDF:
         m, _ = self.doc.schema.item("RigidParticles")
         self.rigid_type = m.type if m is not None else None
         if not append or not os.path.exists(path):
-            atomic_write_text(path, self.doc.pieces())
+            head = [f"// {comment}\n"] if comment else []
+            atomic_write_text(path, head + self.doc.pieces())
 
     def truncate_after(self, time: float) -> tuple[int, int, float | None]:
         """Drop the records later than ``time`` (those of a run being continued from an
@@ -119,6 +123,25 @@ class OutputUDF:
             fh.flush()
             os.fsync(fh.fileno())
         self.doc.records = []
+
+
+RUN_MARK = "kapsel-py run "
+
+
+def run_comment(run_id: str, seed: int) -> str:
+    return f"{RUN_MARK}{run_id}, random seed {seed} (rerun with --seed {seed} to reproduce)"
+
+
+def run_id(path: str) -> str | None:
+    """The run id in the first line of an output.udf written by kapsel-py, else None."""
+    try:
+        with open(path, "rb") as fh:
+            first = fh.readline(400).decode("utf-8", "replace")
+    except OSError:
+        return None
+    if first.startswith("// " + RUN_MARK):
+        return first[3 + len(RUN_MARK):].split(",")[0].strip() or None
+    return None
 
 
 class TableLog:

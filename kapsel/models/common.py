@@ -201,6 +201,10 @@ class Model:
         self.rng = np.random.default_rng(self.seed)
 
         self._clock0 = (0, 0.0)     # (step, time) the clock counts from
+        # identity of the run, kept across continuations (state file) and written into
+        # output.udf's first line, so a continuation can tell its own output.udf
+        self.run_id = secrets.token_hex(8)
+        self.run_id_known = False   # True once taken from a restart's state file
 
     def tick(self) -> None:
         self.step_index += 1
@@ -254,6 +258,8 @@ class Model:
         gen = _noise_generator(self)
         if gen is not None:
             exact["noise"] = gen.get_state()
+        exact["run_id"] = self.run_id
+        exact["seed"] = str(self.seed)
         return self.restart_kind, fields, exact
 
     def load_restart(self, saved) -> None:
@@ -269,6 +275,8 @@ class Model:
                               f"from a restart.udf written by a run",
                               path="resume.Calculation", value=saved.kind)
         exact = saved.exact
+        if exact and isinstance(exact.get("run_id"), str):
+            self.run_id, self.run_id_known = exact["run_id"], True
         self.step_index = saved.step
         self.time = saved.time
         if saved.time != saved.step * self.dt:
