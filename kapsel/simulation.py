@@ -14,6 +14,7 @@ A *model* is the physics of one ``constitutive_eq.type``; it does no I/O and off
 """
 from __future__ import annotations
 
+import errno
 import os
 import signal
 import sys
@@ -67,12 +68,36 @@ def restart_hint(step, args=None) -> str:
     return f"{args.restart if args else 'The restart file'} holds the last good state (step {step}).{how}"
 
 
+def _write_error(e: OSError) -> str:
+    if e.errno == errno.ENOSPC or "No space left" in str(e):
+        return "the disk is full (No space left on device)"
+    if e.errno == errno.EDQUOT:
+        return "the disk quota is exceeded"
+    return e.strerror or str(e)
+
+
 def run(cfg, args, input_doc, model, resumed: bool = False) -> int:
     """Run ``model`` until step GTS * Num_snap, writing a record every GTS steps.
 
     ``resumed``: the model continues a restart (its clock is past 0); output.udf then gets
     the records of the continued run appended (later records of the earlier run, if any,
-    are dropped), unless --overwrite asks for a new file."""
+    are dropped), unless --overwrite asks for a new file.
+
+    A file that cannot be written (a full disk) stops the run with exit 1, naming the file;
+    records are appended whole or not at all and the restart pair is replaced only once
+    both new files are complete, so the last good restart and every complete record stay."""
+    saved = {"step": None}
+    try:
+        return _run(cfg, args, input_doc, model, resumed, saved)
+    except OSError as e:
+        what = e.filename or f"an output file in {os.path.dirname(os.path.abspath(args.output))}"
+        print(f"kapsel-py: error: cannot write {what} at step {model.step_index}: "
+              f"{_write_error(e)}. {restart_hint(saved['step'], args)}. Free some space and "
+              f"continue from it.", file=sys.stderr)
+        return 1
+
+
+def _run(cfg, args, input_doc, model, resumed, saved) -> int:
     from .io.records import OutputUDF, run_comment
     from .progress import Progress
 
@@ -93,6 +118,9 @@ def run(cfg, args, input_doc, model, resumed: bool = False) -> int:
                            comment=run_comment(model.run_id, model.seed))
         if append:
             kept, dropped, last = output.truncate_after(model.time)
+            if output.torn_tail:
+                print(f"#{args.output}: its last record was incomplete ({output.torn_tail} "
+                      f"bytes, written when a run stopped); it was dropped", file=sys.stderr)
             record_now = last is None or abs(last - model.time) > 1e-6 * max(1.0, model.time)
             if not args.quiet:
                 print(f"#continuing at step {model.step_index} (t = {model.time:g}): appending "
@@ -143,8 +171,6 @@ def run(cfg, args, input_doc, model, resumed: bool = False) -> int:
         if fields is not None:
             fields.write(n, model.time, **model.fields())
         save_restart()
-
-    saved = {"step": None}
 
     def save_restart():
         if model.restart_kind is None:

@@ -182,3 +182,113 @@ def test_continuing_a_finished_run_says_so(tmp_path, capsys, monkeypatch):
     err = capsys.readouterr().err
     assert "the last step of its run" in err and "raise output.Num_snap in restart.udf" in err
     assert {p.name: p.read_bytes() for p in d.iterdir()} == before
+
+
+# ---------------------------------------------------------------- 3. torn tail
+def test_torn_last_record_is_dropped_and_the_run_continues(tmp_path, capsys, monkeypatch):
+    import warnings
+    from udf.manager import TornTailWarning
+    d = small(tmp_path, nsnap=3)
+    assert cli(d, "input.udf") == 0
+    text = (d / "output.udf").read_text()
+    last = text.rindex("\\begin{record}")
+    # the run had written half of a fourth record when the power went
+    (d / "output.udf").write_text(text + text[last:last + (len(text) - last) // 2])
+    with pytest.warns(TornTailWarning, match="last record is incomplete"):
+        out = UDFManager(str(d / "output.udf"))
+    assert out.totalRecord() == 4 and out.torn_tail > 0
+    rs = UDFManager(str(d / "restart.udf"))
+    rs.put(5, "output.Num_snap")
+    rs.write(str(d / "restart.udf"))
+    monkeypatch.chdir(d)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert main(["-Irestart.udf", "-Ooutput.udf", "-Ddefine.udf", "-Rrestart.udf"]) == 0
+    assert "its last record was incomplete" in capsys.readouterr().err
+    out = UDFManager(str(d / "output.udf"))
+    assert out.totalRecord() == 6 and out.torn_tail == 0
+
+
+def test_a_failed_append_leaves_no_torn_record(tmp_path, monkeypatch):
+    from kapsel.io import records
+    path = tmp_path / "f.udf"
+    path.write_bytes(b"complete\n")
+    real = os.write
+
+    def half_then_full(fd, data):
+        real(fd, bytes(data[:len(data) // 2]))
+        raise OSError(errno.ENOSPC, "No space left on device")
+    monkeypatch.setattr(records.os, "write", half_then_full)
+    with pytest.raises(OSError, match="No space left") as e:
+        records.append_whole(str(path), b"a record that does not fit\n")
+    monkeypatch.undo()
+    assert e.value.filename == str(path)
+    assert path.read_bytes() == b"complete\n"
+
+
+# ---------------------------------------------------------------- 5. a full disk
+def _small_tmpfs(where, size):
+    """Mount a tmpfs of ``size`` at ``where`` (root only); False if that is not possible."""
+    os.makedirs(where)
+    if os.geteuid() != 0 or shutil.which("mount") is None:
+        return False
+    r = subprocess.run(["mount", "-t", "tmpfs", "-o", f"size={size}", "tmpfs", str(where)],
+                       capture_output=True)
+    return r.returncode == 0
+
+
+def test_full_disk_stops_the_run_and_keeps_the_last_good_restart(tmp_path):
+    disk = tmp_path / "disk"
+    if not _small_tmpfs(disk, "1500k"):
+        pytest.skip("cannot mount a small tmpfs here (the injected ENOSPC test covers it)")
+    try:
+        make_input(disk, "Navier_Stokes_FDM", ns="explicit_scheme", gts=2, nsnap=200,
+                   kBT=0.0)
+        r = run(disk, "-Iinput.udf", "-Ooutput.udf", "-Ddefine.udf", "-Rrestart.udf",
+                "--seed", "1", "--quiet")
+        assert r.returncode == 1, r.stderr
+        assert "the disk is full" in r.stderr and "cannot write" in r.stderr
+        assert "holds the last good state" in r.stderr and "Traceback" not in r.stderr
+        saved = tmp_path / "saved"
+        shutil.copytree(disk, saved)
+    finally:
+        subprocess.run(["umount", str(disk)])
+    _continue_after_failure(saved)
+
+
+def test_injected_enospc_keeps_the_last_good_restart(tmp_path, monkeypatch, capsys):
+    """The same without a tmpfs: the third restart write fails with ENOSPC."""
+    from kapsel.io import restart
+    d = small(tmp_path, gts=2, nsnap=6)
+    real = restart._savez_tmp
+    calls = []
+
+    def savez(path, arrays):
+        calls.append(path)
+        if len(calls) == 3:
+            raise OSError(errno.ENOSPC, "No space left on device")
+        return real(path, arrays)
+    monkeypatch.setattr(restart, "_savez_tmp", savez)
+    monkeypatch.chdir(d)
+    assert main(["-Iinput.udf", "-Ooutput.udf", "-Ddefine.udf", "-Rrestart.udf",
+                 "--seed", "1", "--quiet"]) == 1
+    err = capsys.readouterr().err
+    assert "cannot write restart.udf.state.npz at step 4: the disk is full" in err
+    assert "(step 2)" in err
+    monkeypatch.undo()
+    _continue_after_failure(d)
+
+
+def _continue_after_failure(d):
+    from kapsel.io.restart import read_restart
+    out = UDFManager(str(d / "output.udf"))
+    assert out.torn_tail == 0
+    rs = UDFManager(str(d / "restart.udf"))
+    saved = read_restart(rs, str(d / "restart.udf"), rs.get("resume.Calculation"))
+    assert saved.exact is not None and saved.step > 0       # the pair still matches
+    assert not [f for f in os.listdir(d) if ".tmp" in f]
+    rs.put(saved.step // 2 + 1, "output.Num_snap")
+    rs.write(str(d / "restart.udf"))
+    r = run(d, "-Irestart.udf", "-Ooutput.udf", "-Ddefine.udf", "-Rrestart.udf", "--quiet")
+    assert r.returncode == 0, r.stderr
+    assert UDFManager(str(d / "output.udf")).totalRecord() == saved.step // 2 + 2

@@ -57,6 +57,7 @@ class OutputUDF:
         """``comment``: a first line (without //) for a new file: kapsel-py writes the run
         id and the seed there (``run_id`` reads it back)."""
         self.path = path
+        self.torn_tail = 0
         self.doc = UDFManager(schema_from=define_path)
         self.doc.single_precision_records = True
         for name, value in input_doc.common.items():
@@ -75,21 +76,26 @@ class OutputUDF:
         earlier restart); returns (records kept, records dropped, time of the last kept
         record or None).  The kept bytes are not rewritten except for the cut, which is
         atomic."""
-        old = UDFManager(self.path)
+        import warnings
+        from udf.manager import TornTailWarning
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", TornTailWarning)
+            old = UDFManager(self.path)
+        self.torn_tail = old.torn_tail           # the caller says so
         times = []
         for n in range(old.totalRecord()):
             old.jump(n)
             times.append(float(old.get("t")))
         tol = 1e-6 * max(1.0, abs(time))           # t is stored at single precision
         keep = sum(1 for t in times if t <= time + tol)
-        if keep < len(times):
+        if keep < len(times) or old.torn_tail:
             with open(self.path, "rb") as fh:
                 data = fh.read()
             starts, i = [], data.find(b"\\begin{record}")
             while i >= 0:
                 starts.append(i)
                 i = data.find(b"\\begin{record}", i + 1)
-            if len(starts) != len(times):
+            if len(starts) != len(times) + (1 if old.torn_tail else 0):
                 raise ValueError(f"{self.path}: cannot locate its records")
             atomic_write_text(self.path, data[:starts[keep]].decode("utf-8"))
         return keep, len(times) - keep, (times[keep - 1] if keep else None)
@@ -118,11 +124,30 @@ class OutputUDF:
         for name, value in (extra or {}).items():
             self.doc.put(value, name)
         text = "".join(map(str, self.doc.record_pieces(self.doc.records[0])))
-        with open(self.path, "a", encoding="utf-8") as fh:
-            fh.write(text)
-            fh.flush()
-            os.fsync(fh.fileno())
+        append_whole(self.path, text.encode("utf-8"))
         self.doc.records = []
+
+
+def append_whole(path: str, data: bytes) -> None:
+    """Append ``data`` to ``path`` entirely or not at all: when the write fails (a full
+    disk), the file is cut back to its previous end, so no torn record is left."""
+    fd = os.open(path, os.O_WRONLY | os.O_APPEND)
+    try:
+        end = os.fstat(fd).st_size
+        try:
+            view = memoryview(data)
+            while view:
+                n = os.write(fd, view)
+                view = view[n:]
+            os.fsync(fd)
+        except OSError as e:
+            os.ftruncate(fd, end)
+            raise OSError(e.errno, e.strerror, path) from None
+        except BaseException:
+            os.ftruncate(fd, end)
+            raise
+    finally:
+        os.close(fd)
 
 
 RUN_MARK = "kapsel-py run "

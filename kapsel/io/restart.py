@@ -110,15 +110,28 @@ def _sparticle_type(doc: UDFManager, kind: str):
     return sd.members[sd.index("Particles")].type
 
 
-def _atomic_savez(path: str, arrays: dict) -> None:
+def _savez_tmp(path: str, arrays: dict) -> str:
+    """Write the arrays to a temporary file next to ``path``; returns its name (removed
+    again if the write fails)."""
     buf = io.BytesIO()
     np.savez(buf, **arrays)
     tmp = f"{path}.tmp{os.getpid()}"
-    with open(tmp, "wb") as fh:
-        fh.write(buf.getvalue())
-        fh.flush()
-        os.fsync(fh.fileno())
-    os.replace(tmp, path)
+    try:
+        with open(tmp, "wb") as fh:
+            fh.write(buf.getbuffer())
+            fh.flush()
+            os.fsync(fh.fileno())
+    except BaseException:
+        _remove(tmp)
+        raise
+    return tmp
+
+
+def _remove(path):
+    try:
+        os.unlink(path)
+    except OSError:
+        pass
 
 
 def write_restart(path: str, define_path: str, input_doc: UDFManager, kind: str, step: int,
@@ -151,8 +164,26 @@ def write_restart(path: str, define_path: str, input_doc: UDFManager, kind: str,
             state[name] = value
         else:
             state[name] = np.array(json.dumps(value))
-    _atomic_savez(state_path(path), state)
-    doc.write(path)
+    # both files are written in full under temporary names before either replaces the
+    # previous pair: a failure (a full disk) leaves the last good restart and state file
+    spath = state_path(path)
+    try:
+        stmp = _savez_tmp(spath, state)
+    except OSError as e:
+        raise OSError(e.errno, e.strerror, spath) from None
+    utmp = f"{path}.tmp{os.getpid()}"
+    try:
+        doc.write(utmp)
+    except OSError as e:
+        _remove(stmp)
+        _remove(utmp)
+        raise OSError(e.errno, e.strerror, path) from None
+    except BaseException:
+        _remove(stmp)
+        _remove(utmp)
+        raise
+    os.replace(stmp, spath)
+    os.replace(utmp, path)
 
 
 def read_restart(doc: UDFManager, input_path: str, kind: str) -> Saved:
