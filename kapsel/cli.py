@@ -67,8 +67,13 @@ def check_output_paths(args) -> str | None:
     regular files (or nothing yet): a symbolic link would be replaced by the atomic
     rename, a FIFO or device node (e.g. /dev/null) must never be replaced."""
     import stat
+    from .io.restart import state_path
     seen = {}
-    for flag, path in (("-O", args.output), ("-R", args.restart)):
+    state = state_path(args.restart)
+    if os.path.isdir(state) and not os.path.islink(state):
+        return (f"-R{args.restart}: its state file {state} is a directory; remove or rename "
+                f"it")
+    for flag, path in (("-O", args.output), ("-R", args.restart), ("-R", state)):
         if os.path.islink(path):
             return (f"{flag}{path}: is a symbolic link (to {os.readlink(path)}); kapsel-py "
                     f"replaces its files atomically and would replace the link: give the "
@@ -90,6 +95,8 @@ def check_output_paths(args) -> str | None:
         if os.path.isdir(path):
             return f"{flag}{path}: is a directory, not a file name"
         real = os.path.realpath(path)
+        if path == state:
+            continue
         if real in seen:
             return f"{seen[real]} and {flag} name the same file {path}"
         seen[real] = flag
@@ -305,8 +312,12 @@ def _checked_run(args, cfg, doc, define, resumed) -> int:
         if resumed:
             from .io.restart import read_restart
             saved = read_restart(doc, args.input, cfg.resume.calculation)
+            if saved.state_damaged:
+                from .io.restart import state_path
+                print(f"#{state_path(args.input)} is damaged ({saved.state_damaged}) and is "
+                      f"not used: continuing from the restart data alone", file=sys.stderr)
             model.load_restart(saved)
-            if saved.exact is None and not args.quiet:
+            if saved.exact is None and not args.quiet and not saved.state_damaged:
                 print(f"#{args.input}: no matching state file; continuing from the restart "
                       f"data alone (R_raw restarts at R, the noise stream at the seed)",
                       file=sys.stderr)

@@ -292,3 +292,39 @@ def _continue_after_failure(d):
     r = run(d, "-Irestart.udf", "-Ooutput.udf", "-Ddefine.udf", "-Rrestart.udf", "--quiet")
     assert r.returncode == 0, r.stderr
     assert UDFManager(str(d / "output.udf")).totalRecord() == saved.step // 2 + 2
+
+
+# ---------------------------------------------------------------- 5. damaged state file
+@pytest.mark.parametrize("damage", ["corrupt", "truncated", "empty", "directory"])
+def test_damaged_state_file_is_said_and_the_run_continues(tmp_path, damage, capsys,
+                                                          monkeypatch):
+    d = small(tmp_path, nsnap=2)
+    assert cli(d, "input.udf") == 0
+    st = d / "restart.udf.state.npz"
+    data = st.read_bytes()
+    if damage == "corrupt":
+        st.write_bytes(data[:30] + bytes(200) + data[230:])
+    elif damage == "truncated":
+        st.write_bytes(data[:len(data) // 2])
+    elif damage == "empty":
+        st.write_bytes(b"")
+    else:
+        st.unlink()
+        st.mkdir()
+    rs = UDFManager(str(d / "restart.udf"))
+    rs.put(3, "output.Num_snap")
+    rs.write(str(d / "restart.udf"))
+    monkeypatch.chdir(d)
+    code = main(["-Irestart.udf", "-Ooutput.udf", "-Ddefine.udf", "-Rrestart.udf",
+                 "--quiet"])
+    err = capsys.readouterr().err
+    if damage == "directory":          # it could not be replaced either: refused up front
+        assert code == 2 and "state file restart.udf.state.npz is a directory" in err, err
+        from kapsel.io.restart import read_restart
+        saved = read_restart(UDFManager(str(d / "restart.udf")), str(d / "restart.udf"),
+                             "CONTINUE_FDM")
+        assert saved.exact is None and saved.state_damaged
+    else:
+        assert "restart.udf.state.npz is damaged" in err and "restart data alone" in err, err
+        assert code == 0, err
+        assert UDFManager(str(d / "output.udf")).totalRecord() == 4

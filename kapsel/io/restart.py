@@ -28,6 +28,7 @@ import hashlib
 import io
 import json
 import os
+import zipfile
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -81,6 +82,7 @@ class Saved:
     fields: dict = field(default_factory=dict)
     exact: dict | None = None                 # the state file's arrays, if it matches
     particle_struct: object = None            # the sParticle class of the schema
+    state_damaged: str | None = None          # why the state file could not be read
 
     def fingerprint(self) -> str:
         return fingerprint(self.step, self.time, self.particles, self.fields)
@@ -208,12 +210,25 @@ def read_restart(doc: UDFManager, input_path: str, kind: str) -> Saved:
                   particle_struct=_sparticle_type(doc, kind))
     path = state_path(input_path)
     if os.path.exists(path):
-        with np.load(path, allow_pickle=False) as z:
-            state = {k: z[k] for k in z.files}
+        try:
+            state = _read_state(path)
+        except (OSError, ValueError, EOFError, KeyError, zipfile.BadZipFile) as e:
+            saved.state_damaged = (e.strerror if isinstance(e, OSError) and e.strerror
+                                   else str(e) or type(e).__name__)
+            return saved
         if str(state.pop("fingerprint", "")) == saved.fingerprint():
             saved.exact = {k: (json.loads(str(v)) if v.dtype.kind == "U" else v)
                            for k, v in state.items()}
     return saved
+
+
+def _read_state(path):
+    """The arrays of a state file; raises for a file that is not one (damaged, empty,
+    truncated, a directory)."""
+    with np.load(path, allow_pickle=False) as z:
+        if not hasattr(z, "files"):
+            raise ValueError("not an .npz archive")
+        return {k: z[k] for k in z.files}
 
 
 def zeta_from_velocity(u: np.ndarray, dx: float):

@@ -54,7 +54,7 @@ class SpectralModel(Model):
             from ..io.restart import state_path
             raise ConfigError(
                 f"a CONTINUE restart is continued together with its state file "
-                f"{state_path(self.cfg.input_path)} (missing, or written for other data): "
+                f"{state_path(self.cfg.input_path)} (missing, damaged, or written for other data): "
                 f"the Zeta packing alone does not determine the velocity",
                 path=f"resume.{self.cfg.resume.calculation}.Saved_Data.Zeta[]", value="(without state file)")
         if exact["u_hat"].shape != self.fluid.u_hat.shape:
