@@ -58,6 +58,41 @@ def check_step(model) -> None:
         raise InstabilityError(what)
 
 
+def first_blow_up(model) -> str | None:
+    """What went out of bounds first in a failed step, in the order of the step: the
+    particle forces (pair, bond, gravity: EPSILON, G), the particle velocities, the fluid
+    velocity; None if all are finite and within the step's reach."""
+    p = model.particles
+    dx, dt = model.cfg.mesh.DX, model.dt
+    if p is not None and p.n:
+        f = getattr(p, "f_r", None)
+        mass = np.asarray(p.mass, dtype=float)
+        if f is not None and f.size:
+            if not np.isfinite(f).all():
+                return ("the particle forces (pair, bond or gravity) are not finite; EPSILON "
+                        "or G is far too large for this time step")
+            reach = float(np.max(np.linalg.norm(f, axis=1) / mass)) * dt * dt / dx
+            if reach > 1.0:
+                return (f"the particle forces (pair, bond or gravity) move a particle "
+                        f"{reach:.3g} DX in one step (|F| dt^2 / (M DX) > 1); EPSILON or G is "
+                        f"too large for this time step")
+        if not (np.isfinite(p.v).all() and np.isfinite(p.R).all()):
+            return "the particle velocities or positions are not finite"
+        vmax = float(np.max(np.linalg.norm(p.v, axis=1)))
+        if vmax * dt / dx > 1.0:
+            return (f"the particle velocities: max |V| dt / DX = {vmax * dt / dx:.3g} exceeds 1 "
+                    f"(a particle crosses a mesh cell in one step)")
+    try:
+        ratio, what = model.stability()
+    except Exception:                                   # noqa: BLE001 - diagnosis only
+        return None
+    if not np.isfinite(ratio):
+        return "the fluid velocity is not finite (NaN or infinity)"
+    if ratio > 1.0:
+        return what
+    return None
+
+
 def restart_hint(step, args=None) -> str:
     if step is None:
         return "No restart file was written"
@@ -209,6 +244,9 @@ def _run(cfg, args, input_doc, model, resumed, saved) -> int:
                 if model.step_index % check_every == 0:
                     check_step(model)
             except (SolverDidNotConverge, FloatingPointError, InstabilityError) as e:
+                cause = first_blow_up(model)
+                if cause is not None and not isinstance(e, InstabilityError):
+                    e = f"{cause} (then: {e})"
                 print(f"kapsel-py: error: the run stopped at step {before + 1}: {e}. "
                       f"{restart_hint(saved['step'], args)}. Try a smaller time_increment "
                       f"factor (or delta_t), or the implicit_scheme.", file=sys.stderr)

@@ -328,3 +328,22 @@ def test_damaged_state_file_is_said_and_the_run_continues(tmp_path, damage, caps
         assert "restart.udf.state.npz is damaged" in err and "restart data alone" in err, err
         assert code == 0, err
         assert UDFManager(str(d / "output.udf")).totalRecord() == 4
+
+
+# ---------------------------------------------------------------- 8. what blew up first
+@pytest.mark.parametrize("item", ["EPSILON", "gravity.G"])
+def test_huge_epsilon_or_g_is_named(tmp_path, item, capsys, monkeypatch):
+    d = tmp_path / "blow"
+    make_input(d, "Navier_Stokes_Cahn_Hilliard_FDM", ns="explicit_scheme", gts=2, nsnap=3,
+               kBT=0.0, particles=4)
+    u = UDFManager(str(d / "input.udf"))
+    u.put(1e12, item)
+    u.put(2.0, "object_type.spherical_particle.Particle_spec[0].MASS_RATIO")
+    u.write(str(d / "input.udf"))
+    monkeypatch.chdir(d)
+    assert main(["-Iinput.udf", "-Ooutput.udf", "-Ddefine.udf", "-Rrestart.udf", "--seed", "1",
+                 "--quiet"]) == 1
+    err = capsys.readouterr().err
+    assert "the run stopped at step 1: the particle forces" in err, err
+    assert "EPSILON or G is too large" in err
+    assert err.index("particle forces") < err.index("Cahn-Hilliard")
