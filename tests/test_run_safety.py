@@ -347,3 +347,31 @@ def test_huge_epsilon_or_g_is_named(tmp_path, item, capsys, monkeypatch):
     assert "the run stopped at step 1: the particle forces" in err, err
     assert "EPSILON or G is too large" in err
     assert err.index("particle forces") < err.index("Cahn-Hilliard")
+
+
+# ---------------------------------------------------------------- 7. beyond the type's range
+def test_value_beyond_float_range_is_refused_at_input(tmp_path, capsys, monkeypatch):
+    d = small(tmp_path, particles=1)
+    u = UDFManager(str(d / "input.udf"))
+    u.put("user_specify", "switch.INIT_distribution.type")
+    u.write(str(d / "input.udf"))
+    text = (d / "input.udf").read_text()
+    key = "{32.0,32.0,32.0},{0.0,0.0,0.0},{0.0,0.0,0.0,0.0}"
+    assert key in text
+    (d / "input.udf").write_text(text.replace(key, "{1e300,8.0,8.0},{0.0,0.0,0.0},"
+                                                   "{1.0,0.0,0.0,0.0}"))
+    monkeypatch.chdir(d)
+    assert main(["-Iinput.udf", "-Ooutput.udf", "-Ddefine.udf", "-Rrestart.udf", "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert "1e300 is beyond the range of a float" in err
+    assert "user_specify.Particles[0].R.x" in err
+    assert not (d / "output.udf").exists()
+
+
+def test_writer_never_writes_an_unreadable_float():
+    from udf.schema import Primitive
+    from udf.writer import format_array
+    with pytest.raises(ValueError, match="beyond the range"):
+        format_array(np.array([1.0, 1e300]), Primitive("float"), 1, single=True)
+    assert str(format_array(np.array([1.0, 1e300]), Primitive("double"), 1, single=True)) \
+        == "[1.0,1e+300]"

@@ -136,8 +136,9 @@ class UDFManager:
         if cut < 0 or error.file is None or os.path.normpath(error.file) != \
                 os.path.normpath(path) or error.line is None:
             return None
-        if error.line < data.count(b"\n", 0, cut) + 1:
-            return None
+        if error.line < data.count(b"\n", 0, cut) + 1 or \
+                data.rstrip().endswith(b"\\end{record}"):
+            return None                     # an error elsewhere, or in a complete record
         try:
             sections = load_sections(path, data=data[:cut])
         except UDFError:
