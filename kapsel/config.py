@@ -389,6 +389,9 @@ def from_document(doc: udf.UDFManager, input_path: str = "") -> RunConfig:
     check_memory(r, mesh, eq_type, particles.count)
     box = mesh.box
     if particles.count:
+        if A <= A_XI / 2:
+            r.fail("A", A, f"must exceed A_XI / 2 = {A_XI / 2:g}: the smoothed profile "
+                           f"(eqs 1-3) is 1 within A - A_XI/2 of the centre")
         if 2 * A >= box.min():
             r.fail("A", A, f"a particle of diameter {2 * A:g} does not fit in the box "
                            f"{' x '.join(f'{x:g}' for x in box)}")

@@ -375,3 +375,43 @@ def test_writer_never_writes_an_unreadable_float():
         format_array(np.array([1.0, 1e300]), Primitive("float"), 1, single=True)
     assert str(format_array(np.array([1.0, 1e300]), Primitive("double"), 1, single=True)) \
         == "[1.0,1e+300]"
+
+
+# ---------------------------------------------------------------- 5. more tracebacks
+def _include_chain(d, depth):
+    """input.udf -> inc1.udf -> ... -> inc<depth>.udf -> define.udf."""
+    samples = os.path.join(os.path.dirname(__file__), "..", "samples")
+    with open(os.path.join(samples, "input.udf")) as fh:      # the manual's, with include
+        text = fh.read()
+    assert '\\include{"define.udf"}' in text
+    (d / "input.udf").write_text(text.replace('\\include{"define.udf"}', '\\include{"inc1.udf"}'))
+    for k in range(1, depth + 1):
+        nxt = f"inc{k + 1}.udf" if k < depth else "define.udf"
+        (d / f"inc{k}.udf").write_text(f'\\include{{"{nxt}"}}\n')
+
+
+def test_deep_include_chain_is_one_line(tmp_path):
+    d = small(tmp_path)
+    _include_chain(d, 1200)
+    r = run(d, "-Iinput.udf", "-Ooutput.udf", "-Ddefine.udf", "-Rrestart.udf", "--quiet")
+    assert r.returncode == 2, r.stderr
+    assert "includes are nested more than 100 deep" in r.stderr
+    assert "Traceback" not in r.stderr and len(r.stderr.splitlines()) == 1
+
+
+def test_include_chain_within_the_limit_reads(tmp_path):
+    d = small(tmp_path)
+    _include_chain(d, 95)
+    assert UDFManager(str(d / "input.udf")).get("mesh.NPX") == 5
+
+
+def test_radius_not_above_half_the_interface_is_refused(tmp_path, capsys, monkeypatch):
+    d = small(tmp_path, particles=1)
+    u = UDFManager(str(d / "input.udf"))
+    u.put(1.0, "A")
+    u.put(2.0, "A_XI")
+    u.write(str(d / "input.udf"))
+    monkeypatch.chdir(d)
+    assert main(["-Iinput.udf", "-Ooutput.udf", "-Ddefine.udf", "-Rrestart.udf", "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert "A = 1.0: must exceed A_XI / 2 = 1" in err and len(err.splitlines()) == 1
