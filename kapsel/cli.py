@@ -316,6 +316,10 @@ def _checked_run(args, cfg, doc, define, resumed) -> int:
                 from .io.restart import state_path
                 print(f"#{state_path(args.input)} is damaged ({saved.state_damaged}) and is "
                       f"not used: continuing from the restart data alone", file=sys.stderr)
+            if saved.checkpoint_of is not None and not args.quiet:
+                print(f"#{args.input} holds step {saved.checkpoint_of}, its state file the later "
+                      f"snapshot at step {saved.step} (the run ended before rewriting "
+                      f"{args.input}): continuing from step {saved.step}", file=sys.stderr)
             model.load_restart(saved)
             if saved.exact is None and not args.quiet and not saved.state_damaged:
                 print(f"#{args.input}: no matching state file; continuing from the restart "

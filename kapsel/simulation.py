@@ -207,14 +207,38 @@ def _run(cfg, args, input_doc, model, resumed, saved) -> int:
             fields.write(n, model.time, **model.fields())
         save_restart()
 
-    def save_restart():
+    define_doc = [None]
+
+    def save_restart(full=False):
+        """The full restart.udf (first snapshot of the run, end, interruption), else the
+        cheap checkpoint in its state file (kapsel.io.restart.write_checkpoint)."""
         if model.restart_kind is None:
             return
-        from .io.restart import write_restart
-        kind, data, exact = model.restart_state()
-        write_restart(args.restart, args.define, input_doc, kind, model.step_index, model.time,
-                      model.particles, data, exact)
+        from .io.restart import write_checkpoint, write_restart
+        full = full or saved.get("base") is None
+        kind, data, exact = model.restart_state(checkpoint=not full)
+        if full:
+            saved["base"] = write_restart(args.restart, args.define, input_doc, kind,
+                                          model.step_index, model.time, model.particles,
+                                          data, exact)
+            saved["full"] = model.step_index
+        else:
+            if define_doc[0] is None:
+                from udf import UDFManager
+                define_doc[0] = UDFManager(schema_from=args.define)
+            write_checkpoint(args.restart, define_doc[0], kind, model.step_index, model.time,
+                             model.particles, data, exact, saved["base"],
+                             complete=model.checkpoint_complete)
         saved["step"] = model.step_index
+
+    def complete_restart():
+        """After a failure: restart.udf written in full from the last checkpoint."""
+        if saved.get("step") is not None and saved.get("full") != saved["step"]:
+            from .io.restart import complete_restart as complete
+            try:
+                complete(args.restart, args.define, input_doc)
+            except OSError:
+                pass        # the checkpoint still continues the run from restart.udf
 
     stop = {"signal": None}
 
@@ -247,6 +271,7 @@ def _run(cfg, args, input_doc, model, resumed, saved) -> int:
                 cause = first_blow_up(model)
                 if cause is not None and not isinstance(e, InstabilityError):
                     e = f"{cause} (then: {e})"
+                complete_restart()
                 print(f"kapsel-py: error: the run stopped at step {before + 1}: {e}. "
                       f"{restart_hint(saved['step'], args)}. Try a smaller time_increment "
                       f"factor (or delta_t), or the implicit_scheme.", file=sys.stderr)
@@ -256,20 +281,21 @@ def _run(cfg, args, input_doc, model, resumed, saved) -> int:
                 try:
                     snapshot()
                 except InstabilityError as e:
+                    complete_restart()
                     print(f"kapsel-py: error: {e} at step {model.step_index}. "
                           f"{restart_hint(saved['step'], args)}. Try a smaller time_increment "
                           f"factor (or delta_t).", file=sys.stderr)
                     return 1
             if stop["signal"] is not None:
                 check_finite(model)
-                save_restart()
+                save_restart(full=True)
                 print(f"kapsel-py: interrupted at step {model.step_index} (t = {model.time:g}); "
                       f"{args.output} holds every snapshot so far and {args.restart} this "
                       f"step. Continue with: kapsel-py -I{args.restart} -O{args.output} "
                       f"-D{args.define} -R{args.restart}", file=sys.stderr)
                 return 1
-        if saved["step"] != model.step_index:
-            save_restart()
+        if saved.get("full") != model.step_index:
+            save_restart(full=True)
     finally:
         for s, h in old.items():
             signal.signal(s, h)

@@ -245,10 +245,18 @@ class Model:
     def load_fields(self, fields: dict, exact: dict | None) -> None:
         """Take the fields of a restart (see read_restart)."""
 
-    def restart_state(self):
-        """(kind, Saved_Data fields, exact state) of the current state."""
+    checkpoint_complete = True  # checkpoint_fields() are all of restart_fields()
+
+    def checkpoint_fields(self) -> dict:
+        """The Saved_Data items a checkpoint keeps (kapsel.io.restart.write_checkpoint):
+        all of them unless a model continues from its exact state alone."""
+        return self.restart_fields()
+
+    def restart_state(self, checkpoint=False):
+        """(kind, Saved_Data fields, exact state) of the current state (``checkpoint``: the
+        fields of checkpoint_fields())."""
         exact = dict(self.exact_state())
-        fields = self.restart_fields()
+        fields = self.checkpoint_fields() if checkpoint else self.restart_fields()
         if self.particles is not None and self.particles.n:
             exact["R_raw"] = self.particles.R_raw.copy()
             bodies = self.particles.constraints
