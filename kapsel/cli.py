@@ -121,14 +121,20 @@ def check_same_schema(doc, define, args) -> str | None:
     """Every item of the input that output.udf and restart.udf copy must be defined alike in
     the -D schema: otherwise those files hold data their own schema cannot read (issue 12),
     and a continued run would replace a good restart file with an unreadable one."""
-    differ = []
+    differ, lacks = [], []
     for name in doc.common:
         mine = doc.schema.global_items.get(name)
         theirs = define.schema.global_items.get(name)
-        if mine is None or theirs is None:
+        if mine is None:
             continue
-        if _layout(mine.type, mine.ndim) != _layout(theirs.type, theirs.ndim):
+        if theirs is None:
+            lacks.append(name)
+        elif _layout(mine.type, mine.ndim) != _layout(theirs.type, theirs.ndim):
             differ.append(name)
+    if lacks:
+        return (f"-D{args.define}: has no place for {', '.join(lacks)} of {args.input}: the "
+                f"restart file would not hold the whole input. Pass the define file the "
+                f"input includes")
     if differ:
         return (f"-D{args.define}: defines {', '.join(differ)} differently from the schema "
                 f"{args.input} was written with; output and restart files would not be "

@@ -5,6 +5,7 @@ special files, out-of-range values, blow-ups, seeds, finished runs."""
 import errno
 import os
 import shutil
+import signal
 import stat
 import subprocess
 import sys
@@ -61,11 +62,20 @@ def test_define_that_differs_from_the_input_is_refused(tmp_path, capsys, monkeyp
     assert (d / "restart.udf").read_bytes() == good
     UDFManager(str(d / "restart.udf"))
     UDFManager(str(d / "output.udf"))
+    # a define without a place for an item of the input
+    text = (d / "define.udf").read_text()
+    key = "Unit_Parameter:"
+    assert key in text
+    (d / "define3.udf").write_text(text.replace(key, "Unit_Parameter_elsewhere:"))
+    assert main(["-Irestart.udf", "-Ooutput.udf", "-Ddefine3.udf", "-Rrestart.udf",
+                 "--quiet"]) == 2
+    assert "has no place for Unit_Parameter" in capsys.readouterr().err
+    assert (d / "restart.udf").read_bytes() == good
 
 
 # ---------------------------------------------------------------- 2. two runs at once
 def test_two_runs_into_one_directory(tmp_path):
-    d = small(tmp_path, gts=5, nsnap=12)
+    d = small(tmp_path, gts=5, nsnap=100000)
     env = dict(os.environ, PYTHONPATH=os.pathsep.join(sys.path))
     args = KAPSEL + ["-Iinput.udf", "-Ooutput.udf", "-Ddefine.udf", "-Rrestart.udf",
                      "--seed", "3", "--quiet"]
@@ -74,17 +84,18 @@ def test_two_runs_into_one_directory(tmp_path):
     while not (d / "output.udf").exists() and time.time() < deadline:
         time.sleep(0.05)
     second = run(d, *args[3:], "--overwrite")
+    assert first.poll() is None             # the first run was still running
+    first.send_signal(signal.SIGTERM)
     _, err1 = first.communicate(timeout=300)
-    assert first.returncode == 0, err1
+    assert first.returncode == 1 and "interrupted at step" in err1, err1
     assert second.returncode == 2, second.stderr
     assert "another kapsel-py run is writing into" in second.stderr
-    out = UDFManager(str(d / "output.udf"))
-    assert out.totalRecord() == 13          # one run's records, in order
+    out = UDFManager(str(d / "output.udf"))   # one run's records, complete and in order
     steps = []
     for n in range(out.totalRecord()):
         out.jump(n)
         steps.append(out.get("t"))
-    assert steps == sorted(steps)
+    assert steps == sorted(steps) and len(set(steps)) == len(steps)
     assert not any(f.startswith(".") for f in os.listdir(d))    # no lock file left
 
 
