@@ -338,7 +338,7 @@ def _checked_run(args, cfg, doc, define, resumed) -> int:
         return fail(str(e))
     except udf.UDFError as e:
         return fail(str(e))
-    problem = (check_same_schema(doc, define, args) or check_define(define, args, model)
+    problem = (check_define(define, args, model) or check_same_schema(doc, define, args)
                or (resumed and check_own_output(args, model)))
     if problem:
         return fail(problem)
