@@ -75,9 +75,28 @@ def single_threaded_blas() -> None:
 
 def check_output_paths(args) -> str | None:
     """Where output.udf, the field files and restart.udf go must be a writable directory,
-    and -O and -R must differ: checked before anything is written."""
+    and -O and -R must differ: checked before anything is written.  -O and -R must name
+    regular files (or nothing yet): a symbolic link would be replaced by the atomic
+    rename, a FIFO or device node (e.g. /dev/null) must never be replaced."""
+    import stat
+    from .io.restart import state_path
     seen = {}
-    for flag, path in (("-O", args.output), ("-R", args.restart)):
+    state = state_path(args.restart)
+    if os.path.isdir(state) and not os.path.islink(state):
+        return (f"-R{args.restart}: its state file {state} is a directory; remove or rename "
+                f"it")
+    for flag, path in (("-O", args.output), ("-R", args.restart), ("-R", state)):
+        if os.path.islink(path):
+            return (f"{flag}{path}: is a symbolic link (to {os.readlink(path)}); kapsel-py "
+                    f"replaces its files atomically and would replace the link: give the "
+                    f"target's path")
+        if os.path.exists(path) and not os.path.isdir(path):
+            mode = os.stat(path).st_mode
+            if not stat.S_ISREG(mode):
+                kind = ("a FIFO" if stat.S_ISFIFO(mode) else "a device node"
+                        if stat.S_ISCHR(mode) or stat.S_ISBLK(mode) else "a socket"
+                        if stat.S_ISSOCK(mode) else "not a regular file")
+                return f"{flag}{path}: is {kind}, not a regular file; it is never replaced"
         d = os.path.dirname(os.path.abspath(path))
         if not os.path.isdir(d):
             if os.path.exists(d):
@@ -88,10 +107,117 @@ def check_output_paths(args) -> str | None:
         if os.path.isdir(path):
             return f"{flag}{path}: is a directory, not a file name"
         real = os.path.realpath(path)
+        if path == state:
+            continue
         if real in seen:
             return f"{seen[real]} and {flag} name the same file {path}"
         seen[real] = flag
     return None
+
+
+def _layout(t, ndim=0):
+    """The structure of a schema type that decides whether its data, written positionally,
+    reads back (array ranks, member counts, primitive kinds; not names, select choices,
+    units or comments: e.g. resume.CONTINUE may be called CONTINUE_ORIGINAL)."""
+    from udf.schema import Primitive, Select, Struct
+    if isinstance(t, Struct):
+        return ndim, tuple(_layout(m.type, m.ndim) for m in t.members)
+    if isinstance(t, Select):
+        return ndim, "select"
+    if isinstance(t, Primitive):
+        return ndim, t.name
+    return ndim, repr(t)
+
+
+def check_same_schema(doc, define, args) -> str | None:
+    """Every item of the input that output.udf and restart.udf copy must be defined alike in
+    the -D schema: otherwise those files hold data their own schema cannot read (issue 12),
+    and a continued run would replace a good restart file with an unreadable one."""
+    differ, lacks = [], []
+    for name in doc.common:
+        mine = doc.schema.global_items.get(name)
+        theirs = define.schema.global_items.get(name)
+        if mine is None:
+            continue
+        if theirs is None:
+            lacks.append(name)
+        elif _layout(mine.type, mine.ndim) != _layout(theirs.type, theirs.ndim):
+            differ.append(name)
+    if lacks:
+        return (f"-D{args.define}: has no place for {', '.join(lacks)} of {args.input}: the "
+                f"restart file would not hold the whole input. Pass the define file the "
+                f"input includes")
+    if differ:
+        return (f"-D{args.define}: defines {', '.join(differ)} differently from the schema "
+                f"{args.input} was written with; output and restart files would not be "
+                f"readable. Pass the define file the input includes")
+    return None
+
+
+def check_own_output(args, model) -> str | None:
+    """A continued run appends to -O only if that file is its own: the run id in its first
+    line (kapsel.io.records.run_id) must be the one in the restart's state file."""
+    from .io.records import run_id
+    if args.overwrite or not model.run_id_known or not os.path.exists(args.output):
+        return None
+    theirs = run_id(args.output)
+    if theirs is not None and theirs != model.run_id:
+        return (f"-O{args.output} belongs to another run (run {theirs}); {args.input} "
+                f"continues run {model.run_id}: give that run's output file, or pass "
+                f"--overwrite to start a new {args.output}")
+    return None
+
+
+def existing_outputs(args, cfg) -> str | None:
+    """A new run refuses to replace existing output unless --overwrite (checked under the
+    run lock, so two runs cannot both pass it)."""
+    from .io.writers import new_run_targets
+    targets = [(f"-O{args.output}", args.output), (f"-R{args.restart}", args.restart)]
+    targets += new_run_targets(cfg, args)
+    for what, path in targets:
+        if os.path.exists(path):
+            return (f"{what} exists; pass --overwrite to replace it (or continue a run from "
+                    f"its restart file)")
+    return None
+
+
+class _DirLock:
+    """flock(2) on a directory's own descriptor: no file is created, and the system drops
+    the lock however the process ends."""
+
+    def __init__(self, fd):
+        self.fd = fd
+
+    def close(self):
+        if self.fd is not None:
+            os.close(self.fd)
+            self.fd = None
+
+
+def lock_output_dirs(args):
+    """Hold an exclusive lock on every directory kapsel-py writes into (that of -O, with the
+    field files, and that of -R) for the whole run, so that two runs cannot write into one
+    directory at once.  Returns (locks, None) or (None, message)."""
+    import fcntl
+    held = []
+    dirs = sorted({os.path.realpath(os.path.dirname(os.path.abspath(p)))
+                   for p in (args.output, args.restart)})
+    for d in dirs:
+        try:
+            fd = os.open(d, os.O_RDONLY)
+        except OSError as e:
+            return None, f"cannot open {d} to lock it for the run: {e.strerror}"
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            os.close(fd)
+            for h in held:
+                h.close()
+            return None, (f"another kapsel-py run is writing into {d}; two runs must not "
+                          f"write into one directory: wait for it to end, or give -O/-R in "
+                          f"another directory")
+        held.append(_DirLock(fd))
+    return held, None
 
 
 def check_define(define, args, model) -> str | None:
@@ -195,11 +321,19 @@ def build_model(cfg, args, doc, resumed: bool):
         if resumed:
             from .io.restart import read_restart
             saved = read_restart(doc, args.input, cfg.resume.calculation)
+            if saved.state_damaged:
+                from .io.restart import state_path
+                print(f"#{state_path(args.input)} is damaged ({saved.state_damaged}) and is "
+                      f"not used: continuing from the restart data alone", file=sys.stderr)
+            if saved.checkpoint_of is not None and not args.quiet:
+                print(f"#{args.input} holds step {saved.checkpoint_of}, its state file the "
+                      f"later snapshot at step {saved.step} (the run ended before rewriting "
+                      f"{args.input}): continuing from step {saved.step}", file=sys.stderr)
             model.load_restart(saved)
             if not args.quiet:       # the original's line after its restore (§1.3)
                 print("############################ Parameters are restored.",
                       file=sys.stderr)
-            if saved.exact is None and not args.quiet:
+            if saved.exact is None and not args.quiet and not saved.state_damaged:
                 print(f"#{args.input}: no matching state file; continuing from the restart "
                       f"data alone (R_raw from it or else R, the noise stream at the seed)",
                       file=sys.stderr)
@@ -220,13 +354,13 @@ def build_model(cfg, args, doc, resumed: bool):
     return model
 
 
-def prepare(args):
+def prepare(args, locks: list | None = None):
     """Everything a run does before its first write: read the input and the -D schema,
-    build the configuration and the model (every check), check the output paths.
-    Returns the exit code of a refusal (the message printed), or
-    (cfg, doc, model, resumed, seed_drawn).  Writes nothing."""
-    if args.threads < 1:
-        return fail(f"--threads must be at least 1, got {args.threads}")
+    build the configuration and the model (every check), check the output paths.  With a
+    ``locks`` list (a run, not --check) the output directories are locked first
+    (lock_output_dirs; the caller releases them when the run ends).  Returns the exit code
+    of a refusal (the message printed), or (cfg, doc, model, resumed, seed_drawn).  Writes
+    nothing."""
     for flag, path in (("-I", args.input), ("-D", args.define)):
         if not os.path.isfile(path):
             return fail(f"{flag}{path}: no such file")
@@ -238,14 +372,15 @@ def prepare(args):
     if problem:
         return fail(problem)
     resumed = cfg.resume.calculation != "NEW"
+    if locks is not None:
+        held, problem = lock_output_dirs(args)    # from here to the end of the run
+        if problem:
+            return fail(problem)
+        locks.extend(held)
     if not resumed and not args.overwrite:
-        targets = [(f"-O{args.output}", args.output), (f"-R{args.restart}", args.restart)]
-        from .io.writers import new_run_targets
-        targets += new_run_targets(cfg, args)
-        for what, path in targets:
-            if os.path.exists(path):
-                return fail(f"{what} exists; pass --overwrite to replace it (or continue a "
-                            f"run from its restart file)")
+        problem = existing_outputs(args, cfg)
+        if problem:
+            return fail(problem)
     seed_drawn = args.seed is None
     if args.seed is None:   # drawn here, reported once the input is known to be good
         import secrets
@@ -254,7 +389,8 @@ def prepare(args):
         model = build_model(cfg, args, doc, resumed)
     except BadInput as e:
         return fail(str(e))
-    problem = check_define(define, args, model)
+    problem = (check_define(define, args, model) or check_same_schema(doc, define, args)
+               or (resumed and check_own_output(args, model)))
     if problem:
         return fail(problem)
     return cfg, doc, model, resumed, seed_drawn
@@ -269,7 +405,24 @@ def main(argv=None) -> int:
         from .analysis.cli import main as analyze
         return analyze(argv[1:])
     args = build_parser().parse_args(argv)
-    prepared = prepare(args)
+    if args.threads < 1:
+        return fail(f"--threads must be at least 1, got {args.threads}")
+    if args.seed is not None and not 0 <= args.seed < 2 ** 63:
+        return fail(f"--seed must be an integer from 0 to 2^63 - 1, got {args.seed}")
+    locks: list = []
+    try:
+        return _main(args, locks)
+    except KeyboardInterrupt:
+        print("kapsel-py: interrupted during start-up, before the first step; there is "
+              "nothing to continue from", file=sys.stderr)
+        return EXIT_RUN_FAILED
+    finally:
+        for fh in locks:
+            fh.close()
+
+
+def _main(args, locks) -> int:
+    prepared = prepare(args, None if args.check else locks)
     if isinstance(prepared, int):
         return prepared
     cfg, doc, model, resumed, seed_drawn = prepared

@@ -597,6 +597,9 @@ def _check_particles_fit(r: _Reader, mesh: Mesh, particles: Particles) -> None:
     box = mesh.box
     a = particles.A
     n = particles.count
+    if n and particles.A <= particles.A_XI / 2:
+        r.fail("A", r.get("A"), f"must exceed A_XI / 2 = {r.get('A_XI') / 2:g}: the smoothed "
+                                f"profile (eqs 1-3) is 1 within A - A_XI/2 of the centre")
     if 2 * a >= box.min():
         r.fail("A", r.get("A"), f"a particle of diameter 2 A DX = {2 * a:g} does not fit in "
                                 f"the box {_dims(box)}")

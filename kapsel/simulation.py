@@ -13,6 +13,7 @@ A *model* is the physics of one ``constitutive_eq.type``; it does no I/O and off
 """
 from __future__ import annotations
 
+import errno
 import os
 import signal
 import sys
@@ -58,6 +59,41 @@ def check_step(model) -> None:
         raise InstabilityError(what)
 
 
+def first_blow_up(model) -> str | None:
+    """What went out of bounds first in a failed step, in the order of the step: the
+    particle forces (pair, bond, gravity: EPSILON, G), the particle velocities, the fluid
+    velocity; None if all are finite and within the step's reach."""
+    p = model.particles
+    dx, dt = model.cfg.mesh.DX, model.dt
+    if p is not None and p.n:
+        f = getattr(p, "f_r", None)
+        mass = np.asarray(p.mass, dtype=float)
+        if f is not None and f.size:
+            if not np.isfinite(f).all():
+                return ("the particle forces (pair, bond or gravity) are not finite; EPSILON "
+                        "or G is far too large for this time step")
+            reach = float(np.max(np.linalg.norm(f, axis=1) / mass)) * dt * dt / dx
+            if reach > 1.0:
+                return (f"the particle forces (pair, bond or gravity) move a particle "
+                        f"{reach:.3g} DX in one step (|F| dt^2 / (M DX) > 1); EPSILON or G is "
+                        f"too large for this time step")
+        if not (np.isfinite(p.v).all() and np.isfinite(p.R).all()):
+            return "the particle velocities or positions are not finite"
+        vmax = float(np.max(np.linalg.norm(p.v, axis=1)))
+        if vmax * dt / dx > 1.0:
+            return (f"the particle velocities: max |V| dt / DX = {vmax * dt / dx:.3g} exceeds 1 "
+                    f"(a particle crosses a mesh cell in one step)")
+    try:
+        ratio, what = model.stability()
+    except Exception:                                   # noqa: BLE001 - diagnosis only
+        return None
+    if not np.isfinite(ratio):
+        return "the fluid velocity is not finite (NaN or infinity)"
+    if ratio > 1.0:
+        return what
+    return None
+
+
 def restart_hint(step, args=None) -> str:
     if step is None:
         return "No restart file was written"
@@ -81,18 +117,51 @@ def planned_files(cfg, args, model, resumed: bool = False) -> list[tuple[str, st
     return files
 
 
+def _write_error(e: OSError) -> str:
+    if e.errno == errno.ENOSPC or "No space left" in str(e):
+        return "the disk is full (No space left on device)"
+    if e.errno == errno.EDQUOT:
+        return "the disk quota is exceeded"
+    return e.strerror or str(e)
+
+
 def run(cfg, args, input_doc, model, resumed: bool = False) -> int:
     """Run ``model`` until step GTS * Num_snap; every GTS steps each writer of
     kapsel.io.writers.make_writers writes the snapshot (output.udf, field files, logs).
 
     ``resumed``: the model continues a restart (its clock is past 0); output.udf then gets
     the records of the continued run appended (later records of the earlier run, if any,
-    are dropped), unless --overwrite asks for a new file."""
+    are dropped), unless --overwrite asks for a new file.
+
+    A file that cannot be written (a full disk) stops the run with exit 1, naming the file;
+    records are appended whole or not at all and the restart pair is replaced only once
+    both new files are complete, so the last good restart and every complete record stay."""
+    saved = {"step": None}
+    try:
+        return _run(cfg, args, input_doc, model, resumed, saved)
+    except OSError as e:
+        what = e.filename or f"an output file in {os.path.dirname(os.path.abspath(args.output))}"
+        print(f"kapsel-py: error: cannot write {what} at step {model.step_index}: "
+              f"{_write_error(e)}. {restart_hint(saved['step'], args)}. Free some space and "
+              f"continue from it.", file=sys.stderr)
+        return 1
+
+
+def _run(cfg, args, input_doc, model, resumed, saved) -> int:
+    from .io.records import run_comment
     from .io.writers import make_writers
     from .progress import Progress
 
-    writers = make_writers(cfg, args, input_doc, model.snapshot())
     total = cfg.output.total_steps
+    if resumed and model.step_index > total:
+        print(f"kapsel-py: {args.input} holds the end of its run (its last snapshot at step "
+              f"{total} = output.Num_snap {cfg.output.Num_snap} x output.GTS "
+              f"{cfg.output.GTS}): nothing to do. To run longer, raise output.Num_snap in "
+              f"{args.input} and run kapsel-py -I{args.input} -O{args.output} "
+              f"-D{args.define} -R{args.restart}", file=sys.stderr)
+        return 0
+    writers = make_writers(cfg, args, input_doc, model.snapshot(),
+                           comment=run_comment(model.run_id, model.seed))
     start = model.step_index
     progress = Progress(total, quiet=args.quiet, gts=cfg.output.GTS, start_step=start)
     table = None
@@ -113,16 +182,38 @@ def run(cfg, args, input_doc, model, resumed: bool = False) -> int:
         if model.step_index != start:
             progress.snapshot(model.step_index)
 
-    saved = {"step": None}
+    define_doc = [None]
 
-    def save_restart():
+    def save_restart(full=False):
+        """The full restart.udf (first snapshot of the run, end, interruption), else the
+        cheap checkpoint in its state file (kapsel.io.restart.write_checkpoint)."""
         if model.restart_kind is None:
             return
-        from .io.restart import write_restart
-        kind, data, exact = model.restart_state()
-        write_restart(args.restart, args.define, input_doc, kind, model.step_index, model.time,
-                      model.particles, data, exact)
+        from .io.restart import write_checkpoint, write_restart
+        full = full or saved.get("base") is None
+        kind, data, exact = model.restart_state(checkpoint=not full)
+        if full:
+            saved["base"] = write_restart(args.restart, args.define, input_doc, kind,
+                                          model.step_index, model.time, model.particles,
+                                          data, exact)
+            saved["full"] = model.step_index
+        else:
+            if define_doc[0] is None:
+                from udf import UDFManager
+                define_doc[0] = UDFManager(schema_from=args.define)
+            write_checkpoint(args.restart, define_doc[0], kind, model.step_index, model.time,
+                             model.particles, data, exact, saved["base"],
+                             complete=model.checkpoint_complete)
         saved["step"] = model.step_index
+
+    def complete_restart():
+        """After a failure: restart.udf written in full from the last checkpoint."""
+        if saved.get("step") is not None and saved.get("full") != saved["step"]:
+            from .io.restart import complete_restart as complete
+            try:
+                complete(args.restart, args.define, input_doc)
+            except OSError:
+                pass        # the checkpoint still continues the run from restart.udf
 
     stop = {"signal": None}
 
@@ -154,6 +245,10 @@ def run(cfg, args, input_doc, model, resumed: bool = False) -> int:
                 if model.step_index % check_every == 0:
                     check_step(model)
             except (SolverDidNotConverge, FloatingPointError, InstabilityError) as e:
+                cause = first_blow_up(model)
+                if cause is not None and not isinstance(e, InstabilityError):
+                    e = f"{cause} (then: {e})"
+                complete_restart()
                 print(f"kapsel-py: error: the run stopped at step {before + 1}: {e}. "
                       f"{restart_hint(saved['step'], args)}. Try a smaller time_increment "
                       f"factor (or delta_t), or the implicit_scheme.", file=sys.stderr)
@@ -165,6 +260,7 @@ def run(cfg, args, input_doc, model, resumed: bool = False) -> int:
                 try:
                     snapshot()
                 except InstabilityError as e:
+                    complete_restart()
                     print(f"kapsel-py: error: {e} at step {model.step_index}. "
                           f"{restart_hint(saved['step'], args)}. Try a smaller time_increment "
                           f"factor (or delta_t).", file=sys.stderr)
@@ -172,7 +268,7 @@ def run(cfg, args, input_doc, model, resumed: bool = False) -> int:
             if stop["signal"] is not None:
                 closing = "interrupted"
                 check_finite(model)
-                save_restart()
+                save_restart(full=True)
                 print(f"kapsel-py: interrupted at step {model.step_index} (t = {model.time:g}); "
                       f"{args.output} holds every snapshot so far and {args.restart} this "
                       f"step. Continue with: kapsel-py -I{args.restart} -O{args.output} "
@@ -191,12 +287,12 @@ def run(cfg, args, input_doc, model, resumed: bool = False) -> int:
                     table.row(model.shear_table_row())
             except (SolverDidNotConverge, FloatingPointError, InstabilityError, ValueError,
                     IndexError, OverflowError) as e:
+                complete_restart()
                 print(f"kapsel-py: error: the step after the last snapshot failed: {e}. "
                       f"{restart_hint(saved['step'], args)}.", file=sys.stderr)
                 return 1
-            save_restart()
-        elif saved["step"] != model.step_index:
-            save_restart()
+        if saved.get("full") != model.step_index:
+            save_restart(full=True)
         closing = "end"
     finally:
         for s, h in old.items():

@@ -65,7 +65,7 @@ def saved_data(path):
         for k in z.files:
             if z[k].dtype.kind != "U":
                 out["state:" + k] = z[k]
-            elif k != "fingerprint":
+            elif k not in ("fingerprint", "run_id"):     # identities, not state
                 out["state:" + k] = str(z[k])
     return out
 

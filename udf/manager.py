@@ -61,6 +61,10 @@ def _temporary(path: str):
     return fd, tmp
 
 
+class TornTailWarning(UserWarning):
+    """A UDF file ended in an incomplete record, which was left out."""
+
+
 def atomic_write_text(path: str, text) -> None:
     """Write ``text`` (a str, or a list of writer pieces) to ``path`` through a temporary
     file in the same directory and a rename: readers never see a half-written file."""
@@ -107,9 +111,15 @@ class UDFManager:
         # files must not: they continue runs bit for bit).
         self.single_precision_records = False
         source = schema_from or path
+        self.torn_tail = 0          # bytes of an incomplete last record that were dropped
         if source is None:
             return
-        sections = load_sections(source)
+        try:
+            sections = load_sections(source)
+        except UDFError as e:
+            sections = self._without_torn_tail(source, e) if schema_from is None else None
+            if sections is None:
+                raise
         self.schema = build_schema(sections)
         for sec in sections:
             if sec.kind == "header" and not self.header_text:
@@ -146,6 +156,33 @@ class UDFManager:
                 self.records.append(rec)
         raise_all(errors)
         self.current = 0 if self.records else -1
+
+    def _without_torn_tail(self, path, error):
+        """A file whose last record is incomplete (a run stopped while appending it: power
+        loss, a full disk) is read without that record, and says so (``torn_tail``, a
+        warning); None if the error lies elsewhere."""
+        import warnings
+        try:
+            with open(path, "rb") as fh:
+                data = fh.read()
+        except OSError:
+            return None
+        cut = data.rfind(b"\\begin{record}")
+        if cut < 0 or error.file is None or os.path.normpath(error.file) != \
+                os.path.normpath(path) or error.line is None:
+            return None
+        if error.line < data.count(b"\n", 0, cut) + 1 or \
+                data.rstrip().endswith(b"\\end{record}"):
+            return None                     # an error elsewhere, or in a complete record
+        try:
+            sections = load_sections(path, data=data[:cut])
+        except UDFError:
+            return None
+        self.torn_tail = len(data) - cut
+        warnings.warn(f"{path}: its last record is incomplete ({self.torn_tail} bytes, a run "
+                      f"stopped while writing it); it is left out", TornTailWarning,
+                      stacklevel=3)
+        return sections
 
     def _member(self, name, file, line, col, want_global):
         m, is_global = self.schema.item(name)

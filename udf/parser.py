@@ -376,16 +376,25 @@ def _syntax_error(e: lark.exceptions.UnexpectedInput, file: str, text: str) -> U
     return UDFError(str(e).splitlines()[0], file, line, col)
 
 
-def load_sections(path: str, _stack=()) -> list[Section]:
-    """Parse ``path`` (and, recursively, what it includes) into a list of Sections."""
+MAX_INCLUDE_DEPTH = 100
+
+
+def load_sections(path: str, _stack=(), data: bytes | None = None) -> list[Section]:
+    """Parse ``path`` (and, recursively, what it includes) into a list of Sections
+    (``data``: the file's bytes, if already read)."""
     path = os.path.normpath(path)
     if path in _stack:
         raise UDFError(f"include cycle: {' -> '.join(_stack + (path,))}", path)
-    try:
-        with open(path, "rb") as fh:
-            data = fh.read()
-    except OSError as e:
-        raise UDFError(f"cannot read file: {e.strerror}", path) from None
+    if len(_stack) >= MAX_INCLUDE_DEPTH:
+        raise UDFError(f"includes are nested more than {MAX_INCLUDE_DEPTH} deep (from "
+                       f"{_stack[0]}); is there an include loop through different names?",
+                       _stack[-1])
+    if data is None:
+        try:
+            with open(path, "rb") as fh:
+                data = fh.read()
+        except OSError as e:
+            raise UDFError(f"cannot read file: {e.strerror}", path) from None
     reduced, bulks = extract_bulk(data, path)
     try:
         tree = grammar().parse(reduced)

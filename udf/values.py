@@ -20,6 +20,7 @@ from .schema import Primitive, Select, Struct, leaf_count, leaf_kinds
 
 
 INT_MIN, INT_MAX = -2 ** 31, 2 ** 31 - 1   # OCTA stores int as a C int
+FLOAT_MAX = float(np.finfo(np.float32).max)  # OCTA stores float as a C float
 
 
 _CONTINUATION = re.compile(r"\\\r?\n")
@@ -78,6 +79,10 @@ def bind(t, ndim: int, g, path: str, file: str, lazy: dict | None = None):
             v = float(s)
             if not math.isfinite(v):
                 raise _err(f"the number {s} is beyond the range of a double", g, file, path)
+            if t.name == "float" and abs(v) > FLOAT_MAX:
+                raise _err(f"the number {s} is beyond the range of a float (|x| <= "
+                           f"{FLOAT_MAX:.8g}), the type the define file gives it", g, file,
+                           path)
             return v
         if t.name == "bool":
             if getattr(g, "type", None) == "NUMBER":
@@ -182,6 +187,14 @@ def _bulk_to_array(t, ndim, lc, g: Bulk, path, file):
     arr = g.numbers.reshape(shape)
     if arr.size and not np.isfinite(arr).all():
         raise _err("a number is beyond the range of a double", g, file, path)
+    if arr.size and not isinstance(t, Select):
+        kinds = leaf_kinds(t)
+        if "float" in kinds:
+            cols = arr if isinstance(t, Primitive) else \
+                arr[..., [i for i, k in enumerate(kinds) if k == "float"]]
+            if np.abs(cols).max() > FLOAT_MAX:
+                raise _err(f"a number is beyond the range of a float (|x| <= {FLOAT_MAX:.8g}), "
+                           f"the type the define file gives it", g, file, path)
     if _dtype(t) is np.int64:
         if not g.integral and np.any(arr != np.round(arr)):
             raise _err("expected integers, found a fractional value", g, file, path)

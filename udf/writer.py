@@ -51,6 +51,9 @@ def format_array(arr: np.ndarray, t, ndim: int, single: bool = False) -> str:
         if not np.isfinite(data).all():
             raise ValueError("cannot write NaN or infinite values to a UDF file")
         if single and all(k == "float" for k in kinds):
+            if data.size and np.abs(data).max() > np.finfo(np.float32).max:
+                raise ValueError("a value is beyond the range of the define file's float type "
+                                 "(|x| <= 3.4028235e+38)")
             data = data.astype(np.float32)
     b = np.frombuffer(orjson.dumps(data, option=orjson.OPT_SERIALIZE_NUMPY), dtype=np.uint8)
     depth = np.cumsum(_STEP[b], dtype=np.int8)

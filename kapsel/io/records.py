@@ -52,8 +52,12 @@ def particle_table(state, struct: Struct) -> np.ndarray:
 class OutputUDF:
     """Writer of output.udf following the schema of ``define_path``."""
 
-    def __init__(self, path: str, define_path: str, input_doc: UDFManager, append=False):
+    def __init__(self, path: str, define_path: str, input_doc: UDFManager, append=False,
+                 comment: str = ""):
+        """``comment``: a first line (without //) for a new file: kapsel-py writes the run
+        id and the seed there (``run_id`` reads it back)."""
         self.path = path
+        self.torn_tail = 0
         self.doc = UDFManager(schema_from=define_path)
         self.doc.single_precision_records = True
         for name, value in input_doc.common.items():
@@ -64,7 +68,8 @@ class OutputUDF:
         m, _ = self.doc.schema.item("RigidParticles")
         self.rigid_type = m.type if m is not None else None
         if not append or not os.path.exists(path):
-            atomic_write_text(path, self.doc.pieces())
+            head = [f"// {comment}\n"] if comment else []
+            atomic_write_text(path, head + self.doc.pieces())
 
     def truncate_after(self, step: int) -> tuple[int, int, float | None]:
         """Drop the records later than ``step`` (those of a run being continued from an
@@ -72,20 +77,25 @@ class OutputUDF:
         (records kept, records dropped, t of the last kept record or None).  The kept
         bytes are not rewritten except for the cut, which is
         atomic."""
-        old = UDFManager(self.path)
+        import warnings
+        from udf.manager import TornTailWarning
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", TornTailWarning)
+            old = UDFManager(self.path)
+        self.torn_tail = old.torn_tail           # the caller says so
         times = []
         for n in range(old.totalRecord()):
             old.jump(n)
             times.append(float(old.get("t")))
         keep = sum(1 for t in times if t <= step + 0.5)   # t: a step, at single precision
-        if keep < len(times):
+        if keep < len(times) or old.torn_tail:
             with open(self.path, "rb") as fh:
                 data = fh.read()
             starts, i = [], data.find(b"\\begin{record}")
             while i >= 0:
                 starts.append(i)
                 i = data.find(b"\\begin{record}", i + 1)
-            if len(starts) != len(times):
+            if len(starts) != len(times) + (1 if old.torn_tail else 0):
                 raise ValueError(f"{self.path}: cannot locate its records")
             atomic_write_text(self.path, data[:starts[keep]].decode("utf-8"))
         return keep, len(times) - keep, (times[keep - 1] if keep else None)
@@ -114,11 +124,49 @@ class OutputUDF:
         for name, value in (extra or {}).items():
             self.doc.put(value, name)
         text = "".join(map(str, self.doc.record_pieces(self.doc.records[0])))
-        with open(self.path, "a", encoding="utf-8") as fh:
-            fh.write(text)
-            fh.flush()
-            os.fsync(fh.fileno())
+        append_whole(self.path, text.encode("utf-8"))
         self.doc.records = []
+
+
+def append_whole(path: str, data: bytes) -> None:
+    """Append ``data`` to ``path`` entirely or not at all: when the write fails (a full
+    disk), the file is cut back to its previous end, so no torn record is left."""
+    fd = os.open(path, os.O_WRONLY | os.O_APPEND)
+    try:
+        end = os.fstat(fd).st_size
+        try:
+            view = memoryview(data)
+            while view:
+                n = os.write(fd, view)
+                view = view[n:]
+            os.fsync(fd)
+        except OSError as e:
+            os.ftruncate(fd, end)
+            raise OSError(e.errno, e.strerror, path) from None
+        except BaseException:
+            os.ftruncate(fd, end)
+            raise
+    finally:
+        os.close(fd)
+
+
+RUN_MARK = "kapsel-py run "
+
+
+def run_comment(run_id: str, seed: int) -> str:
+    return f"{RUN_MARK}{run_id}, random seed {seed} (rerun with --seed {seed} to reproduce)"
+
+
+def run_id(path: str) -> str | None:
+    """The run id in the first line of an output.udf written by kapsel-py, else None."""
+    try:
+        with open(path, "rb") as fh:
+            first = fh.readline(400).decode("utf-8", "replace")
+    except OSError:
+        return None
+    if first.startswith("// " + RUN_MARK):
+        return first[3 + len(RUN_MARK):].split(",")[0].strip() or None
+    return None
 
 
 class TableLog:

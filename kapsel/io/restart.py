@@ -38,9 +38,9 @@ our reading of FORMAT.md, not checked against a file the original wrote.
 from __future__ import annotations
 
 import hashlib
-import io
 import json
 import os
+import zipfile
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -95,6 +95,9 @@ class Saved:
     fields: dict = field(default_factory=dict)
     exact: dict | None = None                 # the state file's arrays, if it matches
     particle_struct: object = None            # the sParticle class of the schema
+    state_damaged: str | None = None          # why the state file could not be read
+    checkpoint_of: int | None = None          # the step of restart.udf, when the state
+    #                                           file held a later checkpoint (taken instead)
 
     def fingerprint(self) -> str:
         return fingerprint(self.step - 1, self.time, self.particles, self.fields)
@@ -126,22 +129,36 @@ def _sparticle_type(doc: UDFManager, kind: str):
     return sd.members[sd.index("Particles")].type
 
 
-def _atomic_savez(path: str, arrays: dict) -> None:
-    buf = io.BytesIO()
-    np.savez(buf, **arrays)
+def _savez_tmp(path: str, arrays: dict) -> str:
+    """Write the arrays to a temporary file next to ``path``; returns its name (removed
+    again if the write fails)."""
     tmp = f"{path}.tmp{os.getpid()}"
-    with open(tmp, "wb") as fh:
-        fh.write(buf.getvalue())
-        fh.flush()
-        os.fsync(fh.fileno())
-    os.replace(tmp, path)
+    try:
+        with open(tmp, "wb") as fh:
+            np.savez(fh, **arrays)
+            fh.flush()
+            os.fsync(fh.fileno())
+    except BaseException:
+        _remove(tmp)
+        raise
+    return tmp
+
+
+def _remove(path):
+    try:
+        os.unlink(path)
+    except OSError:
+        pass
 
 
 def write_restart(path: str, define_path: str, input_doc: UDFManager, kind: str, step: int,
-                  time: float, particles, fields: dict, exact: dict | None = None) -> None:
-    """Write ``path`` (restart.udf) and its state file.  ``fields``: Saved_Data items by
-    name (``oblique`` etc. as plain values); ``exact``: arrays (or JSON-able values) the
-    schema has no place for."""
+                  time: float, particles, fields: dict, exact: dict | None = None,
+                  table: np.ndarray | None = None) -> str:
+    """Write ``path`` (restart.udf) and its state file for the state after ``step`` steps
+    (jikan.ts = step - 1, §6.3).  ``fields``: Saved_Data items by name (``oblique`` etc. as
+    plain values); ``exact``: arrays (or JSON-able values) the schema has no place for;
+    ``table``: the sParticle table instead of ``particles``.  Returns the fingerprint of the
+    data written (``write_checkpoint``'s ``base``)."""
     doc = UDFManager(schema_from=define_path)
     for name, value in input_doc.common.items():
         if name in doc.schema.global_items:
@@ -150,9 +167,9 @@ def write_restart(path: str, define_path: str, input_doc: UDFManager, kind: str,
     doc.put(kind, "resume.Calculation")
     base = f"resume.{kind}.Saved_Data"
     doc.put([int(step) - 1, float(time)], f"{base}.jikan")   # ts = steps done - 1 (§6.3)
-    table = None
-    if particles is not None and particles.n:
+    if table is None and particles is not None and particles.n:
         table = particle_table(particles, _sparticle_type(doc, kind))
+    if table is not None:
         doc.put(table, f"{base}.Particles[]")
     arrays, unplaced = {}, {}
     saved_type = _saved_data_type(doc, kind)
@@ -165,16 +182,108 @@ def write_restart(path: str, define_path: str, input_doc: UDFManager, kind: str,
             arrays[name] = value
         else:
             doc.put(value, f"{base}.{name}")
-    state = {"fingerprint": np.array(fingerprint(int(step) - 1, time, table, arrays))}
+    fp = fingerprint(int(step) - 1, time, table, arrays)
+    state = {"fingerprint": np.array(fp)}
     for name, value in unplaced.items():
         state[FIELD_PREFIX + name] = np.asarray(value)
+    _put_exact(state, exact)
+    # both files are written in full under temporary names before either replaces the
+    # previous pair: a failure (a full disk) leaves the last good restart and state file
+    spath = state_path(path)
+    try:
+        stmp = _savez_tmp(spath, state)
+    except OSError as e:
+        raise OSError(e.errno, e.strerror, spath) from None
+    utmp = f"{path}.tmp{os.getpid()}"
+    try:
+        doc.write(utmp)
+    except OSError as e:
+        _remove(stmp)
+        _remove(utmp)
+        raise OSError(e.errno, e.strerror, path) from None
+    except BaseException:
+        _remove(stmp)
+        _remove(utmp)
+        raise
+    os.replace(stmp, spath)
+    os.replace(utmp, path)
+    return fp
+
+
+def _put_exact(state: dict, exact) -> None:
     for name, value in (exact or {}).items():
         if isinstance(value, np.ndarray):
             state[name] = value
         else:
             state[name] = np.array(json.dumps(value))
-    _atomic_savez(state_path(path), state)
-    doc.write(path)
+
+
+def _decode(v):
+    return json.loads(str(v)) if v.dtype.kind == "U" else v
+
+
+# -------------------------------------------------------------------- checkpoints
+# Rewriting restart.udf's text at every snapshot costs several time steps at 64^3 (issue 14).
+# Between full writes, a run writes only the state file, which then also holds the schema
+# data (binary) and the fingerprint of the restart.udf it continues (``checkpoint_base``):
+# read_restart continues from that newer state, so a run killed at any moment continues
+# from its last snapshot; the full restart.udf is written at the run's first snapshot, at
+# its end, when it is interrupted, and when it fails (from the last checkpoint).
+_CK = "checkpoint:"
+
+
+def write_checkpoint(path: str, define_doc: UDFManager, kind: str, step: int, time: float,
+                     particles, fields: dict, exact: dict | None, base: str,
+                     complete: bool = True) -> None:
+    """Replace ``path``'s state file by a checkpoint continuing the restart.udf whose
+    fingerprint is ``base`` (``define_doc``: a UDFManager(schema_from=define.udf)).
+    ``complete``: ``fields`` are all the Saved_Data fields (else only what the model needs
+    to continue, e.g. the spectral velocity in ``exact`` without its Zeta packing)."""
+    kind = schema_kind(define_doc, kind)
+    state = {"fingerprint": np.array(""), _CK + "base": np.array(base),
+             _CK + "kind": np.array(kind), _CK + "step": np.array(int(step)),
+             _CK + "time": np.array(float(time)), _CK + "complete": np.array(bool(complete))}
+    if particles is not None and particles.n:
+        state[_CK + "particles"] = particle_table(particles, _sparticle_type(define_doc, kind))
+    for name, value in fields.items():
+        if isinstance(value, np.ndarray):
+            state[_CK + "field:" + name] = value
+        else:
+            state[_CK + "value:" + name] = np.array(json.dumps(value))
+    _put_exact(state, exact)
+    spath = state_path(path)
+    try:
+        tmp = _savez_tmp(spath, state)
+    except OSError as e:
+        raise OSError(e.errno, e.strerror, spath) from None
+    os.replace(tmp, spath)
+
+
+def _split_checkpoint(state: dict):
+    """(kind, step, time, table, fields, exact) of a checkpoint state."""
+    ck = {k[len(_CK):]: state[k] for k in state if k.startswith(_CK)}
+    exact = {k: _decode(v) for k, v in state.items()
+             if not k.startswith(_CK) and k != "fingerprint"}
+    fields = {k[6:]: v for k, v in ck.items() if k.startswith("field:")}
+    fields.update({k[6:]: json.loads(str(v)) for k, v in ck.items() if k.startswith("value:")})
+    ck.pop("complete", None)
+    return (str(ck["kind"]), int(ck["step"]), float(ck["time"]), ck.get("particles"), fields,
+            exact)
+
+
+def complete_restart(path: str, define_path: str, input_doc: UDFManager) -> int | None:
+    """Write the full restart.udf of the checkpoint in its state file (a run that failed
+    after its last checkpoint); returns its step, or None if the state is no checkpoint."""
+    try:
+        state = _read_state(state_path(path))
+    except (OSError, ValueError, EOFError, KeyError, zipfile.BadZipFile):
+        return None
+    if _CK + "base" not in state or not bool(state.get(_CK + "complete", False)):
+        return None
+    kind, step, time, table, fields, exact = _split_checkpoint(state)
+    write_restart(path, define_path, input_doc, kind, step, time, None, fields, exact,
+                  table=table)
+    return step
 
 
 def read_restart(doc: UDFManager, input_path: str, kind: str) -> Saved:
@@ -207,14 +316,35 @@ def read_restart(doc: UDFManager, input_path: str, kind: str) -> Saved:
                   particle_struct=_sparticle_type(doc, kind))
     path = state_path(input_path)
     if os.path.exists(path):
-        with np.load(path, allow_pickle=False) as z:
-            state = {k: z[k] for k in z.files}
-        if str(state.pop("fingerprint", "")) == saved.fingerprint():
+        try:
+            state = _read_state(path)
+        except (OSError, ValueError, EOFError, KeyError, zipfile.BadZipFile) as e:
+            saved.state_damaged = (e.strerror if isinstance(e, OSError) and e.strerror
+                                   else str(e) or type(e).__name__)
+            return saved
+        mine = saved.fingerprint()
+        if str(state.pop("fingerprint", "")) == mine:
             for k in [k for k in state if k.startswith(FIELD_PREFIX)]:
                 saved.fields.setdefault(k[len(FIELD_PREFIX):], state.pop(k))
-            saved.exact = {k: (json.loads(str(v)) if v.dtype.kind == "U" else v)
-                           for k, v in state.items()}
+            saved.exact = {k: _decode(v) for k, v in state.items()}
+        elif str(state.get(_CK + "base", "")) == mine:
+            ck_kind, step, time, table, fields, exact = _split_checkpoint(state)
+            if same_kind(ck_kind, kind) and step >= saved.step:
+                saved = Saved(kind, step, time, table, fields, exact,
+                              particle_struct=saved.particle_struct,
+                              checkpoint_of=saved.step)
     return saved
+
+
+def _read_state(path):
+    """The arrays of a state file; raises for a file that is not one (damaged, empty,
+    truncated, a directory)."""
+    with np.load(path, allow_pickle=False) as z:
+        if not hasattr(z, "files"):
+            raise ValueError("not an .npz archive")
+        return {k: z[k] for k in z.files}
+
+
 
 
 def wavenumbers(shape, dx):

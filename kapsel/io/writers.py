@@ -44,8 +44,8 @@ class RecordWriter(Writer):
     """output.udf (kapsel.io.records.OutputUDF): a continued run appends its records (later
     records of the run being replaced are dropped) unless --overwrite."""
 
-    def __init__(self, args, input_doc):
-        self.args, self.input_doc = args, input_doc
+    def __init__(self, args, input_doc, comment=None):
+        self.args, self.input_doc, self.comment = args, input_doc, comment
         self.output = None
         self._skip = None
 
@@ -53,9 +53,13 @@ class RecordWriter(Writer):
         from .records import OutputUDF
         args = self.args
         append = resumed and os.path.exists(args.output) and not args.overwrite
-        self.output = OutputUDF(args.output, args.define, self.input_doc, append=append)
+        self.output = OutputUDF(args.output, args.define, self.input_doc, append=append,
+                                comment=self.comment)
         if append:
             kept, dropped, last = self.output.truncate_after(snap.step)
+            if self.output.torn_tail:
+                print(f"#{args.output}: its last record was incomplete ({self.output.torn_tail} "
+                      f"bytes, written when a run stopped); it was dropped", file=sys.stderr)
             if last is not None and abs(last - snap.step) <= 0.5:   # t is the record's step
                 self._skip = snap.step
             if not args.quiet:
@@ -147,14 +151,15 @@ def output_dir(args) -> str:
     return os.path.dirname(os.path.abspath(args.output))
 
 
-def make_writers(cfg, args, input_doc, snap, announce: bool = True) -> list:
+def make_writers(cfg, args, input_doc, snap, announce: bool = True, comment=None) -> list:
     """The writers a run needs, from the configuration and what the model offers (``snap``:
     its first snapshot).  Raises kapsel.config.ConfigError for output the type cannot give.
-    ``announce``: print the original's console block of the field writer (not for --check)."""
+    ``announce``: print the original's console block of the field writer (not for --check);
+    ``comment``: output.udf's first line (kapsel.io.records.run_comment)."""
     out_dir = output_dir(args)
     writers = []
     if cfg.output.UDF:
-        writers.append(RecordWriter(args, input_doc))
+        writers.append(RecordWriter(args, input_doc, comment))
     from .fields import SnapshotFiles
     files = SnapshotFiles(out_dir, cfg.type, cfg.mesh.shape, cfg.mesh.DX, cfg.output.GTS,
                           snap.n_particles)

@@ -206,6 +206,10 @@ class Model:
         self.rng = np.random.default_rng(self.seed)
 
         self._clock0 = (0, 0.0)     # (step, time) the clock counts from
+        # identity of the run, kept across continuations (state file) and written into
+        # output.udf's first line, so a continuation can tell its own output.udf
+        self.run_id = secrets.token_hex(8)
+        self.run_id_known = False   # True once taken from a restart's state file
 
     def tick(self) -> None:
         self.step_index += 1
@@ -281,10 +285,18 @@ class Model:
     def set_accumulators(self, values: dict) -> None:
         """Restore :meth:`accumulators` (a restart with its state file)."""
 
-    def restart_state(self):
-        """(kind, Saved_Data fields, exact state) of the current state."""
+    checkpoint_complete = True  # checkpoint_fields() are all of restart_fields()
+
+    def checkpoint_fields(self) -> dict:
+        """The Saved_Data items a checkpoint keeps (kapsel.io.restart.write_checkpoint):
+        all of them unless a model continues from its exact state alone."""
+        return self.restart_fields()
+
+    def restart_state(self, checkpoint=False):
+        """(kind, Saved_Data fields, exact state) of the current state (``checkpoint``: the
+        fields of checkpoint_fields())."""
         exact = dict(self.exact_state())
-        fields = self.restart_fields()
+        fields = self.checkpoint_fields() if checkpoint else self.restart_fields()
         if self.particles is not None and self.particles.n:
             exact["R_raw"] = self.particles.R_raw.copy()
             bodies = self.particles.constraints
@@ -297,6 +309,8 @@ class Model:
         acc = self.accumulators()
         if acc:
             exact["accumulators"] = acc
+        exact["run_id"] = self.run_id
+        exact["seed"] = str(self.seed)
         return self.restart_kind, fields, exact
 
     def load_restart(self, saved) -> None:
@@ -313,6 +327,8 @@ class Model:
                               f"from a restart.udf written by a run",
                               path="resume.Calculation", value=saved.kind)
         exact = saved.exact
+        if exact and isinstance(exact.get("run_id"), str):
+            self.run_id, self.run_id_known = exact["run_id"], True
         self.step_index = saved.step
         self.time = saved.time
         if saved.time != saved.step * self.dt:

@@ -28,12 +28,18 @@ from .common import (Model, kinetic_energy, make_forces, make_noise, make_partic
 
 
 class _ModelH_SPM(SPM):
-    """SPM whose MAC fluid step takes the capillary force and the viscosity field (eq 15)."""
+    """SPM whose MAC fluid step takes the capillary force and the viscosity field (eq 15),
+    followed, as in the original, by switch.FIX_CELL: the mean (k = 0) velocity of each
+    flagged direction is removed right after the fluid step."""
     fluid_force = None
     eta_field = None
+    fix_cell = (False, False, False)
 
     def _fluid_step(self):
         self.fluid.step(self.u, force=self.fluid_force, eta_field=self.eta_field)
+        for c, on in enumerate(self.fix_cell):
+            if on:
+                self.u[c] -= self.u[c].mean()
 
 
 class FDMModel(Model):
@@ -57,6 +63,7 @@ class FDMModel(Model):
                                forces=overlap_guard(make_forces(
                                    cfg, self.particles, strain=self._pair_strain())),
                                noise=make_noise(cfg, self.particles, seed))
+        self.spm.fix_cell = self._fix_cell(cfg)
         self.u = self.spm.u
         self.phi = self.spm.phi() if self.particles.n else None
 
@@ -106,6 +113,66 @@ class FDMModel(Model):
     def _after_fluid(self):
         """Hook between the fluid-particle step and the Cahn-Hilliard step."""
 
+    def _fix_cell(self, cfg):
+        """switch.FIX_CELL flags (x, y, z) the fluid step applies."""
+        return tuple(cfg.switches.fix_cell)
+
+    def _capillary_force(self):
+        """The Model-H force (eq 15) of the current psi, phi with zero net momentum.
+
+        The bulk part is in conservative form (CahnHilliard.conserving_force).  The
+        particle terms of mu (wetting, d) push the fluid with a net force: its reaction acts
+        on the particles (Newton's third law), as a uniform body force over each particle's
+        profile, so that RHO DX^3 sum F = 0 and the total momentum of kapsel.particles.spm
+        is conserved.  Each node's share of the particle force goes to the nearest particle
+        (minimum image, in grid coordinates)."""
+        ch = self.ch
+        mu = ch.chemical_potential(self.psi, self.phi)
+        force = ch.conserving_force(self.psi, mu, self.rho)
+        p = self.particles
+        if not p.n or (ch.params.w == 0.0 and ch.params.d == 0.0):
+            return force
+        fp = ch.particle_force(self.psi, self.phi, self.rho)
+        flat = fp.reshape(3, -1)
+        nodes = np.flatnonzero(np.any(flat != 0.0, axis=0))
+        if not nodes.size:
+            return force
+        owner = self._nearest_particle(nodes)
+        F = np.zeros((p.n, 3))
+        for c in range(3):
+            F[:, c] = np.bincount(owner, weights=flat[c, nodes], minlength=p.n)
+        spm = self.spm
+        w = spm.phi_i / spm.phi_i.sum(axis=1)[:, None]          # (N, S), rows sum to 1
+        react = force.reshape(3, -1)
+        for c in range(3):
+            np.add.at(react[c], spm.idx.ravel(), -(w * F[:, c:c + 1]).ravel())
+        return force
+
+    def _nearest_particle(self, nodes):
+        """Index of the particle nearest to each flat grid node (minimum image)."""
+        shape = np.array(self.shape)
+        ijk = np.stack(np.unravel_index(nodes, self.shape), axis=1).astype(float)
+        R = self.particles.R / self.dx
+        g = getattr(self.mac, "frame_strain", 0.0) if getattr(self.mac, "oblique", False) \
+            else 0.0
+        if g:
+            R = R.copy()
+            R[:, 0] -= g * (R[:, 1] - self.mac.y0 / self.dx)     # oblique index coordinates
+        if len(R) > 16:       # a periodic k-d tree instead of N passes over the nodes
+            from scipy.spatial import cKDTree
+            tree = cKDTree(np.mod(R, shape) % shape, boxsize=shape)
+            return tree.query(ijk % shape, k=1)[1].astype(np.int64)
+        best = np.full(len(nodes), np.inf)
+        owner = np.zeros(len(nodes), dtype=np.int64)
+        for i, r in enumerate(R):
+            d = ijk - r
+            d -= shape * np.round(d / shape)
+            d2 = np.einsum("ij,ij->i", d, d)
+            closer = d2 < best
+            best[closer] = d2[closer]
+            owner[closer] = i
+        return owner
+
     def _pair_strain(self):
         """Lees-Edwards strain for the pair forces of a sheared fluid, else None."""
         if getattr(self.mac, "oblique", False):
@@ -124,8 +191,7 @@ class FDMModel(Model):
     def advance(self):
         force = None
         if self.ch is not None:
-            mu = self.ch.chemical_potential(self.psi, self.phi)
-            force = self.ch.capillary_force(self.psi, mu, self.rho)
+            force = self._capillary_force()
         self.last_force = force
         self.spm.fluid_force, self.spm.eta_field = force, self.eta_field
         self.spm.step()

@@ -453,6 +453,11 @@ class ShearFDMModel(FDMModel):
                           maximum_iteration=f.maximum_iteration, threads=self.threads,
                           interpolation=self.interpolation)
 
+    def _fix_cell(self, cfg):
+        """The original forces FIX_CELL.y ON for the sheared types (PHYSICS-EXTRA §1.2)."""
+        x, _, z = cfg.switches.fix_cell
+        return (x, True, z)
+
     def _make_ch(self, dt):
         from ..fluid.oblique import make_oblique_cahn_hilliard
         mac = self.mac

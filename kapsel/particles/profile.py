@@ -118,7 +118,8 @@ def particle_profiles(R, stencil, shape, dx, strain=0.0, origin=0.0):
         s[:, 0] = (R[:, 0] - strain * (R[:, 1] - origin)) / dx   # oblique index coordinates
     base = np.floor(s)
     frac = s - base
-    b = base.astype(np.int64)
+    with np.errstate(invalid="ignore"):    # NaN positions: caught by the run's checks
+        b = base.astype(np.int64)
     # r = (base + o) dx - R = (o - frac) dx, stored component-major: r[..., c] contiguous
     rc = np.empty((3, n, S))
     idx = np.zeros((n, S), dtype=np.int64)
