@@ -28,6 +28,7 @@ bench: $(STAMP)
 	$(BIN)/python bench/bench_mac.py
 	$(BIN)/python bench/bench_fdm.py
 	$(BIN)/python bench/bench_cna.py
+	$(BIN)/python bench/bench_vs_original.py
 
 clean:
 	rm -rf $(VENV) build *.egg-info
