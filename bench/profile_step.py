@@ -10,7 +10,12 @@ steps, per grid point, minus the RSS before the model was built.
 """
 from __future__ import annotations
 
-import argparse
+import os
+
+for _v in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):   # as kapsel.cli,
+    os.environ.setdefault(_v, "1")                                        # before numpy
+
+import argparse  # noqa: E402
 import cProfile
 import io
 import pstats
@@ -53,8 +58,6 @@ def main(argv=None):
     ap.add_argument("--time-only", action="store_true",
                     help="print only the CPU ms/step of N steps (no profile)")
     a = ap.parse_args(argv)
-    from kapsel.cli import single_threaded_blas
-    single_threaded_blas()
     rss0 = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
     model = build(a.scene, a.np)
     for _ in range(3):

@@ -43,6 +43,11 @@ import numpy as np
 
 from ..grid import Grid
 
+try:
+    from . import spectral_kernels as _kernels
+except ImportError:  # pragma: no cover - numba missing: the numpy passes below
+    _kernels = None
+
 __all__ = ["SpectralNS", "phi1", "phi2"]
 
 
@@ -149,6 +154,7 @@ class SpectralNS:
         self._ikx = 1j * g.kx
         self._iky = 1j * g.ky
         self._ikz = 1j * g.kz
+        self._k1 = _kernels.flat_k(g) if _kernels is not None else None
         self.force_hat = None
         if force is not None:
             self.set_force(force)
@@ -191,6 +197,15 @@ class SpectralNS:
         """P[u x omega] (unmasked; the ETD weights carry the 2/3 truncation) in _nl."""
         g = self.grid
         nl = self._nl
+        if self.advection and self._k1 is not None:
+            uh, wh, u, w, n = self._uh, self._wh, self._u, self._w, self._n
+            _kernels.truncate_curl(self.u_hat, self._mask_n, *self._k1, uh, wh)
+            g.backward_raw(uh, u)      # destroys uh
+            g.backward_raw(wh, w)
+            _kernels.cross(u, w, n)    # n = u x omega
+            g.forward(n, out=nl)
+            nl[:, 0, 0, 0] = 0.0       # exact: mean of (u.grad)u is 0; projected by step()
+            return nl
         if self.advection:
             uh, wh = self._uh, self._wh
             np.multiply(self.u_hat, self._mask_n, out=uh)   # truncated, 1/N folded in
@@ -224,14 +239,22 @@ class SpectralNS:
         """
         nl = self._nonlinear()
         uh = self.u_hat
-        uh *= self._E
         t = self._uh  # scratch
-        if self.scheme == "etd2" and self._have_old:
+        if self.advection and self._k1 is not None:    # fused: projection + ETD update
+            if self.scheme == "etd2" and self._have_old:
+                _kernels.project_etd2(nl, self._nl_old, uh, self._E, self._a2, self._b2,
+                                      *self._k1, self.grid.inv_k2)
+            else:
+                _kernels.project_etd1(nl, uh, self._E, self._a1, *self._k1,
+                                      self.grid.inv_k2, self.scheme == "etd2")
+        elif self.scheme == "etd2" and self._have_old:
+            uh *= self._E
             np.multiply(nl, self._a2, out=t)
             uh += t
             np.multiply(self._nl_old, self._b2, out=t)
             uh -= t
         else:
+            uh *= self._E
             np.multiply(nl, self._a1, out=t)
             uh += t
         if self.force_hat is not None:  # constant force: exact, dt phi1(z) P f
@@ -265,6 +288,9 @@ class SpectralNS:
         ``grid.real_buf`` or any array; it is not modified."""
         d = self._wh
         self.grid.forward(du, out=d)
+        if project and self._k1 is not None:
+            _kernels.project_add(d, self.u_hat, *self._k1, self.grid.inv_k2)
+            return
         if project:
             self.grid.project(d, tmp=(self._s, self._t))
         self.u_hat += d
