@@ -18,14 +18,15 @@ kBT 0 (the sample's), ``time_increment`` auto with factor 1, ``output.GTS`` 10, 
 kapsel-py's figure is the CPU time (user + system, of the child process) of a 60-step run
 minus that of a 20-step run, divided by 40, each run a fresh ``python -m kapsel.cli`` with
 ``--threads 1 --quiet --seed 1`` (start-up, set-up and the first snapshot cancel; the
-snapshots every 10 steps are included).  CPU time, not wall time, because the machine is
-shared.  With ``--repeat R`` each run is repeated R times and the smallest CPU time kept.
-The original's figures are those of issue 14 (its time loop's CPU per step, the same
-machine); the ratio is kapsel-py / original.  Also printed: the CPU seconds from start to
-the end of the 20-step run minus 20 steps' worth (start-up + set-up), and the peak RSS of
-the 60-step run, and "step only": the CPU ms of ``model.advance()`` alone, in-process, over 40
-steps after 3 warm-up steps (bench/profile_step.py --time-only; no output, no snapshots), which
-separates the cost of the step from that of the snapshots (restart.udf, records).
+snapshots every 10 steps are included) and KAPSEL_PY_COMPILED=1 (the compiled kernels from
+the start, as a long run has them from step 10 on; kapsel.compiled).  CPU time, not wall
+time, because the machine is shared.  With ``--repeat R`` each run is repeated R times and
+the smallest CPU time kept.  The original's figures are those of issue 14 (its time loop's
+CPU per step, the same machine); the ratio is kapsel-py / original.  Also printed: the CPU
+seconds from the start of the process to its first time step ("start-up", default settings),
+the peak RSS of the 60-step run, and "step only": the CPU ms of ``model.advance()`` alone, in-process, over
+40 steps after 3 warm-up steps (bench/profile_step.py --time-only; no output, no snapshots),
+which separates the cost of the step from that of the snapshots (restart.udf, records).
 """
 from __future__ import annotations
 
@@ -89,10 +90,43 @@ def make_input(directory: Path, edits: dict, num_snap: int) -> Path:
     return path
 
 
+_FIRST_STEP = """
+import sys, time
+import kapsel.simulation as S
+run = S.run
+def timed(cfg, args, doc, model, resumed=False):
+    def first():
+        print("%.3f" % time.process_time())
+        sys.exit(0)
+    model.advance = first
+    return run(cfg, args, doc, model, resumed)
+S.run = timed
+import kapsel.cli
+sys.argv = ["kapsel-py"] + sys.argv[1:]
+kapsel.cli.main()
+"""
+
+
+def _env(compiled="1"):
+    return dict(os.environ, PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""),
+                OMP_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1", MKL_NUM_THREADS="1",
+                KAPSEL_PY_COMPILED=compiled)
+
+
+def first_step_cpu(directory: Path, threads: int) -> float:
+    """CPU seconds from the start of the process to the first time step (imports, input,
+    set-up, output files, the initial snapshot), with the default KAPSEL_PY_COMPILED=auto."""
+    cmd = [sys.executable, "-c", _FIRST_STEP, "-Iinput.udf", "-Ooutput.udf", "-Ddefine.udf",
+           "-Rrestart.udf", "--overwrite", "--quiet", "--seed", "1", "--threads", str(threads)]
+    out = subprocess.run(cmd, cwd=directory, env=_env("auto"), capture_output=True, text=True,
+                         check=True).stdout
+    return float(out.split()[-1])
+
+
 def cpu_run(directory: Path, threads: int) -> tuple[float, float]:
-    """(CPU seconds, peak RSS MB) of one kapsel-py run in ``directory``."""
-    env = dict(os.environ, PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""),
-               OMP_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1", MKL_NUM_THREADS="1")
+    """(CPU seconds, peak RSS MB) of one kapsel-py run in ``directory`` (compiled kernels
+    from the start, KAPSEL_PY_COMPILED=1, so that their loading cancels in the difference)."""
+    env = _env("1")
     cmd = [sys.executable, "-m", "kapsel.cli", "-Iinput.udf", "-Ooutput.udf", "-Ddefine.udf",
            "-Rrestart.udf", "--overwrite", "--quiet", "--seed", "1", "--threads", str(threads)]
     proc = subprocess.Popen(cmd, cwd=directory, env=env, stdout=subprocess.DEVNULL,
@@ -117,11 +151,11 @@ def measure(name: str, threads: int, repeat: int, keep: Path | None):
         best = min(cpu_run(d, threads) for _ in range(repeat))
         cpu[snaps] = best[0]
         rss = max(rss, best[1])
+    startup = min(first_step_cpu(base / f"{name}-20", threads) for _ in range(repeat))
     if keep is None:
         shutil.rmtree(base, ignore_errors=True)
     ms = (cpu[6] - cpu[2]) / 40 * 1e3
-    startup = cpu[2] - 20 * ms / 1e3
-    env = dict(os.environ, OMP_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1", MKL_NUM_THREADS="1")
+    env = _env("1")
     step = min(float(subprocess.run(
         [sys.executable, str(ROOT / "bench" / "profile_step.py"), name, "--steps", "40",
          "--time-only"], env=env, check=True, capture_output=True, text=True).stdout.split()[-1])

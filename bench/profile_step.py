@@ -5,7 +5,8 @@
 Builds the scene's input (bench_vs_original.make_input), the model as the CLI does, runs 3
 warm-up steps, then N steps (default 20) under cProfile and prints the functions by their own
 (tottime) and cumulative time per step, plus the CPU ms/step without the profiler.
-``--np NP`` overrides the mesh (2^NP per axis).  ``--memory``: peak RSS (ru_maxrss) after the
+The compiled kernels (kapsel.compiled) are on, as in a long CLI run; KAPSEL_PY_COMPILED=0
+times the numpy passes.  ``--np NP`` overrides the mesh (2^NP per axis).  ``--memory``: peak RSS (ru_maxrss) after the
 steps, per grid point, minus the RSS before the model was built.
 """
 from __future__ import annotations
@@ -60,6 +61,8 @@ def main(argv=None):
     a = ap.parse_args(argv)
     rss0 = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
     model = build(a.scene, a.np)
+    from kapsel import compiled
+    compiled.enable()       # as a long CLI run from step 10 on (KAPSEL_PY_COMPILED=0: never)
     for _ in range(3):
         model.advance()
     t0 = time.process_time()

@@ -113,6 +113,8 @@ def run(cfg, args, input_doc, model, resumed: bool = False) -> int:
     start = model.step_index
 
     check_every = min(cfg.output.GTS, 10)
+    from . import compiled
+    compiled_on = compiled.mode() == "1" and (compiled.enable() or True)
 
     def snapshot(record=True):
         n = model.step_index // cfg.output.GTS
@@ -179,6 +181,9 @@ def run(cfg, args, input_doc, model, resumed: bool = False) -> int:
                       f"{restart_hint(saved['step'], args)}. Try a smaller time_increment "
                       f"factor (or delta_t), or the implicit_scheme.", file=sys.stderr)
                 return 1
+            if not compiled_on and compiled.want(model.step_index - start,
+                                                 total - model.step_index):
+                compiled_on = compiled.enable() or True   # bit-identical kernels from here
             progress.step(model.step_index, model.time)
             if model.step_index % cfg.output.GTS == 0:
                 try:

@@ -18,7 +18,9 @@ Velocities at the nodes, pressure at the cell centres (see kapsel.fluid.operator
 
 Choices, measured on this 2-core machine (shared, so +-30 %; ms, min of repeats):
 
-* FFT: pyfftw (planned once with FFTW_MEASURE, aligned buffers reused) vs scipy.fft, one
+* FFT: pyfftw (planned once, aligned buffers reused; FFTW_ESTIMATE up to 64^3 points,
+  FFTW_MEASURE above, the rule of kapsel.grid: deterministic across processes where MEASURE
+  does not pay, and no 0.09 s MEASURE planning in the start-up of a 32^3 run) vs scipy.fft, one
   Poisson solve (rfftn + scale + irfftn): 32^3 0.10 vs 0.34, 64^3 1.06 vs 3.36 -> pyfftw
   (scipy.fft kept as ``fft='scipy'``).
 * BiCGSTAB operator: assembled CSR (fixed sparsity pattern, data refilled each step, 7 slots
@@ -51,13 +53,15 @@ try:  # pragma: no cover - import guard
     import pyfftw
 except ImportError:  # pragma: no cover
     pyfftw = None
-
-try:
-    from . import stencils as _stencils
-except ImportError:  # pragma: no cover - numba missing: CSR and numpy stencils
-    _stencils = None
+from .. import compiled as _compiled
 
 __all__ = ["MACSolver", "SolverDidNotConverge", "UnstableTimeStep"]
+
+
+def _planner(shape):
+    """FFTW_ESTIMATE up to 64^3 points, FFTW_MEASURE above (as kapsel.grid.Grid 'auto')."""
+    from ..grid import Grid
+    return "FFTW_MEASURE" if int(np.prod(shape)) > Grid.MEASURE_ABOVE else "FFTW_ESTIMATE"
 
 
 class _PoissonFFT:
@@ -73,7 +77,7 @@ class _PoissonFFT:
             self._r = pyfftw.empty_aligned(shape, dtype="float64")
             self._c = pyfftw.empty_aligned(cshape, dtype="complex128")
             self._o = pyfftw.empty_aligned(shape, dtype="float64")
-            flags = ("FFTW_MEASURE",)
+            flags = (_planner(shape),)
             self._fwd = pyfftw.FFTW(self._r, self._c, axes=(0, 1, 2), direction="FFTW_FORWARD",
                                     flags=flags, threads=self.threads)
             self._bwd = pyfftw.FFTW(self._c, self._o, axes=(0, 1, 2), direction="FFTW_BACKWARD",
@@ -108,7 +112,7 @@ class _HelmholtzFFT:
         cshape = self.shape[:2] + (self.shape[2] // 2 + 1,)
         self._r = pyfftw.empty_aligned(self.shape, dtype="float64")
         self._c = pyfftw.empty_aligned(cshape, dtype="complex128")
-        flags = ("FFTW_MEASURE",)
+        flags = (_planner(shape),)
         self._fwd = pyfftw.FFTW(self._r, self._c, axes=(0, 1, 2), direction="FFTW_FORWARD",
                                 flags=flags, threads=threads)
         self._bwd = pyfftw.FFTW(self._c, self._r, axes=(0, 1, 2), direction="FFTW_BACKWARD",
@@ -338,7 +342,7 @@ class MACSolver:
     # ------------------------------------------------------------------ linear operator
     def _operator(self, ustar, eta_field):
         if self.linear == "sparse":
-            if eta_field is None and _stencils is not None:
+            if eta_field is None and _compiled.stencils is not None:
                 return self._stencil_operator(ustar)
             return self._assemble(ustar, eta_field)
         return self._matfree(ustar, eta_field)
@@ -354,10 +358,11 @@ class MACSolver:
         a = h / (2 * self.dx)
         c = h * self.nu / self.dx ** 2
         us = np.ascontiguousarray(ustar)
+        kernel = _compiled.stencils.implicit_matvec
 
         def mv(x):
             out = np.empty(shape)
-            _stencils.implicit_matvec(np.ascontiguousarray(x).reshape(shape), us, a, c, out)
+            kernel(np.ascontiguousarray(x).reshape(shape), us, a, c, out)
             return out.reshape(-1)
         return LinearOperator((n3, n3), matvec=mv, dtype=np.float64)
 

@@ -7,7 +7,8 @@ Scalars have shape (NX, NY, NZ), vectors (3, NX, NY, NZ), indexed [x, y, z]; flo
 All operators are whole-array numpy: periodic shifts are done with slice copies into
 caller-supplied ``out=`` / ``work=`` buffers (no ``np.roll`` temporaries, no loops over points).
 ``laplacian``, ``advection``, ``div_b`` and ``grad_b`` run as compiled single sweeps
-(kapsel.fluid.stencils, bit-identical) on C-contiguous float64 arrays.
+(kapsel.fluid.stencils, bit-identical) on C-contiguous float64 arrays once kapsel.compiled
+has loaded them.
 ``out`` must not alias the input.  Every operator is a difference of periodic fluxes, so its sum
 over the grid vanishes: momentum is conserved to round-off.
 
@@ -17,10 +18,7 @@ div∘grad pair since it maps cell arrays to cell arrays).
 """
 import numpy as np
 
-try:
-    from . import stencils as _k
-except ImportError:  # pragma: no cover - numba missing: the numpy slice passes below
-    _k = None
+from .. import compiled as _c
 
 __all__ = [
     "shift_assign", "shift_add", "shift_sub", "cdiff_acc",
@@ -122,7 +120,7 @@ def _buf(out, shape):
 def _compiled(*arrays):
     """True when the compiled kernels (kapsel.fluid.stencils, bit-identical to the numpy
     passes) take these arrays: float64, C-contiguous, 3 grid axes of at least 1 point."""
-    return _k is not None and all(a.dtype == np.float64 and a.flags.c_contiguous
+    return _c.stencils is not None and all(a.dtype == np.float64 and a.flags.c_contiguous
                                   for a in arrays)
 
 
@@ -132,7 +130,7 @@ def laplacian(f, dx, out=None):
     out = _buf(out, f.shape)
     if _compiled(f, out) and f.ndim in (3, 4):
         shp = (-1,) + f.shape[-3:]
-        _k.laplacian(f.reshape(shp), 1.0 / (dx * dx), out.reshape(shp))
+        _c.stencils.laplacian(f.reshape(shp), 1.0 / (dx * dx), out.reshape(shp))
         return out
     np.multiply(f, -6.0, out=out)
     for ax in range(3):
@@ -172,7 +170,7 @@ def div_b(u, dx, out=None, work=None):
     shp = u.shape[1:]
     out = _buf(out, shp)
     if _compiled(u, out) and u.ndim == 4:
-        _k.div_b(u, 1.0 / dx, out)
+        _c.stencils.div_b(u, 1.0 / dx, out)
         return out
     w = np.empty((2,) + shp) if work is None else work
     t0, t1 = w[0], w[1]
@@ -202,7 +200,7 @@ def grad_b(p, dx, out=None, work=None):
     shp = p.shape
     out = _buf(out, (3,) + shp)
     if _compiled(p, out) and p.ndim == 3:
-        _k.grad_b(p, 1.0 / dx, out)
+        _c.stencils.grad_b(p, 1.0 / dx, out)
         return out
     w = np.empty((2,) + shp) if work is None else work
     t0, t1 = w[0], w[1]
@@ -229,7 +227,7 @@ def advection(u, dx, out=None, work=None):
     shp = u.shape[1:]
     out = _buf(out, u.shape)
     if _compiled(u, out) and u.ndim == 4:
-        _k.advection(u, 0.5 / dx, out)
+        _c.stencils.advection(u, 0.5 / dx, out)
         return out
     t = np.empty(shp) if work is None else work
     out[...] = 0.0

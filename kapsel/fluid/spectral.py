@@ -42,11 +42,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..grid import Grid
-
-try:
-    from . import spectral_kernels as _kernels
-except ImportError:  # pragma: no cover - numba missing: the numpy passes below
-    _kernels = None
+from .. import compiled as _compiled
 
 __all__ = ["SpectralNS", "phi1", "phi2"]
 
@@ -154,7 +150,8 @@ class SpectralNS:
         self._ikx = 1j * g.kx
         self._iky = 1j * g.ky
         self._ikz = 1j * g.kz
-        self._k1 = _kernels.flat_k(g) if _kernels is not None else None
+        # k as contiguous 1-d arrays for the compiled passes (kapsel.compiled)
+        self._k1 = tuple(np.ascontiguousarray(k.ravel()) for k in (g.kx, g.ky, g.kz))
         self.force_hat = None
         if force is not None:
             self.set_force(force)
@@ -197,12 +194,13 @@ class SpectralNS:
         """P[u x omega] (unmasked; the ETD weights carry the 2/3 truncation) in _nl."""
         g = self.grid
         nl = self._nl
-        if self.advection and self._k1 is not None:
+        K = _compiled.spectral
+        if self.advection and K is not None:
             uh, wh, u, w, n = self._uh, self._wh, self._u, self._w, self._n
-            _kernels.truncate_curl(self.u_hat, self._mask_n, *self._k1, uh, wh)
+            K.truncate_curl(self.u_hat, self._mask_n, *self._k1, uh, wh)
             g.backward_raw(uh, u)      # destroys uh
             g.backward_raw(wh, w)
-            _kernels.cross(u, w, n)    # n = u x omega
+            K.cross(u, w, n)           # n = u x omega
             g.forward(n, out=nl)
             nl[:, 0, 0, 0] = 0.0       # exact: mean of (u.grad)u is 0; projected by step()
             return nl
@@ -240,12 +238,13 @@ class SpectralNS:
         nl = self._nonlinear()
         uh = self.u_hat
         t = self._uh  # scratch
-        if self.advection and self._k1 is not None:    # fused: projection + ETD update
+        K = _compiled.spectral
+        if self.advection and K is not None:    # fused: projection + ETD update
             if self.scheme == "etd2" and self._have_old:
-                _kernels.project_etd2(nl, self._nl_old, uh, self._E, self._a2, self._b2,
+                K.project_etd2(nl, self._nl_old, uh, self._E, self._a2, self._b2,
                                       *self._k1, self.grid.inv_k2)
             else:
-                _kernels.project_etd1(nl, uh, self._E, self._a1, *self._k1,
+                K.project_etd1(nl, uh, self._E, self._a1, *self._k1,
                                       self.grid.inv_k2, self.scheme == "etd2")
         elif self.scheme == "etd2" and self._have_old:
             uh *= self._E
@@ -288,8 +287,8 @@ class SpectralNS:
         ``grid.real_buf`` or any array; it is not modified."""
         d = self._wh
         self.grid.forward(du, out=d)
-        if project and self._k1 is not None:
-            _kernels.project_add(d, self.u_hat, *self._k1, self.grid.inv_k2)
+        if project and _compiled.spectral is not None:
+            _compiled.spectral.project_add(d, self.u_hat, *self._k1, self.grid.inv_k2)
             return
         if project:
             self.grid.project(d, tmp=(self._s, self._t))

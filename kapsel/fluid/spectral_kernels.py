@@ -7,11 +7,10 @@ is computed as the two real products, which is what numpy's complex product give
 imaginary part of one factor is 0, up to the sign of zero results).
 
 Compiled with numba (``cache=True``: the machine code is kept in __pycache__, so only the
-first run on a machine pays the JIT, measured in bench/bench_vs_original.py's notes).
+first run on a machine pays the JIT); loaded on demand by kapsel.compiled.
 """
 from __future__ import annotations
 
-import numpy as np
 from numba import njit
 
 __all__ = ["truncate_curl", "cross", "project_etd1", "project_etd2", "project_add"]
@@ -142,9 +141,3 @@ def project_add(d, u_hat, kx, ky, kz, inv_k2):
                 u_hat[0, i, j, k] += a
                 u_hat[1, i, j, k] += b
                 u_hat[2, i, j, k] += c
-
-
-def flat_k(grid):
-    """(kx, ky, kz) of a kapsel.grid.Grid as contiguous 1-d arrays for the kernels."""
-    return (np.ascontiguousarray(grid.kx.ravel()), np.ascontiguousarray(grid.ky.ravel()),
-            np.ascontiguousarray(grid.kz.ravel()))
