@@ -33,6 +33,33 @@ sys.path.insert(0, str(ROOT / "bench"))
 from bench_vs_original import SCENES, make_input  # noqa: E402
 
 
+# stage of a profiled function (own time), by file and name; first match wins
+STAGES = (
+    ("FFT", ("grid.py:forward", "grid.py:backward_raw", "grid.py:rfft_scalar",
+             "grid.py:irfft_scalar", "mac.py:solve", "pyfftw", "pocketfft", "scipy/fft")),
+    ("linear solver", ("_isolve", "linalg.py", "_sparsetools", "mac.py:mv", "_interface.py",
+                       "mac.py:_assemble", "stencils.py:implicit_matvec", "method 'dot'",
+                       "cahn_hilliard.py:mv", "cahn_hilliard.py:solve")),
+    ("MAC stencils", ("operators.py", "stencils.py")),
+    ("spectral element-wise", ("spectral_kernels.py", "fluid/spectral.py", "grid.py:project",
+                               "grid.py:k_dot", "oblique.py")),
+    ("phase field", ("phase/",)),
+    ("particles", ("particles/", "models/common.py")),
+)
+
+
+def stage_table(stats, steps):
+    """ms per step by stage (own time of the functions), from a pstats.Stats."""
+    acc = {}
+    for (fname, _line, func), (_cc, _nc, tt, _ct, _callers) in stats.stats.items():
+        key = f"{fname}:{func}"
+        stage = next((name for name, pats in STAGES if any(p in key for p in pats)), "other")
+        acc[stage] = acc.get(stage, 0.0) + tt
+    total = sum(acc.values())
+    rows = sorted(acc.items(), key=lambda kv: -kv[1])
+    return total / steps * 1e3, [(k, v / steps * 1e3, v / total) for k, v in rows]
+
+
 def build(name, np_override=None):
     import udf
     from kapsel import config, models  # noqa: F401
@@ -58,11 +85,21 @@ def main(argv=None):
     ap.add_argument("--memory", action="store_true")
     ap.add_argument("--time-only", action="store_true",
                     help="print only the CPU ms/step of N steps (no profile)")
+    ap.add_argument("--stages", action="store_true",
+                    help="print only the profiled time per stage (FFT, stencils, ...)")
     a = ap.parse_args(argv)
+    try:
+        from kapsel import compiled
+    except ImportError:     # a tree before kapsel.compiled (before/after comparisons)
+        compiled = None
+    if compiled is not None and compiled.enable():   # as a long CLI run from step 10 on (KAPSEL_PY_COMPILED=0: never)
+        import numpy as np
+        from kapsel.fluid import spectral_kernels as sk, stencils as st
+        z, f = np.zeros((3, 4, 4, 4)), np.zeros((4, 4, 4))
+        st.div_b(z, 1.0, f)                 # numba's code generator loaded before the RSS base
+        sk.cross(z, z, z.copy())
     rss0 = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
     model = build(a.scene, a.np)
-    from kapsel import compiled
-    compiled.enable()       # as a long CLI run from step 10 on (KAPSEL_PY_COMPILED=0: never)
     for _ in range(3):
         model.advance()
     t0 = time.process_time()
@@ -84,6 +121,11 @@ def main(argv=None):
     for _ in range(a.steps):
         model.advance()
     pr.disable()
+    if a.stages:
+        total, rows = stage_table(pstats.Stats(pr), a.steps)
+        print(f"profiled {total:.1f} ms/step: " + ", ".join(
+            f"{k} {ms:.1f} ({100 * f:.0f}%)" for k, ms, f in rows))
+        return
     for key in ("tottime", "cumulative"):
         s = io.StringIO()
         st = pstats.Stats(pr, stream=s)

@@ -31,7 +31,8 @@ def _run(path, switch_at, steps=4):
 
 @pytest.mark.parametrize("eq,ns", [("Navier_Stokes", "explicit_scheme"),
                                    ("Navier_Stokes_FDM", "implicit_scheme"),
-                                   ("Navier_Stokes_Cahn_Hilliard_FDM", "explicit_scheme")])
+                                   ("Navier_Stokes_Cahn_Hilliard_FDM", "explicit_scheme"),
+                                   ("Shear_Navier_Stokes_Lees_Edwards", "explicit_scheme")])
 def test_switching_to_compiled_kernels_is_bit_identical(tmp_path, eq, ns):
     path = sample(tmp_path, eq=eq, ns=ns)
     a = _run(path, switch_at=None)
