@@ -117,15 +117,10 @@ class Grid:
         vshape, vcshape = (3,) + self.shape, (3,) + self.cshape
         self._vshape, self._vcshape = vshape, vcshape
         self._align = pyfftw.simd_alignment if pyfftw is not None else 1
+        self._real_buf = self._complex_buf = None
         if pyfftw is None:  # pragma: no cover
-            self.real_buf = np.empty(vshape)
-            self.complex_buf = np.empty(vcshape, dtype=complex)
             self.per_component = False
             return
-        self.real_buf = pyfftw.empty_aligned(vshape, dtype="float64")
-        self.complex_buf = pyfftw.empty_aligned(vcshape, dtype="complex128")
-        self.real_buf[...] = 0.0
-        self.complex_buf[...] = 0.0
         # per-component plans when every component of an aligned (3, ...) buffer is aligned
         # too (the scalar plans are made for aligned arrays); else one batched plan
         a = self._align
@@ -134,6 +129,24 @@ class Grid:
             self._scalar_plans()
         else:
             self._batched_plans()
+
+    @property
+    def real_buf(self):
+        """Aligned (3, NX, NY, NZ) scratch (zeroed), made on first use: the per-component
+        plans work on the callers' aligned arrays and never need it (48 bytes per grid point
+        with ``complex_buf``)."""
+        if self._real_buf is None:
+            self._real_buf = self.empty_real()
+            self._real_buf[...] = 0.0
+        return self._real_buf
+
+    @property
+    def complex_buf(self):
+        """Aligned (3, cshape) complex scratch (zeroed), made on first use."""
+        if self._complex_buf is None:
+            self._complex_buf = self.empty_complex()
+            self._complex_buf[...] = 0.0
+        return self._complex_buf
 
     def _batched_plans(self):
         """One FFTW plan over the last three axes of the (3, ...) buffers."""

@@ -144,8 +144,9 @@ class SpectralNS:
         mask = g.dealias_f
         self._f1 = self.dt * p1                        # body force (not truncated)
         self._a1 = self.dt * p1 * mask                 # ETD1 / first step
-        self._a2 = self.dt * (p1 + p2) * mask          # ETD2 weight of N^n
-        self._b2 = self.dt * p2 * mask                 # ETD2 weight of N^{n-1}
+        if scheme == "etd2":
+            self._a2 = self.dt * (p1 + p2) * mask      # ETD2 weight of N^n
+            self._b2 = self.dt * p2 * mask             # ETD2 weight of N^{n-1}
         self._mask_n = mask / g.size                   # truncation + 1/N of the c2r
         self._ikx = 1j * g.kx
         self._iky = 1j * g.ky
