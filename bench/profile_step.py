@@ -60,7 +60,7 @@ def stage_table(stats, steps):
     return total / steps * 1e3, [(k, v / steps * 1e3, v / total) for k, v in rows]
 
 
-def build(name, np_override=None):
+def build(name, np_override=None, threads=1):
     import udf
     from kapsel import config, models  # noqa: F401
     from kapsel.cli import build_parser
@@ -72,7 +72,8 @@ def build(name, np_override=None):
     path = make_input(d, edits, 2)
     doc = udf.UDFManager(str(path))
     cfg = config.from_document(doc, str(path))
-    args = build_parser().parse_args([f"-I{path}", "--seed", "1", "--quiet"])
+    args = build_parser().parse_args([f"-I{path}", "--seed", "1", "--quiet",
+                                      "--threads", str(threads)])
     return SOLVERS[cfg.type](cfg, args, doc)
 
 
@@ -83,6 +84,9 @@ def main(argv=None):
     ap.add_argument("--top", type=int, default=25)
     ap.add_argument("--np", type=int, default=None)
     ap.add_argument("--memory", action="store_true")
+    ap.add_argument("--threads", type=int, default=1, help="as kapsel-py --threads")
+    ap.add_argument("--wall", action="store_true",
+                    help="with --time-only: print wall ms/step too")
     ap.add_argument("--time-only", action="store_true",
                     help="print only the CPU ms/step of N steps (no profile)")
     ap.add_argument("--stages", action="store_true",
@@ -99,13 +103,14 @@ def main(argv=None):
         st.div_b(z, 1.0, f)                 # numba's code generator loaded before the RSS base
         sk.cross(z, z, z.copy())
     rss0 = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
-    model = build(a.scene, a.np)
+    model = build(a.scene, a.np, a.threads)
     for _ in range(3):
         model.advance()
-    t0 = time.process_time()
+    t0, w0 = time.process_time(), time.perf_counter()
     for _ in range(a.steps):
         model.advance()
     ms = (time.process_time() - t0) / a.steps * 1e3
+    wall = (time.perf_counter() - w0) / a.steps * 1e3
     if a.memory:
         import numpy as np
         npts = int(np.prod(model.cfg.mesh.shape))
@@ -113,7 +118,7 @@ def main(argv=None):
         print(f"peak RSS {rss / 1024:.0f} MB (before the model {rss0 / 1024:.0f} MB): "
               f"{(rss - rss0) * 1024 / npts:.0f} bytes per grid point at {model.cfg.mesh.shape}")
     if a.time_only:
-        print(f"{ms:.3f}")
+        print(f"{ms:.3f}" + (f" wall {wall:.3f}" if a.wall else ""))
         return
     print(f"{a.scene}: {ms:.1f} ms/step CPU (no profiler), dt = {model.dt:g}")
     pr = cProfile.Profile()

@@ -46,7 +46,7 @@ import scipy.fft
 import scipy.sparse as sp
 from scipy.sparse.linalg import LinearOperator
 
-from ..linalg import SolverDidNotConverge, UnstableTimeStep, solve_correction
+from ..linalg import FourierDiagonal, SolverDidNotConverge, UnstableTimeStep, solve_correction
 from . import operators as op
 
 try:  # pragma: no cover - import guard
@@ -96,38 +96,6 @@ class _PoissonFFT:
         c = scipy.fft.rfftn(self.rhs, workers=self.threads)
         c *= self.inv
         return scipy.fft.irfftn(c, s=self.shape, workers=self.threads)
-
-
-class _HelmholtzFFT:
-    """M^-1 v = FFT^-1[FFT(v) / (1 + dt/2 nu 4/DX^2 sum_a sin^2(k_a DX/2))] per component: the
-    exact inverse of the implicit operator's constant-viscosity diffusion part, the
-    preconditioner of the implicit NS solve.  Its symbol is 1 at k = 0, so it keeps the sum
-    of a vector (the momentum argument of the module docstring holds)."""
-
-    def __init__(self, shape, dx, h_nu, threads=1):
-        self.shape = tuple(shape)
-        self.n = int(np.prod(shape))
-        lap = op.symbol_laplacian(self.shape, dx)          # -(4/DX^2) sum sin^2
-        self.inv = 1.0 / (1.0 - h_nu * lap) / self.n       # 1/N of the c2r folded in
-        cshape = self.shape[:2] + (self.shape[2] // 2 + 1,)
-        self._r = pyfftw.empty_aligned(self.shape, dtype="float64")
-        self._c = pyfftw.empty_aligned(cshape, dtype="complex128")
-        flags = (_planner(shape),)
-        self._fwd = pyfftw.FFTW(self._r, self._c, axes=(0, 1, 2), direction="FFTW_FORWARD",
-                                flags=flags, threads=threads)
-        self._bwd = pyfftw.FFTW(self._c, self._r, axes=(0, 1, 2), direction="FFTW_BACKWARD",
-                                flags=flags + ("FFTW_DESTROY_INPUT",), threads=threads)
-
-    def solve(self, v):
-        v = np.asarray(v).reshape((-1,) + self.shape)
-        out = np.empty(v.shape)
-        for c in range(v.shape[0]):
-            self._r[...] = v[c]
-            self._fwd.execute()
-            self._c *= self.inv
-            self._bwd.execute()              # unnormalised: 1/N is in ``inv``
-            out[c] = self._r
-        return out.reshape(-1)
 
 
 class MACSolver:
@@ -330,13 +298,17 @@ class MACSolver:
         return x
 
     def _precond(self, n):
-        """The FFT preconditioner (_HelmholtzFFT) with the constant ETA, or None."""
+        """The FFT preconditioner, or None: M^-1 v = FFT^-1[FFT(v) / (1 + dt/2 nu 4/DX^2
+        sum_a sin^2(k_a DX/2))] per component, the exact inverse of the implicit operator's
+        constant-viscosity diffusion part.  Its symbol is 1 at k = 0, so it keeps the sum of
+        a vector (the momentum argument of the module docstring holds)."""
         if self.preconditioner is None:
             return None
         if self._helmholtz is None:
             fft_threads = self.threads if np.prod(self.shape) >= 64 ** 3 else 1
-            self._helmholtz = _HelmholtzFFT(self.shape, self.dx, 0.5 * self.dt * self.nu,
-                                            fft_threads)
+            lap = op.symbol_laplacian(self.shape, self.dx)        # -(4/DX^2) sum sin^2
+            self._helmholtz = FourierDiagonal(self.shape, 1.0 / (1.0 - 0.5 * self.dt * self.nu
+                                                                 * lap), fft_threads)
         return LinearOperator((n, n), matvec=self._helmholtz.solve, dtype=np.float64)
 
     # ------------------------------------------------------------------ linear operator
