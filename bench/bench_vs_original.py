@@ -158,7 +158,7 @@ def measure(name: str, threads: int, repeat: int, keep: Path | None):
     env = _env("1")
     step = min(float(subprocess.run(
         [sys.executable, str(ROOT / "bench" / "profile_step.py"), name, "--steps", "40",
-         "--time-only"], env=env, check=True, capture_output=True, text=True).stdout.split()[-1])
+         "--time-only", "--threads", str(threads)], env=env, check=True, capture_output=True, text=True).stdout.split()[-1])
         for _ in range(repeat))
     return label, original, ms, startup, rss, step
 
