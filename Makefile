@@ -52,6 +52,7 @@ bench: $(VENV)/.installed-bench
 	$(BIN)/python bench/bench_fdm.py
 	$(BIN)/python bench/bench_cna.py
 	$(BIN)/python bench/bench_output.py
+	$(BIN)/python bench/bench_vs_original.py
 
 clean:
 	rm -rf $(VENV) build *.egg-info

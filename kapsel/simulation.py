@@ -171,6 +171,8 @@ def _run(cfg, args, input_doc, model, resumed, saved) -> int:
         table.print_header()
 
     check_every = min(cfg.output.GTS, 10)
+    from . import compiled
+    compiled_on = compiled.mode() == "1" and (compiled.enable() or True)
 
     def snapshot(snap=None):
         snap = model.snapshot() if snap is None else snap
@@ -255,6 +257,9 @@ def _run(cfg, args, input_doc, model, resumed, saved) -> int:
                 return 1
             if table is not None:
                 table.row(model.shear_table_row())
+            if not compiled_on and compiled.want(model.step_index - start,
+                                                 total - model.step_index):
+                compiled_on = compiled.enable() or True   # bit-identical kernels from here
             progress.step(model.step_index, model.time)
             if model.step_index % cfg.output.GTS == 0:
                 try:

@@ -55,6 +55,7 @@ import numpy as np
 from ..grid import Grid
 from .mac import MACSolver
 from .spectral import SpectralNS, cross_in_place, phi1
+from .. import compiled as _compiled
 
 __all__ = ["ShearFlow", "ObliqueSpectralNS", "ObliqueMAC", "shift_rows", "to_rectangular", "to_oblique",
            "contravariant", "cartesian", "lees_edwards_wrap", "lees_edwards_displacement",
@@ -368,7 +369,11 @@ class ObliqueSpectralNS(_ObliqueFrame, SpectralNS):
             u, w, n = self._u, self._w, self._n
             gr.backward_raw(uh, u)
             gr.backward_raw(wh, w)
-            cross_in_place(u, w, n)
+            K = _compiled.spectral
+            if K is not None:
+                K.cross(u, w, n)                      # bit-identical, one pass
+            else:
+                cross_in_place(u, w, n)
             n[0] -= g * n[1]                          # contravariant
             gr.forward(n, out=nl)
             nl[:, 0, 0, 0] = 0.0

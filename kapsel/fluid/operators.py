@@ -6,6 +6,9 @@ Scalars have shape (NX, NY, NZ), vectors (3, NX, NY, NZ), indexed [x, y, z]; flo
 
 All operators are whole-array numpy: periodic shifts are done with slice copies into
 caller-supplied ``out=`` / ``work=`` buffers (no ``np.roll`` temporaries, no loops over points).
+``laplacian``, ``advection``, ``div_b`` and ``grad_b`` run as compiled single sweeps
+(kapsel.fluid.stencils, bit-identical) on C-contiguous float64 arrays once kapsel.compiled
+has loaded them.
 ``out`` must not alias the input.  Every operator is a difference of periodic fluxes, so its sum
 over the grid vanishes: momentum is conserved to round-off.
 
@@ -14,6 +17,8 @@ layout above (index Fourier convention, no cell-centre phase factor needed for t
 div∘grad pair since it maps cell arrays to cell arrays).
 """
 import numpy as np
+
+from .. import compiled as _c
 
 __all__ = [
     "shift_assign", "shift_add", "shift_sub", "cdiff_acc",
@@ -112,10 +117,21 @@ def _buf(out, shape):
     return np.empty(shape) if out is None else out
 
 
+def _compiled(*arrays):
+    """True when the compiled kernels (kapsel.fluid.stencils, bit-identical to the numpy
+    passes) take these arrays: float64, C-contiguous, 3 grid axes of at least 1 point."""
+    return _c.stencils is not None and all(a.dtype == np.float64 and a.flags.c_contiguous
+                                  for a in arrays)
+
+
 # --------------------------------------------------------------------------- node operators
 def laplacian(f, dx, out=None):
     """7-point node Laplacian of a scalar (NX,NY,NZ) or vector (3,NX,NY,NZ) field (eq 20)."""
     out = _buf(out, f.shape)
+    if _compiled(f, out) and f.ndim in (3, 4):
+        shp = (-1,) + f.shape[-3:]
+        _c.stencils.laplacian(f.reshape(shp), 1.0 / (dx * dx), out.reshape(shp))
+        return out
     np.multiply(f, -6.0, out=out)
     for ax in range(3):
         shift_add(out, f, 1, ax)
@@ -153,6 +169,9 @@ def div_b(u, dx, out=None, work=None):
     """
     shp = u.shape[1:]
     out = _buf(out, shp)
+    if _compiled(u, out) and u.ndim == 4:
+        _c.stencils.div_b(u, 1.0 / dx, out)
+        return out
     w = np.empty((2,) + shp) if work is None else work
     t0, t1 = w[0], w[1]
     # x: diff_x, avg_y, (avg_z later, shared with the y term)
@@ -180,6 +199,9 @@ def grad_b(p, dx, out=None, work=None):
     """
     shp = p.shape
     out = _buf(out, (3,) + shp)
+    if _compiled(p, out) and p.ndim == 3:
+        _c.stencils.grad_b(p, 1.0 / dx, out)
+        return out
     w = np.empty((2,) + shp) if work is None else work
     t0, t1 = w[0], w[1]
     # avg_z once, reused by x and y components
@@ -204,6 +226,9 @@ def advection(u, dx, out=None, work=None):
     """
     shp = u.shape[1:]
     out = _buf(out, u.shape)
+    if _compiled(u, out) and u.ndim == 4:
+        _c.stencils.advection(u, 0.5 / dx, out)
+        return out
     t = np.empty(shp) if work is None else work
     out[...] = 0.0
     for i in range(3):

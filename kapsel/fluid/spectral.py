@@ -42,6 +42,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..grid import Grid
+from .. import compiled as _compiled
 
 __all__ = ["SpectralNS", "phi1", "phi2"]
 
@@ -143,12 +144,15 @@ class SpectralNS:
         mask = g.dealias_f
         self._f1 = self.dt * p1                        # body force (not truncated)
         self._a1 = self.dt * p1 * mask                 # ETD1 / first step
-        self._a2 = self.dt * (p1 + p2) * mask          # ETD2 weight of N^n
-        self._b2 = self.dt * p2 * mask                 # ETD2 weight of N^{n-1}
+        if scheme == "etd2":
+            self._a2 = self.dt * (p1 + p2) * mask      # ETD2 weight of N^n
+            self._b2 = self.dt * p2 * mask             # ETD2 weight of N^{n-1}
         self._mask_n = mask / g.size                   # truncation + 1/N of the c2r
         self._ikx = 1j * g.kx
         self._iky = 1j * g.ky
         self._ikz = 1j * g.kz
+        # k as contiguous 1-d arrays for the compiled passes (kapsel.compiled)
+        self._k1 = tuple(np.ascontiguousarray(k.ravel()) for k in (g.kx, g.ky, g.kz))
         self.force_hat = None
         if force is not None:
             self.set_force(force)
@@ -191,6 +195,16 @@ class SpectralNS:
         """P[u x omega] (unmasked; the ETD weights carry the 2/3 truncation) in _nl."""
         g = self.grid
         nl = self._nl
+        K = _compiled.spectral
+        if self.advection and K is not None:
+            uh, wh, u, w, n = self._uh, self._wh, self._u, self._w, self._n
+            K.truncate_curl(self.u_hat, self._mask_n, *self._k1, uh, wh)
+            g.backward_raw(uh, u)      # destroys uh
+            g.backward_raw(wh, w)
+            K.cross(u, w, n)           # n = u x omega
+            g.forward(n, out=nl)
+            nl[:, 0, 0, 0] = 0.0       # exact: mean of (u.grad)u is 0; projected by step()
+            return nl
         if self.advection:
             uh, wh = self._uh, self._wh
             np.multiply(self.u_hat, self._mask_n, out=uh)   # truncated, 1/N folded in
@@ -224,14 +238,23 @@ class SpectralNS:
         """
         nl = self._nonlinear()
         uh = self.u_hat
-        uh *= self._E
         t = self._uh  # scratch
-        if self.scheme == "etd2" and self._have_old:
+        K = _compiled.spectral
+        if self.advection and K is not None:    # fused: projection + ETD update
+            if self.scheme == "etd2" and self._have_old:
+                K.project_etd2(nl, self._nl_old, uh, self._E, self._a2, self._b2,
+                                      *self._k1, self.grid.inv_k2)
+            else:
+                K.project_etd1(nl, uh, self._E, self._a1, *self._k1,
+                                      self.grid.inv_k2, self.scheme == "etd2")
+        elif self.scheme == "etd2" and self._have_old:
+            uh *= self._E
             np.multiply(nl, self._a2, out=t)
             uh += t
             np.multiply(self._nl_old, self._b2, out=t)
             uh -= t
         else:
+            uh *= self._E
             np.multiply(nl, self._a1, out=t)
             uh += t
         if self.force_hat is not None:  # constant force: exact, dt phi1(z) P f
@@ -265,6 +288,9 @@ class SpectralNS:
         ``grid.real_buf`` or any array; it is not modified."""
         d = self._wh
         self.grid.forward(du, out=d)
+        if project and _compiled.spectral is not None:
+            _compiled.spectral.project_add(d, self.u_hat, *self._k1, self.grid.inv_k2)
+            return
         if project:
             self.grid.project(d, tmp=(self._s, self._t))
         self.u_hat += d

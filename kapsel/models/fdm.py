@@ -288,7 +288,7 @@ class FDMModel(Model):
         the step (the projection of their rigidity increment), at the cell centres."""
         p = self.mac.pressure.copy()
         if self.particles.n and self.step_index > 0:
-            p += self.mac.projection_pressure(self.spm._du)
+            p += self.mac.projection_pressure(self.spm.last_increment())
         return p
 
     def _pressure(self):

@@ -195,7 +195,7 @@ class ShearLEModel(SpectralModel):
         def pressure():
             from ..fluid.diagnostics import spectral_pressure
             f = self.cfg.fluid
-            return rect(spectral_pressure(deviation(), self.spm._du, f.RHO, self.dt,
+            return rect(spectral_pressure(deviation(), self.spm.last_increment(), f.RHO, self.dt,
                                           self.cfg.mesh.DX, self.fluid.shear_rate_now,
                                           self.fluid.frame_strain))
 

@@ -101,7 +101,7 @@ class SpectralModel(Model):
 
         src = {"u": u,
                "tau": lambda: viscous_stress_spectral(u(), dx, f.ETA),
-               "pressure": lambda: spectral_pressure(u(), self.spm._du, f.RHO, self.dt, dx)}
+               "pressure": lambda: spectral_pressure(u(), self.spm.last_increment(), f.RHO, self.dt, dx)}
         if self.particles.n:
             src["phi"] = self.spm.phi
         return src

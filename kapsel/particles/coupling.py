@@ -56,16 +56,17 @@ def sample(u, idx, out=None):
     return out
 
 
-def _scatter(w, idx, size, shape=None, out=None):
+def _scatter(w, idx, size, shape=None, out=None, zeroed=False):
     """sum over particles of the per-point vectors w (3, N, S) -> (3, size) or (3, *shape).
 
     Zero-fill + np.add.at into the (reused) output: no full-grid temporaries (bincount
     allocates a fresh full-grid array per component, whose page faults cost more than the
-    sums at 64^3)."""
+    sums at 64^3).  ``zeroed``: ``out`` is known to be 0 everywhere (the caller cleared the
+    points of the last scatter, ``clear_points``), so the full-grid fill is skipped."""
     flat = idx.reshape(-1)
     if out is None:
         out = np.zeros((3, size))
-    else:
+    elif not zeroed:
         out.fill(0.0)
     of = out.reshape(3, -1)
     for c in range(3):
@@ -75,6 +76,14 @@ def _scatter(w, idx, size, shape=None, out=None):
     return out
 
 
+def clear_points(out, idx):
+    """out[:, idx] = 0 for a (3, ...) field: undoes a scatter onto a zeroed field."""
+    of = out.reshape(3, -1)
+    flat = idx.reshape(-1)
+    for c in range(3):
+        of[c][flat] = 0.0
+
+
 def particle_velocity_field(idx, phi, r, V, Omega, size, shape=None):
     """Eq 6: phi u_p = sum_i (V_i + Omega_i x r) phi_i, (3, size) or (3, *shape)."""
     w = rigid_velocity(r, V, Omega)
@@ -82,12 +91,16 @@ def particle_velocity_field(idx, phi, r, V, Omega, size, shape=None):
     return _scatter(w, idx, size, shape)
 
 
-def _slip(u, idx, phi, r, V, Omega, shear=0.0):
+def _slip(u, idx, phi, r, V, Omega, shear=0.0, sampled=None):
     """phi_i (u - V_i - Omega_i x r [+ shear r_y e_x]) at the stencil points, (3, N, S)
-    scratch buffer."""
+    scratch buffer.  ``sampled``: u at the stencil points already (``sample``)."""
     V = np.asarray(V, dtype=float)
     W = np.asarray(Omega, dtype=float)
-    w = sample(u, idx, out=_buf("w", (3,) + idx.shape))
+    w = _buf("w", (3,) + idx.shape)
+    if sampled is None:
+        sample(u, idx, out=w)
+    else:
+        np.copyto(w, sampled)
     t = _buf("t", idx.shape)
     for c, (a, b) in enumerate(_CYC):
         wc = w[c]
@@ -111,16 +124,18 @@ def _force_torque(w, r, scale):
     return F, T
 
 
-def hydro_force_torque(u, idx, phi, r, V, Omega, rho, dx, dt, shear=0.0):
+def hydro_force_torque(u, idx, phi, r, V, Omega, rho, dx, dt, shear=0.0, sampled=None):
     """Eqs 11-12 by momentum exchange: (F_H (N, 3), N_H (N, 3)) from u* (after the fluid step).
 
     F_i = RHO DX^3 / dt sum phi_i (u* - V_i - Omega_i x r), N_i = same with r x (...).
+    ``sampled``: u* at the stencil points, if the caller has it (``sample``).
     """
-    w = _slip(u, idx, phi, r, V, Omega, shear)
+    w = _slip(u, idx, phi, r, V, Omega, shear, sampled)
     return _force_torque(w, r, rho * dx ** 3 / dt)
 
 
-def rigidity_increment(u, idx, phi, r, V, Omega, size=None, out=None, shear=0.0, moment=None):
+def rigidity_increment(u, idx, phi, r, V, Omega, size=None, out=None, shear=0.0, moment=None,
+                       sampled=None, zeroed=False):
     """du = sum_i phi_i (V_i + Omega_i x r) - phi u (eq 6 imposed; phi f_p dt of eq 8).
 
     Shaped like u (written into ``out`` if given).  Still to be made solenoidal by the
@@ -128,12 +143,13 @@ def rigidity_increment(u, idx, phi, r, V, Omega, size=None, out=None, shear=0.0,
     Computed only at the stencil points: du = -sum_i phi_i (u - V_i - Omega_i x r).
     ``moment`` (3, 3) array: receives sum_i sum_x du_a r_b, the first moment of the increment
     about each particle (the particle stress, kapsel.models.shear).
+    ``sampled``: u at the stencil points (``sample``); ``zeroed``: ``out`` is all 0 already.
     """
     size = u[0].size if size is None else size
-    w = _slip(u, idx, phi, r, V, Omega, shear)
+    w = _slip(u, idx, phi, r, V, Omega, shear, sampled)
     w *= -1.0
     if moment is not None:
         for a in range(3):
             for b in range(3):
                 moment[a, b] = float(np.einsum("ns,ns->", w[a], r[..., b]))
-    return _scatter(w, idx, size, u.shape[1:], out=out)
+    return _scatter(w, idx, size, u.shape[1:], out=out, zeroed=zeroed)

@@ -59,7 +59,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from .coupling import hydro_force_torque, particle_velocity_field, rigidity_increment
+from .coupling import (clear_points, hydro_force_torque, particle_velocity_field,
+                       rigidity_increment, sample)
 from . import motion as _free_motion
 from .profile import Stencil, particle_profiles, total_phi
 
@@ -92,7 +93,7 @@ class SPM:
         if hasattr(fluid, "add_solenoidal"):
             self.mode = "spectral"
             self.shape = tuple(fluid.grid.shape)
-            self.u = np.empty((3,) + self.shape)  # u* buffer
+            self.u = fluid.grid.empty_real()       # u* buffer (FFT-aligned)
         elif hasattr(fluid, "project"):
             self.mode = "mac"
             self.shape = tuple(fluid.shape)
@@ -102,7 +103,14 @@ class SPM:
         else:
             raise TypeError("fluid must be a SpectralNS or a MACSolver")
         self.size = int(np.prod(self.shape))
-        self._du = np.zeros((3,) + self.shape) if particles.n else None   # last increment
+        # kept 0 between steps: a step scatters du onto its stencil points and clears them
+        self._du = None
+        if particles.n:     # spectral: FFT-aligned, transformed in place
+            self._du = (fluid.grid.empty_real() if self.mode == "spectral"
+                        else np.empty((3,) + self.shape))
+            self._du[...] = 0.0
+        self._us = None         # u* at the stencil points, sampled once a step
+        self._du_points = None  # du at the stencil points of the last step (last_increment)
         self.box = np.array(self.shape, dtype=float) * self.dx
         # oblique fluid (kapsel.fluid.oblique, Lees-Edwards): profiles on the sheared grid,
         # velocities relative to the imposed shear flow, Lees-Edwards images
@@ -208,9 +216,12 @@ class SPM:
             self._profiles()                  # the oblique grid moved with the frame
         if p.n:
             u = self.u
+            if self._us is None or self._us.shape[1:] != self.idx.shape:
+                self._us = np.empty((3,) + self.idx.shape)
+            us = sample(u, self.idx, out=self._us)
             v, shear = self._relative_velocity()
             F_H, T_H = hydro_force_torque(u, self.idx, self.phi_i, self.r, v, p.omega,
-                                          self.rho, self.dx, self.dt, shear=shear)
+                                          self.rho, self.dx, self.dt, shear=shear, sampled=us)
             F_o = T_o = None
             if self.forces is not None:
                 res = self.forces(p)
@@ -223,8 +234,15 @@ class SPM:
             v, shear = self._relative_velocity()
             du = rigidity_increment(u, self.idx, self.phi_i, self.r, v, p.omega, self.size,
                                     out=self._du, shear=shear,
-                                    moment=self.moment if self.oblique else None)
+                                    moment=self.moment if self.oblique else None,
+                                    sampled=us, zeroed=True)
             self._add_solenoidal(du)
+            flat = self.idx.reshape(-1)
+            if self._du_points is None or self._du_points.shape[1] != flat.size:
+                self._du_points = np.empty((3, flat.size))
+            for c in range(3):                # kept for last_increment (diagnostics)
+                np.take(du[c].reshape(-1), flat, out=self._du_points[c])
+            clear_points(du, self.idx)        # du is all 0 again for the next step
             if self.oblique:
                 R0, raw0 = p.R.copy(), p.R_raw.copy()
             self.motion.update_positions(p, self.dt, self.box, self.rotation)
@@ -239,6 +257,19 @@ class SPM:
             self.step()
 
     # ------------------------------------------------------------------ diagnostics
+    def last_increment(self):
+        """The rigidity increment du (eq 6, before projection) of the last step as a full
+        (3, NX, NY, NZ) field, zero before the first step (the particles' body force
+        f_p = RHO du / dt of kapsel.fluid.diagnostics)."""
+        du = np.zeros((3,) + self.shape)
+        if self._du_points is not None and self.p.n:
+            flat = self.idx.reshape(-1)
+            if flat.size == self._du_points.shape[1]:
+                d = du.reshape(3, -1)
+                for c in range(3):
+                    d[c][flat] = self._du_points[c]
+        return du
+
     def fluid_momentum(self):
         """RHO DX^3 sum_x u over the whole field (particle interiors included)."""
         if self.mode == "spectral":

@@ -38,7 +38,6 @@ Discretisation (periodic grid, nodes, spacing DX)
 import math
 
 import numpy as np
-import scipy.fft
 from scipy.sparse.linalg import LinearOperator
 
 from .potentials import make_potential
@@ -464,13 +463,12 @@ class CahnHilliard:
             return LinearOperator((n, n), matvec=lambda v: inv * v, dtype=np.float64)
         sym = c0 + self.dt * self.kappa * self.alpha * self._k2 ** 2
         half = 1.0 / sym[:, :, : self.shape[2] // 2 + 1]
-        shape, w = self.shape, self.threads
-
-        def solve(v):
-            vh = scipy.fft.rfftn(v.reshape(shape), workers=w)
-            vh *= half
-            return scipy.fft.irfftn(vh, s=shape, workers=w).ravel()
-        return LinearOperator((n, n), matvec=solve, dtype=np.float64)
+        key = (float(c0), self.dt)
+        if getattr(self, "_fourier_key", None) != key:      # plans once, symbol per c0
+            from ..linalg import FourierDiagonal
+            self._fourier = FourierDiagonal(self.shape, half, self.threads)
+            self._fourier_key = key
+        return LinearOperator((n, n), matvec=self._fourier.solve, dtype=np.float64)
 
     def _bicgstab(self, A, b, x0, c0, dphi):
         x, self.iterations, self.residual = solve_correction(

@@ -1,0 +1,143 @@
+"""Fused element-wise passes of the pseudo-spectral step (kapsel.fluid.spectral), compiled.
+
+Each kernel does in one sweep over the grid what numpy did in 6-12 whole-array passes (each
+reading and writing full complex fields), with the same floating-point operations in the same
+order: results are bit-identical to the numpy sequence they replace (a complex times a real
+is computed as the two real products, which is what numpy's complex product gives when the
+imaginary part of one factor is 0, up to the sign of zero results).
+
+Compiled with numba (``cache=True``: the machine code is kept in __pycache__, so only the
+first run on a machine pays the JIT); loaded on demand by kapsel.compiled.
+"""
+from __future__ import annotations
+
+from numba import njit
+
+__all__ = ["truncate_curl", "cross", "project_etd1", "project_etd2", "project_add"]
+
+
+@njit(cache=True, nogil=True)
+def truncate_curl(u_hat, mask_n, kx, ky, kz, uh, wh):
+    """uh = u_hat mask_n;  wh = i k x uh  (the 2/3-truncated velocity and its vorticity)."""
+    nx, ny, nzc = mask_n.shape
+    for i in range(nx):
+        ki = kx[i]
+        for j in range(ny):
+            kj = ky[j]
+            for k in range(nzc):
+                kk = kz[k]
+                m = mask_n[i, j, k]
+                a = u_hat[0, i, j, k]
+                b = u_hat[1, i, j, k]
+                c = u_hat[2, i, j, k]
+                ar, ai = a.real * m, a.imag * m
+                br, bi = b.real * m, b.imag * m
+                cr, ci = c.real * m, c.imag * m
+                uh[0, i, j, k] = complex(ar, ai)
+                uh[1, i, j, k] = complex(br, bi)
+                uh[2, i, j, k] = complex(cr, ci)
+                # (i q) z = (-q z.imag) + i (q z.real)
+                wh[0, i, j, k] = complex((-(kj * ci)) - (-(kk * bi)), (kj * cr) - (kk * br))
+                wh[1, i, j, k] = complex((-(kk * ai)) - (-(ki * ci)), (kk * ar) - (ki * cr))
+                wh[2, i, j, k] = complex((-(ki * bi)) - (-(kj * ai)), (ki * br) - (kj * ar))
+
+
+@njit(cache=True, nogil=True)
+def cross(u, w, n):
+    """n = u x w, real (3, NX, NY, NZ) arrays."""
+    nx, ny, nz = u.shape[1], u.shape[2], u.shape[3]
+    for i in range(nx):
+        for j in range(ny):
+            for k in range(nz):
+                u0, u1, u2 = u[0, i, j, k], u[1, i, j, k], u[2, i, j, k]
+                w0, w1, w2 = w[0, i, j, k], w[1, i, j, k], w[2, i, j, k]
+                n[0, i, j, k] = u1 * w2 - u2 * w1
+                n[1, i, j, k] = u2 * w0 - u0 * w2
+                n[2, i, j, k] = u0 * w1 - u1 * w0
+
+
+@njit(inline="always")
+def _project_point(a, b, c, ki, kj, kk, inv):
+    """P v = v - k (k.v)/k^2 at one mode, as kapsel.grid.Grid.project computes it."""
+    sr = a.real * ki + b.real * kj
+    si = a.imag * ki + b.imag * kj
+    sr = sr + c.real * kk
+    si = si + c.imag * kk
+    sr = sr * inv
+    si = si * inv
+    a = complex(a.real - sr * ki, a.imag - si * ki)
+    b = complex(b.real - sr * kj, b.imag - si * kj)
+    c = complex(c.real - sr * kk, c.imag - si * kk)
+    return a, b, c
+
+
+@njit(inline="always")
+def _scale(z, s):
+    return complex(z.real * s, z.imag * s)
+
+
+@njit(cache=True, nogil=True)
+def project_etd1(nl, u_hat, E, a1, kx, ky, kz, inv_k2, store):
+    """u_hat <- E u_hat + a1 P nl  (slaved Euler, eq 8); nl <- P nl if ``store`` (ETD2's
+    first step keeps it), else nl is left as it was."""
+    nx, ny, nzc = E.shape
+    for i in range(nx):
+        ki = kx[i]
+        for j in range(ny):
+            kj = ky[j]
+            for k in range(nzc):
+                kk = kz[k]
+                a, b, c = _project_point(nl[0, i, j, k], nl[1, i, j, k], nl[2, i, j, k],
+                                         ki, kj, kk, inv_k2[i, j, k])
+                if store:
+                    nl[0, i, j, k] = a
+                    nl[1, i, j, k] = b
+                    nl[2, i, j, k] = c
+                e = E[i, j, k]
+                w = a1[i, j, k]
+                u_hat[0, i, j, k] = _scale(u_hat[0, i, j, k], e) + _scale(a, w)
+                u_hat[1, i, j, k] = _scale(u_hat[1, i, j, k], e) + _scale(b, w)
+                u_hat[2, i, j, k] = _scale(u_hat[2, i, j, k], e) + _scale(c, w)
+
+
+@njit(cache=True, nogil=True)
+def project_etd2(nl, nl_old, u_hat, E, a2, b2, kx, ky, kz, inv_k2):
+    """nl <- P nl;  u_hat <- E u_hat + a2 nl - b2 nl_old  (ETD2)."""
+    nx, ny, nzc = E.shape
+    for i in range(nx):
+        ki = kx[i]
+        for j in range(ny):
+            kj = ky[j]
+            for k in range(nzc):
+                kk = kz[k]
+                a, b, c = _project_point(nl[0, i, j, k], nl[1, i, j, k], nl[2, i, j, k],
+                                         ki, kj, kk, inv_k2[i, j, k])
+                nl[0, i, j, k] = a
+                nl[1, i, j, k] = b
+                nl[2, i, j, k] = c
+                e = E[i, j, k]
+                w = a2[i, j, k]
+                v = b2[i, j, k]
+                u_hat[0, i, j, k] = ((_scale(u_hat[0, i, j, k], e) + _scale(a, w))
+                                     - _scale(nl_old[0, i, j, k], v))
+                u_hat[1, i, j, k] = ((_scale(u_hat[1, i, j, k], e) + _scale(b, w))
+                                     - _scale(nl_old[1, i, j, k], v))
+                u_hat[2, i, j, k] = ((_scale(u_hat[2, i, j, k], e) + _scale(c, w))
+                                     - _scale(nl_old[2, i, j, k], v))
+
+
+@njit(cache=True, nogil=True)
+def project_add(d, u_hat, kx, ky, kz, inv_k2):
+    """u_hat += P d  (d is left unchanged)."""
+    nx, ny, nzc = inv_k2.shape
+    for i in range(nx):
+        ki = kx[i]
+        for j in range(ny):
+            kj = ky[j]
+            for k in range(nzc):
+                kk = kz[k]
+                a, b, c = _project_point(d[0, i, j, k], d[1, i, j, k], d[2, i, j, k],
+                                         ki, kj, kk, inv_k2[i, j, k])
+                u_hat[0, i, j, k] += a
+                u_hat[1, i, j, k] += b
+                u_hat[2, i, j, k] += c
