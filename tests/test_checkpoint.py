@@ -50,7 +50,8 @@ def test_killed_run_continues_from_its_last_snapshot(tmp_path, eq):
     proc.communicate(timeout=60)
     assert 10 <= step < 80, step
     doc = UDFManager(str(d / "restart.udf"))
-    assert doc.get(f"resume.{_kind(d / 'restart.udf')}.Saved_Data.jikan")[0] == 0
+    # the full restart.udf of the run's first snapshot: 0 steps done, ts = -1 (ts = steps - 1)
+    assert doc.get(f"resume.{_kind(d / 'restart.udf')}.Saved_Data.jikan")[0] == -1
     saved = read_restart(doc, str(d / "restart.udf"), _kind(d / "restart.udf"))
     assert saved.checkpoint_of == 0 and saved.step >= step and saved.exact is not None
     # continue, as after any interruption
@@ -83,7 +84,7 @@ def test_failed_run_writes_restart_udf_from_the_last_checkpoint(tmp_path, capsys
     assert cli(d, "input.udf") == 1
     assert "(step 15)" in capsys.readouterr().err
     rs = UDFManager(str(d / "restart.udf"))
-    assert rs.get("resume.CONTINUE_FDM.Saved_Data.jikan")[0] == 15
+    assert rs.get("resume.CONTINUE_FDM.Saved_Data.jikan")[0] == 14   # 15 steps done
     saved = read_restart(rs, str(d / "restart.udf"), "CONTINUE_FDM")
     assert saved.exact is not None and saved.checkpoint_of is None   # a full pair again
     assert not [f for f in os.listdir(d) if ".tmp" in f]
