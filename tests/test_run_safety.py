@@ -191,7 +191,7 @@ def test_continuing_a_finished_run_says_so(tmp_path, capsys, monkeypatch):
     assert main(["-Irestart.udf", "-Ooutput.udf", "-Ddefine.udf", "-Rrestart.udf",
                  "--quiet"]) == 0
     err = capsys.readouterr().err
-    assert "the last step of its run" in err and "raise output.Num_snap in restart.udf" in err
+    assert "holds the end of its run" in err and "raise output.Num_snap in restart.udf" in err
     assert {p.name: p.read_bytes() for p in d.iterdir()} == before
 
 

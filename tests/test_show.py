@@ -52,7 +52,7 @@ def test_show_draws_the_last_snapshot_as_its_data(tmp_path, monkeypatch, capsys)
     short_run(tmp_path, monkeypatch)
     assert cli.main(["analyze", "show", str(tmp_path)]) == 0
     out = capsys.readouterr().out
-    png = tmp_path / "show_2.png"            # snapshot 2 = the last record, t = 4 dt
+    png = tmp_path / "show_2.png"            # snapshot 2 = the last record, t = step 4
     assert png.exists() and str(png) in out
     img = matplotlib.image.imread(str(png))
     assert img.shape[:2] == (500, 1200)      # FIGSIZE x DPI
@@ -60,7 +60,8 @@ def test_show_draws_the_last_snapshot_as_its_data(tmp_path, monkeypatch, capsys)
     # the same drawing through the function, which says where the slice's pixels are
     rec = show.read_records(str(tmp_path / "output.udf"))
     files = show.snapshot_files(str(tmp_path))
-    assert set(files) == {0, 1, 2} and files[2]["time"] == pytest.approx(rec.t[-1])
+    assert set(files) == {0, 1, 2} and rec.t[-1] == 2 * rec.gts    # record t is the step
+    assert show.match_snapshot(files, rec.t[-1], rec.gts) == 2
     pic = show.render(str(tmp_path / "again.png"), rec, 2, {"psi": files[2]["psi"]})
     assert (matplotlib.image.imread(str(tmp_path / "again.png")) == img).all()
 
@@ -122,7 +123,7 @@ def test_show_spectral_shear_run_says_it_has_no_fields(tmp_path, monkeypatch, ca
     short_run(tmp_path, monkeypatch, eq="Shear_Navier_Stokes_Lees_Edwards", gts=1, nsnap=2)
     assert cli.main(["analyze", "show", str(tmp_path)]) == 0
     out, err = capsys.readouterr()
-    assert "no field files" in err and "spectral types write none" in err
+    assert "no field files" in err and "spectral types write fields only with output.AVS" in err
     png = tmp_path / "show_record2.png"
     assert png.exists() and matplotlib.image.imread(str(png)).shape[:2] == (500, 1200)
 

@@ -84,6 +84,7 @@ class Records:
     t: np.ndarray
     E: np.ndarray
     R: list = field(default_factory=list)      # (n, 3) positions per record
+    gts: int = 1                               # output.GTS: snapshot n is step n GTS
 
 
 def read_records(udf_path: str) -> Records:
@@ -94,7 +95,8 @@ def read_records(udf_path: str) -> Records:
         kind = u.get("constitutive_eq.type")
         shape = tuple(2 ** int(u.get(f"mesh.{ax}")) for ax in ("NPX", "NPY", "NPZ"))
         dx = float(u.get(f"constitutive_eq.{kind}.DX"))
-        A = float(u.get("A"))
+        A = float(u.get("A")) * dx                # the radius is A DX (as the original)
+        gts = int(u.get("output.GTS"))
         t, E, R = [], [], []
         for rec in range(u.totalRecord()):
             u.jump(rec)
@@ -106,7 +108,7 @@ def read_records(udf_path: str) -> Records:
                 R.append(np.zeros((0, 3)))
     except udf.UDFError as e:
         raise ShowError(str(e)) from None
-    return Records(kind, shape, dx, A, np.array(t), np.array(E), R)
+    return Records(kind, shape, dx, A, np.array(t), np.array(E), R, gts)
 
 
 def read_table(path: str):
@@ -147,7 +149,7 @@ def lees_edwards_shift(rec: "Records", index: int, table, box) -> float:
     if table is None or "Shear_strain" not in table[0] or not len(table[1]):
         return 0.0
     names, data = table
-    j = int(np.argmin(np.abs(data[:, names.index("t")] - rec.t[index])))
+    j = int(np.argmin(np.abs(data[:, names.index("step")] - rec.t[index])))
     return float(data[j, names.index("Shear_strain")]) * box[1]
 
 
@@ -226,7 +228,7 @@ def render(path: str, rec: Records, index: int, fields: dict | None, z_index=Non
     ax.set_xlabel("x")
     ax.set_ylabel("y")
     what = {"psi": "psi", "u": "|u|"}.get(kind, "particles")
-    ax.set_title(f"{rec.type}: {what} at z = {z:g} (slice {k}), t = {rec.t[index]:g}",
+    ax.set_title(f"{rec.type}: {what} at z = {z:g} (slice {k}), step {rec.t[index]:g}",
                  fontsize=9)
 
     have_shear = table is not None and "Shear_stress" in table[0]
@@ -237,7 +239,7 @@ def render(path: str, rec: Records, index: int, fields: dict | None, z_index=Non
     ax_e.set_title(f"record {index} of {len(rec.t)}", fontsize=9)
     if have_shear:
         names, data = table
-        ts = data[:, names.index("t")]
+        ts = data[:, names.index("step")]
         s = data[:, names.index("Shear_stress")]
         ax_s = fig.add_axes([0.55, 0.1, 0.42, 0.33], sharex=ax_e)
         ax_s.plot(ts, s, "-", color="C1")
@@ -245,10 +247,10 @@ def render(path: str, rec: Records, index: int, fields: dict | None, z_index=Non
         if j is not None:
             ax_s.plot([ts[j]], [s[j]], "o", color="C3")
         ax_s.set_ylabel("shear stress")
-        ax_s.set_xlabel("t")
+        ax_s.set_xlabel("step")
         ax_e.tick_params(labelbottom=False)
     else:
-        ax_e.set_xlabel("t")
+        ax_e.set_xlabel("step")
     fig.canvas.draw()
     bb = ax.get_window_extent()
     tmp = f"{path}.{os.getpid()}.tmp.png"
@@ -264,14 +266,14 @@ def render(path: str, rec: Records, index: int, fields: dict | None, z_index=Non
 
 
 # ---------------------------------------------------------------------------- command
-def match_snapshot(files: dict[int, dict], t: float, dt_tol: float):
-    """The field snapshot whose time is t (within dt_tol), or None."""
-    best = None
-    for n, entry in files.items():
-        if entry["time"] is not None and abs(entry["time"] - t) <= dt_tol:
-            if best is None or abs(entry["time"] - t) < abs(files[best]["time"] - t):
-                best = n
-    return best
+def match_snapshot(files: dict[int, dict], step: float, gts: int):
+    """The field snapshot of a record (its ``t`` is the step, as the original writes it:
+    snapshot n = step / GTS), or None."""
+    s = int(round(step))
+    if gts < 1 or s % gts:
+        return None
+    n = s // gts
+    return n if n in files else None
 
 
 def choose(spec: str, count: int) -> list[int]:
@@ -304,9 +306,6 @@ def run(a) -> int:
     if len(rec.t) == 0:
         raise ShowError(f"{udf_path}: no records yet")
     files = snapshot_files(run_dir)
-    steps = np.diff(rec.t)
-    tol = 1e-6 * max(1.0, float(np.abs(rec.t).max())) + (0.01 * float(steps.min())
-                                                          if len(steps) else 0.0)
     table = read_table(os.path.join(run_dir, "shear_stress.dat"))
     out_dir = a.out or run_dir
     try:
@@ -315,10 +314,10 @@ def run(a) -> int:
         raise ShowError(f"--out {out_dir}: {e.strerror}") from None
     if not files:
         print(f"kapsel-py analyze show: no field files (orderparam_<n>.h5, velocity_<n>.h5) "
-              f"in {run_dir}: the spectral types write none yet; drawing the particles and "
+              f"in {run_dir}: the spectral types write fields only with output.AVS; drawing the particles and "
               f"the records only", file=sys.stderr)
     for i in choose(a.record, len(rec.t)):
-        n = match_snapshot(files, rec.t[i], tol)
+        n = match_snapshot(files, rec.t[i], rec.gts)
         fields = {k: v for k, v in files[n].items() if k in FIELD_FILES} if n is not None else None
         if files and fields is None:
             print(f"kapsel-py analyze show: record {i} (t = {rec.t[i]:g}) has no field "
