@@ -354,6 +354,40 @@ def build_model(cfg, args, doc, resumed: bool):
     return model
 
 
+class StartUpSignals:
+    """SIGINT / SIGTERM during start-up are noted and acted on between its stages
+    (``check``), never raised inside a C extension's import or set-up: a KeyboardInterrupt
+    there can leave it half initialised (a crash at exit was seen).  The time loop then
+    installs its own handlers (kapsel.simulation.run)."""
+
+    got = None
+
+    def __enter__(self):
+        import signal
+        self.got = None
+        try:
+            self.old = {s: signal.signal(s, self._note) for s in (signal.SIGINT, signal.SIGTERM)}
+        except ValueError:              # not the main thread: leave the handlers alone
+            self.old = {}
+        return self
+
+    def _note(self, signum, frame):
+        self.got = signum
+
+    def check(self):
+        if self.got is not None:
+            raise KeyboardInterrupt
+
+    def __exit__(self, *exc):
+        import signal
+        for s, h in self.old.items():
+            signal.signal(s, h)
+        return False
+
+
+_START = StartUpSignals()
+
+
 def prepare(args, locks: list | None = None):
     """Everything a run does before its first write: read the input and the -D schema,
     build the configuration and the model (every check), check the output paths.  With a
@@ -368,6 +402,7 @@ def prepare(args, locks: list | None = None):
         cfg, doc, define = validate(args.input, args.define)
     except BadInput as e:
         return fail(str(e))
+    _START.check()
     problem = check_output_paths(args)
     if problem:
         return fail(problem)
@@ -389,6 +424,7 @@ def prepare(args, locks: list | None = None):
         model = build_model(cfg, args, doc, resumed)
     except BadInput as e:
         return fail(str(e))
+    _START.check()
     problem = (check_define(define, args, model) or check_same_schema(doc, define, args)
                or (resumed and check_own_output(args, model)))
     if problem:
@@ -411,7 +447,8 @@ def main(argv=None) -> int:
         return fail(f"--seed must be an integer from 0 to 2^63 - 1, got {args.seed}")
     locks: list = []
     try:
-        return _main(args, locks)
+        with _START:
+            return _main(args, locks)
     except KeyboardInterrupt:
         print("kapsel-py: interrupted during start-up, before the first step; there is "
               "nothing to continue from", file=sys.stderr)
@@ -431,6 +468,7 @@ def _main(args, locks) -> int:
     from .config import _size
     from .simulation import planned_files, run
     if args.quiet and not args.check:
+        _START.check()
         return run(cfg, args, doc, model, resumed=resumed)
     lines = describe(cfg, args, model, resumed, planned_files(cfg, args, model, resumed),
                      seed_drawn=seed_drawn and not args.check)
@@ -443,6 +481,7 @@ def _main(args, locks) -> int:
         print_banner(lines, sys.stdout, prefix="")
         return EXIT_OK
     print_banner(lines, sys.stderr)
+    _START.check()
     return run(cfg, args, doc, model, resumed=resumed)
 
 
