@@ -671,6 +671,11 @@ def _electric(r: _Reader, obj: str, species, mesh: Mesh):
     if not (r.has(f"{m}.type") and r.get(f"{m}.type") == "ON"):
         return quincke, None
     d = f"{m}.ON.Dipole"
+    eq = r.get("constitutive_eq.type")
+    if "Lees_Edwards" in eq or eq == "Shear_NS_LE_CH_FDM":
+        bad(f"{m}.type", "ON", f"dipole interactions are summed in a periodic box (Ewald); "
+                               f"{eq} shears it with Lees-Edwards images: not supported")
+        return quincke, None
     if not (r.has(f"{d}.type") and r.get(f"{d}.type") == "ON"):
         bad(f"{m}.type", "ON", f"multipole interactions need {d}.type ON (dipoles are the "
                                f"only multipoles the original reads)")

@@ -232,12 +232,24 @@ def test_constraint_keeps_the_axis_across_the_field_under_thermal_noise(tmp_path
     assert np.mean(off[50:]) > 5 * np.mean(on[50:])          # measured 0.069
 
 
-def test_the_derived_ex12_input_runs(tmp_path):
+@pytest.mark.parametrize("eq", ["Shear_Navier_Stokes_Lees_Edwards", "Shear_NS_LE_CH_FDM"])
+def test_dipoles_under_lees_edwards_are_refused(tmp_path, eq):
+    with pytest.raises(config.ConfigError, match="Lees-Edwards"):
+        config.load(_nowall(tmp_path, switch__quincke__type="OFF", switch__free_rigid__type="NO",
+                            object_type__type=
+                            "spherical_particle", constitutive_eq__type=eq,
+                            switch__multipole__ON__Dipole__ON__type="FIXED",
+                            **{"object_type__spherical_particle__Particle_spec[0]__janus_axis":
+                               "NONE", "object_type__spherical_particle__Particle_spec[0]__"
+                               "janus_propulsion": "OFF"}))
+
+
+@pytest.mark.parametrize("eq", ["Navier_Stokes", "Navier_Stokes_FDM"])
+def test_the_derived_ex12_input_runs(tmp_path, eq):
     """ex12 without walls (tests/data/ex12/nowall.udf: 6 Quincke rollers with QUINCKE dipoles,
     omega_x fixed, 16^3) runs with the command; the rollers feel the constraint and dipole
     torques (torque_r) and keep their fixed omega_x."""
-    for f in ("define.udf", "kapsel_unit.udf", "nowall.udf"):
-        shutil.copy(os.path.join(DATA, f), tmp_path / f)
+    _nowall(tmp_path, name="nowall.udf", constitutive_eq__type=eq)
     r = subprocess.run([sys.executable, "-m", "kapsel.cli", "-Inowall.udf", "-Oout.udf",
                         "-Ddefine.udf", "-Rrestart.udf", "--seed", "3", "--quiet"],
                        cwd=tmp_path, capture_output=True, text=True, timeout=300)
