@@ -262,3 +262,25 @@ def test_the_derived_ex12_input_runs(tmp_path, eq):
     assert q.shape == (6, 4) and np.all(np.isfinite(q)) and np.all(np.isfinite(T))
     assert np.all(np.linalg.norm(T, axis=1) > 1.0)
     np.testing.assert_allclose(w[:, 0], 0.0625, rtol=1e-6)
+
+
+@pytest.mark.parametrize("eq", ["Navier_Stokes", "Shear_Navier_Stokes"])
+def test_fixed_dipoles_on_spheres_run(tmp_path, eq):
+    """FIXED dipoles on spherical particles (no Quincke): the spheres turn under mu x E."""
+    path = _nowall(tmp_path, name="s.udf", switch__quincke__type="OFF",
+                   switch__free_rigid__type="NO", object_type__type="spherical_particle",
+                   constitutive_eq__type=eq, switch__multipole__ON__Dipole__ON__type="FIXED",
+                   switch__INIT_orientation="random", output__GTS=2, output__Num_snap=1,
+                   **{"object_type__spherical_particle__Particle_spec[]":
+                      [[4, 1.5, 0.0, "NONE", "OFF", [0.0, 0, 0], [0.0, 0, 0], 0.0, 0.0, 0.0,
+                        0.0]]})
+    r = subprocess.run([sys.executable, "-m", "kapsel.cli", "-Is.udf", "-Oout.udf",
+                        "-Ddefine.udf", "-Rrestart.udf", "--seed", "3", "--quiet"],
+                       cwd=tmp_path, capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stderr
+    u = UDFManager(str(tmp_path / "out.udf"))
+    u.jump(u.totalRecord() - 1)
+    T = np.array(u.getArray("Particles[].torque_r"))
+    w = np.array(u.getArray("Particles[].omega"))
+    assert T.shape == (4, 3) and np.all(np.linalg.norm(T, axis=1) > 0)
+    assert np.all(np.linalg.norm(w, axis=1) > 0)
