@@ -710,6 +710,6 @@ def _electric(r: _Reader, obj: str, species, mesh: Mesh):
             bad(f"{qd}.type", "with_mirror_image", "mirror images need the electrode: "
                 "switch.wall FLAT with axis Z (images are reflected in its lower surface)")
         else:
-            mirror_z = 0.5 * r.get(f"{w}.FLAT.DH") * mesh.DX
+            mirror_z = 0.5 * r.get(f"{w}.FLAT.DH") * (mesh.DX if mesh is not None else 1.0)
     return quincke, Dipoles("QUINCKE", pz_factor=float(r.finite(f"{qd}.Pz_factor")),
                             mirror_z=mirror_z, **common)
