@@ -284,3 +284,14 @@ def test_fixed_dipoles_on_spheres_run(tmp_path, eq):
     w = np.array(u.getArray("Particles[].omega"))
     assert T.shape == (4, 3) and np.all(np.linalg.norm(T, axis=1) > 0)
     assert np.all(np.linalg.norm(w, axis=1) > 0)
+
+
+def test_check_names_the_constraint_and_the_dipoles(tmp_path):
+    _nowall(tmp_path, name="nowall.udf")
+    r = subprocess.run([sys.executable, "-m", "kapsel.cli", "-Inowall.udf", "-Oout.udf",
+                        "-Ddefine.udf", "-Rrestart.udf", "--check"],
+                       cwd=tmp_path, capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0, r.stderr
+    assert "Quincke constraint: field along Z, body axis X, K = 50" in r.stdout
+    assert "dipoles 6 (QUINCKE, Pz_factor 3, no mirror images); Ewald to 1.1e-07 (tin-foil" \
+        in r.stdout
