@@ -133,3 +133,32 @@ def test_original_parameters_give_a_tolerance():
     # ex12: alpha 8, delta 1e-16, converge 0.51
     tol = ew.tolerance_from_original(8.0, 1e-16, 0.51)
     assert tol == pytest.approx(max(np.exp(-16), 1e-16 ** 0.51))
+
+
+def test_spherical_direct_sum_converges_to_the_vacuum_ewald_energy():
+    """Brute force: the bare pair law summed over periodic images inside a growing sphere
+    (radius 80 for a 3 x 4 x 5 cell of 3 random dipoles) approaches the Ewald energy with the
+    vacuum surface term, U_tinfoil + 2 pi |M|^2 / 3V (de Leeuw, Perram & Smith 1980);
+    measured relative differences 1.1e-3, 3.9e-4, 6.0e-5 at radius 20, 40, 80."""
+    box = np.array([3.0, 4.0, 5.0])
+    rng = np.random.default_rng(2)
+    R, mu = rng.uniform(0, 1, (3, 3)) * box, rng.normal(size=(3, 3))
+    M = mu.sum(axis=0)
+    U_tf = ew.dipolar_ewald(R, mu, box, ew.choose_parameters(box, 3, 1e-14))[0]
+    U_vac = U_tf + 2 * np.pi / (3 * np.prod(box)) * (M @ M)
+    assert ew.dipolar_ewald(R, mu, box, ew.choose_parameters(box, 3, 1e-14), 1.0)[0] == \
+        pytest.approx(U_vac, rel=1e-12)
+    rmax = 80.0
+    nm = np.ceil(rmax / box).astype(int)
+    n = np.stack(np.meshgrid(*[np.arange(-m, m + 1) for m in nm], indexing="ij"), -1)
+    S = n.reshape(-1, 3) * box
+    S = S[np.linalg.norm(S, axis=1) <= rmax]
+    U = 0.0
+    for i in range(3):
+        for j in range(3):
+            d = R[i] - R[j] + S
+            if i == j:
+                d = d[np.any(S != 0, axis=1)]
+            r = np.linalg.norm(d, axis=1)
+            U += 0.5 * np.sum(mu[i] @ mu[j] / r ** 3 - 3 * (d @ mu[i]) * (d @ mu[j]) / r ** 5)
+    assert abs(U - U_vac) < 2e-4 * abs(U_vac)
