@@ -77,7 +77,8 @@ def tolerance_from_original(alpha: float, delta: float, converge: float) -> floa
     eta = alpha / (2 r_c) at r_c = half the box leaves real-space terms of size
     exp(-(alpha/2)^2), and k^2_max = 4 eta^2 (-ln delta) converge leaves reciprocal terms
     of size delta^converge.  kapsel-py reaches the larger (worse) of the two with its own,
-    cost-balanced split; a converged Ewald sum does not depend on the split."""
+    cost-balanced split; a converged Ewald sum does not depend on the split.  The result is
+    kept within [1e-15, 1e-2]."""
     real = np.exp(-(alpha / 2.0) ** 2)
     recip = float(delta) ** float(converge)
     tol = max(real, recip)
