@@ -62,7 +62,7 @@ def _electric(cfg) -> list[str]:
     """Quincke constraint and dipoles (kapsel.particles.dipoles), with the Ewald split."""
     sw, out = cfg.switches, []
     names = {(1.0, 0.0, 0.0): "X", (0.0, 1.0, 0.0): "Y", (0.0, 0.0, 1.0): "Z"}
-    qk, d = getattr(sw, "quincke", None), getattr(sw, "dipoles", None)
+    qk, d = sw.quincke, sw.dipoles
     if qk is not None:
         out.append(f"Quincke constraint: field along {names[qk.field_dir]}, body axis "
                    f"{names[qk.body_axis]}, K = {_g(qk.torque_amp)}")

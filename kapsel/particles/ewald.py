@@ -6,7 +6,7 @@ orthorhombic box of volume V (splitting parameter alpha, standard dipolar Ewald,
 Tildesley, "Computer Simulation of Liquids", 2nd ed., §6.2; de Leeuw, Perram & Smith, Proc.
 R. Soc. Lond. A 373, 27 (1980)):
 
-    U_real  = sum_{i<j} (mu_i.mu_j) B(r) - (mu_i.r)(mu_j.r) C(r)           (minimum image, r < r_cut)
+    U_real  = 1/2 sum_{i,j,n}' (mu_i.mu_j) B(r) - (mu_i.r)(mu_j.r) C(r),  r = r_ij + n L, |r| < r_cut
     U_recip = (2 pi / V) sum_{k != 0} exp(-k^2/4 alpha^2) / k^2 |sum_j (mu_j.k) exp(i k.r_j)|^2
     U_self  = -(2 alpha^3 / 3 sqrt(pi)) sum_i |mu_i|^2
     U_surf  = 2 pi / ((2 eps' + 1) V) |sum_i mu_i|^2       (0 for tin-foil, eps' = inf)
@@ -19,10 +19,11 @@ mu_i x E_i) and the force F_i = -dU/dr_i.
 Cost: the split is chosen by ``choose_parameters`` so that the real-space pairs (every periodic
 image within r_cut, found by a k-d tree) and the reciprocal terms (direct sum over k vectors,
 vectorised) take the same time, alpha = sqrt(pi) (c N / V^2)^(1/6) with c = COST_RATIO: both
-then scale as N^1.5 at fixed density (bench/bench_ewald.py).  Accuracy: the neglected terms of both sums are of relative size
-exp(-s^2) with s = alpha r_cut = k_cut / (2 alpha) = sqrt(-ln tol); tests/test_ewald.py measures
-the field and force errors against a tightly converged sum (they stay below ``tol`` relative
-to the RMS field for tol = 1e-6 ... 1e-10).
+then scale as N^1.5 at fixed density (bench/bench_ewald.py).  Accuracy: the neglected terms
+of both sums are of relative size s^3 exp(-s^2) with s = alpha r_cut = k_cut / (2 alpha) from
+``splitting_s(tol)``; tests/test_ewald.py measures the energy, field and force errors against
+a sum converged to 1e-15: they stay below ``tol`` (relative to |U|, the RMS field and the RMS
+force) for tol = 1e-6 ... 1e-10.
 """
 from __future__ import annotations
 
