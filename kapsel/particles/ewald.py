@@ -6,7 +6,7 @@ orthorhombic box of volume V (splitting parameter alpha, standard dipolar Ewald,
 Tildesley, "Computer Simulation of Liquids", 2nd ed., §6.2; de Leeuw, Perram & Smith, Proc.
 R. Soc. Lond. A 373, 27 (1980)):
 
-    U_real  = 1/2 sum_{i,j,n}' (mu_i.mu_j) B(r) - (mu_i.r)(mu_j.r) C(r),  r = r_ij + n L, |r| < r_cut
+    U_real  = 1/2 sum_{i,j,n}' (mu_i.mu_j) B(r) - (mu_i.r)(mu_j.r) C(r), r = r_ij + n L, |r| < r_cut
     U_recip = (2 pi / V) sum_{k != 0} exp(-k^2/4 alpha^2) / k^2 |sum_j (mu_j.k) exp(i k.r_j)|^2
     U_self  = -(2 alpha^3 / 3 sqrt(pi)) sum_i |mu_i|^2
     U_surf  = 2 pi / ((2 eps' + 1) V) |sum_i mu_i|^2       (0 for tin-foil, eps' = inf)
