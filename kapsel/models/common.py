@@ -98,14 +98,20 @@ def make_particles(cfg: RunConfig, rng: np.random.Generator) -> ParticleState:
 
 def make_forces(cfg: RunConfig, particles: ParticleState, strain=None):
     """``forces(p) -> (F, T, min_ratio)``: pair interactions (skipped for LJ_truncate NONE;
-    not between beads of one rigid body), FENE bonds of chains (kapsel.particles.chains)
-    and net gravity; None when a scene has none of them.  ``strain()``: the Lees-Edwards frame strain of the
+    not between beads of one rigid body), FENE bonds of chains (kapsel.particles.chains),
+    net gravity, and the dipole forces and torques and Quincke constraint torque
+    (kapsel.particles.dipoles); None when a scene has none of them.  ``strain()``: the Lees-Edwards frame strain of the
     sheared types (pairs by the Lees-Edwards minimum image)."""
     inter = cfg.interactions
     pairs = inter.LJ_truncate != "NONE" and particles.n > 1 and inter.EPSILON > 0
     gravity = inter.G != 0 and particles.n > 0
     chain = cfg.particles.object_type == "chain" and particles.n > 1
-    if not (pairs or gravity or chain):
+    sw = cfg.switches
+    electric = None
+    if particles.n and (sw.quincke is not None or sw.dipoles is not None):
+        from ..particles.dipoles import make_electric
+        electric = make_electric(sw.dipoles, sw.quincke, cfg.mesh.box, particles.n)
+    if not (pairs or gravity or chain or electric):
         return None
     from ..particles import forces as pf
     box = cfg.mesh.box
@@ -139,7 +145,11 @@ def make_forces(cfg: RunConfig, particles: ParticleState, strain=None):
                 raise FloatingPointError(f"a chain bond stretched to {stretch:.3f} of the FENE "
                                          f"maximum R0 = {chains.FENE_R0} (2 A)")
             F = F + Fb
-        return F, zeros, ratio_min
+        T = zeros
+        if electric is not None:          # dipoles (Ewald) and the Quincke constraint
+            Fe, T = electric(p)
+            F = F + Fe
+        return F, T, ratio_min
     forces.virial = virial
     return forces
 
