@@ -15,6 +15,8 @@ import numpy as np
 import udf
 from udf import UDFError
 
+from .particles.janus import read_spec as read_janus
+
 SPECTRAL_TYPES = ("Navier_Stokes", "Shear_Navier_Stokes", "Shear_Navier_Stokes_Lees_Edwards",
                   "Electrolyte")
 FDM_TYPES = ("Navier_Stokes_FDM", "Navier_Stokes_Cahn_Hilliard_FDM",
@@ -108,6 +110,7 @@ class Species:
     rigid_motion: str = "free"
     rigid_velocity: tuple = (0.0, 0.0, 0.0)
     rigid_omega: tuple = (0.0, 0.0, 0.0)
+    janus: object = None           # kapsel.particles.janus.JanusSpec (spheres)
 
     @property
     def particles(self) -> int:
@@ -147,6 +150,8 @@ class Switches:
     pin_rot: tuple = ()
     free_rigid: tuple = ()         # ((spec_id, (vx,vy,vz), (ox,oy,oz)), ...) of bools
     OBL_INT: str = "linear"
+    SLIP_tol: float = 1e-3         # squirmer slip iteration (kapsel.particles.janus)
+    SLIP_iter: int = 4
 
 
 @dataclass(frozen=True)
@@ -370,13 +375,8 @@ def from_document(doc: udf.UDFManager, input_path: str = "") -> RunConfig:
             n = r.get(f"{p}.Particle_number")
             if n < 0:
                 r.fail(f"{p}.Particle_number", n, "must be zero or positive")
-            for opt, off in (("janus_axis", "NONE"), ("janus_propulsion", "OFF")):
-                if r.has(f"{p}.{opt}") and r.get(f"{p}.{opt}") != off and n > 0:
-                    r.fail(f"{p}.{opt}", r.get(f"{p}.{opt}"),
-                           f"self-propelled (janus) particles are not supported by kapsel-py; "
-                           f"set it to {off}")
             species.append(Species(n, 1, r.positive(f"{p}.MASS_RATIO"),
-                                   r.get(f"{p}.Surface_charge")))
+                                   r.get(f"{p}.Surface_charge"), janus=read_janus(r, p, n)))
     elif obj == "chain":
         sp = "object_type.chain.Chain_spec"
         for i in range(doc.size(f"{sp}[]")):
@@ -477,11 +477,12 @@ def from_document(doc: udf.UDFManager, input_path: str = "") -> RunConfig:
         if r.has(opt) and r.get(opt) != off:
             r.fail(opt, r.get(opt), f"is not supported by kapsel-py; set it to {off}")
     fix = tuple(r.get(f"switch.FIX_CELL.{ax}") == "ON" for ax in "xyz")
+    slip = _slip_switches(r, eq_type, species)
     switches = Switches(ROTATION=r.get("switch.ROTATION") == "ON", init_distribution=dist,
                         random_walk_iterations=rw, user_particles=user,
                         init_orientation=r.get("switch.INIT_orientation"), fix_cell=fix,
                         pin=pin, pin_rot=pin_rot, free_rigid=free_rigid,
-                        OBL_INT=r.get("switch.ns_solver.OBL_INT"))
+                        OBL_INT=r.get("switch.ns_solver.OBL_INT"), **slip)
 
     # ---- time, output, resume --------------------------------------------------------
     kind = r.get("time_increment.type")
@@ -502,6 +503,29 @@ def from_document(doc: udf.UDFManager, input_path: str = "") -> RunConfig:
     return RunConfig(type=eq_type, mesh=mesh, fluid=fluid, particles=particles,
                      interactions=inter, switches=switches, time=time, output=output,
                      resume=resume, phase=phase, shear=shear, input_path=input_path)
+
+
+def _slip_switches(r: _Reader, eq_type: str, species) -> dict:
+    """switch.SLIP_tol / SLIP_iter (read when present, required with squirmers) and the
+    types and ROTATION self-propelled particles need (kapsel.particles.janus)."""
+    from .particles.janus import check_types
+    specs = [s.janus for s in species]
+    check_types(r, eq_type, r.get("switch.ROTATION") == "ON", specs,
+                [s.number for s in species], "object_type.spherical_particle.Particle_spec")
+    squirm = any(j is not None and j.propulsion == "SQUIRMER" and s.number > 0
+                 for j, s in zip(specs, species))
+    out = {}
+    for key, check in (("SLIP_tol", lambda v: v >= 0), ("SLIP_iter", lambda v: v >= 1)):
+        path = f"switch.{key}"
+        if r.has(path):
+            v = r.get(path)
+            if squirm and not check(v):
+                r.fail(path, v, "must be >= 0" if key == "SLIP_tol" else "must be >= 1")
+            if check(v):
+                out[key] = v
+        elif squirm:
+            r.fail(path, None, "squirmers need it (the slip iteration); add it to switch")
+    return out
 
 
 def _field_output(r: _Reader, mesh: Mesh) -> FieldOutput:

@@ -1,0 +1,182 @@
+"""Self-propelled particles (kapsel.particles.janus): squirmers, tumblers, obstacles.
+
+Measured (spectral, L = 32, A = 4, XI = 2, B1 = 0.01, FIX_CELL on, SLIP_tol 1e-3, 4 iter.):
+a neutral squirmer swims at U / B1 = 0.5924 with dt = auto_dt(1) (t = 105) and 0.6557 with
+auto_dt(0.5) (t = 100): like the SPM drag (tests/test_spm_validation.py) the imposed
+slip is the more effective the smaller nu dt / XI^2.  Finite-box correction: U_L =
+(2/3) B1 (1 - c), c = 4/3 pi A^3 / L^3 (first order in c: the periodic images of the
+source dipole D = B1 a^3 / 3 add c B1 / 3 at the swimmer, the zero-mean-flow of FIX_CELL
+removes c (U + B1 / 3)); c = 0.0082 at L = 32.
+"""
+import os
+import shutil
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from kapsel.fluid.spectral import SpectralNS
+from kapsel.grid import Grid
+from kapsel.particles.forces import pair_forces
+from kapsel.particles.janus import Janus, JanusSpec
+from kapsel.particles.quaternion import from_axis_angle, rotate
+from kapsel.particles.spm import SPM
+from kapsel.particles.state import ParticleState
+from kapsel.timestep import auto_dt
+
+A, XI, B1 = 4.0, 2.0, 0.01
+SAMPLES = os.path.join(os.path.dirname(__file__), "..", "samples")
+
+
+def _run(R, q, specs, species=None, L=32, fac=1.0, forces=None, tol=1e-3, it=4):
+    n = len(R)
+    species = [0] * n if species is None else species
+    dt = auto_dt(fac, 1.0, 1.0, 1.0)
+    fl = SpectralNS(Grid((L,) * 3, 1.0), 1.0, 1.0, dt, fix_cell=(True,) * 3)
+    p = ParticleState.spheres(species, [A] * n, [1.0] * n, 1.0)
+    p.R[:] = R
+    p.R_raw[:] = R
+    p.q[:] = q
+    p.q_old[:] = q
+    p.janus = Janus(p.species, specs, tol, it)
+    spm = SPM(fl, p, A, XI, 1.0, 1.0, dt, forces=forces)
+    return spm, p, dt
+
+
+def test_slip_is_blake_mode_and_shell_weight_is_local():
+    j = Janus([0], [JanusSpec("Z", "SQUIRMER", slip_vel=2.0, slip_mode=3.0)])
+    q = np.array([[1.0, 0, 0, 0]])
+    th = np.linspace(0.1, 3.0, 7)
+    r = (A * np.stack([np.sin(th), 0 * th, np.cos(th)], axis=1))[None]
+    us = j.slip_velocity(r, q, np.array([0]))[0]
+    that = np.stack([np.cos(th), 0 * th, -np.sin(th)], axis=1)
+    # u_theta = B1 sin t + B2 sin t cos t with B2 = alpha B1 (the input's slip_mode)
+    expect = 2.0 * np.sin(th) + 6.0 * np.sin(th) * np.cos(th)
+    assert np.allclose(np.einsum("sk,sk->s", us, that), expect)
+    assert np.allclose(np.einsum("sk,sk->s", us, r[0]), 0.0)       # tangential
+    d = np.array([[A - 1.2, A - 0.5, A, A + 0.5, A + 1.01]])
+    w = Janus.shell_weight(np.stack([d, 0 * d, 0 * d], axis=-1), np.full_like(d, 0.5), A, XI)
+    assert w[0, 0] == 0 and w[0, -1] == 0 and w[0, 2] == pytest.approx(0.5)
+
+
+def test_squirmer_swims_along_its_rotated_axis_and_conserves_momentum():
+    q = from_axis_angle(np.array([[0.0, 1.0, 0.0]]), np.array([np.pi / 2]))  # body z -> x
+    spm, p, dt = _run([[16.3, 16.2, 15.8]], q, [JanusSpec("Z", "SQUIRMER", slip_vel=B1)])
+    e3 = rotate(q, [0.0, 0.0, 1.0])[0]
+    assert np.allclose(e3, [1, 0, 0])
+    spm.run(60)
+    v = p.v[0]
+    assert v @ e3 > 0.4 * B1 and np.linalg.norm(v - (v @ e3) * e3) < 0.02 * (v @ e3)
+    assert np.abs(spm.total_momentum()).max() < 1e-12
+    assert p.f_slip[0] @ e3 != 0 and np.all(np.isfinite(p.torque_slip))
+    assert 1 <= p.janus.iterations <= 4
+
+
+@pytest.mark.parametrize("alpha,sign", [(-5.0, 1), (5.0, -1)])
+def test_pusher_and_puller_far_field_along_the_axis(alpha, sign):
+    """Stress dipole of the Blake squirmer: u_r ~ -B2 a^2 / r^2 P2(cos t) far away, so along
+    the axis a pusher (B2 < 0) pushes fluid out, a puller draws it in; (u_front - u_back)/2
+    along e3 (the source dipole, the same on both sides, cancels) has the sign of -B2."""
+    L, z0 = 32, 16.0
+    spm, p, dt = _run([[16.0, 16.0, z0]], [[1.0, 0, 0, 0]],
+                      [JanusSpec("Z", "SQUIRMER", slip_vel=B1, slip_mode=alpha)], L=L)
+    spm.run(150)
+    u = spm.velocity()
+    zc = int(round(p.R[0, 2]))
+    front, back = u[2, 16, 16, (zc + 11) % L], u[2, 16, 16, (zc - 11) % L]
+    s = 0.5 * (front - back)
+    assert np.sign(s) == sign and abs(s) > 1e-4 * B1
+
+
+def _lj(L):
+    box = np.full(3, float(L))
+
+    def forces(p):
+        F, _, _ = pair_forces(p.R, box, p.radius, "12:6", 1.0, "ON")
+        return F, np.zeros_like(F)
+    return forces
+
+
+@pytest.mark.slow
+def test_two_squirmers_head_on_do_not_overlap():
+    """Two squirmers swimming at each other (B1 = 0.1, WCA 12:6, EPSILON 1): their distance
+    stays above 2A * 0.95 and they stop (about 20 s)."""
+    L = 32
+    q_down = from_axis_angle(np.array([[1.0, 0, 0]]), np.array([np.pi]))[0]
+    spm, p, dt = _run([[16.0, 16.0, 10.5], [16.1, 15.9, 21.5]],
+                      [[1.0, 0, 0, 0], q_down], [JanusSpec("Z", "SQUIRMER", slip_vel=0.1)],
+                      L=L, forces=_lj(L))
+    dmin = np.inf
+    for _ in range(800):
+        spm.step()
+        d = p.R[1] - p.R[0]
+        d -= L * np.round(d / L)
+        dmin = min(dmin, np.linalg.norm(d))
+    print(f"\nhead-on: closest {dmin:.3f} = {dmin / (2 * A):.3f} sigma")
+    assert dmin > 0.95 * 2 * A
+    assert dmin < 1.1 * 2 * A                      # they did meet
+
+
+def test_tumbler_torque_is_body_frame_and_obstacle_holds():
+    q = from_axis_angle(np.array([[0.0, 1.0, 0.0]]), np.array([-np.pi / 2]))  # body x -> z
+    spec = [JanusSpec("Z", "TUMBLER", force=(0.0, 0.0, 0.0), torque=(1.0, 0.0, 0.0)),
+            JanusSpec("NONE", "OBSTACLE")]
+    spm, p, dt = _run([[8.0, 8.0, 8.0], [24.0, 24.0, 24.0]], np.repeat(q, 2, axis=0), spec,
+                      species=[0, 1])
+    from kapsel.particles.motion import Pinned
+    p.constraints = spm.motion = Pinned(p.janus.obstacles, p.janus.obstacles)
+    spm.run(10)
+    assert p.omega[0, 2] > 0 and abs(p.omega[0, 0]) < 1e-3 * p.omega[0, 2]
+    assert np.all(p.omega[1] == 0) and np.all(p.v[1] == 0)
+    assert np.all(p.R[1] == 24.0)
+
+
+@pytest.mark.slow
+def test_tumbler_spins_at_the_rotational_drag_rate():
+    """Constant janus torque: Omega = T (1 - c - 1.95708 c^(10/3)) / (8 pi eta a^3)
+    (periodic correction of the rotlet lattice, as tests/test_spm_validation.py) within 5%
+    (L = 32, auto_dt(0.5); about 15 s)."""
+    L = 32
+    q = from_axis_angle(np.array([[0.0, 1.0, 0.0]]), np.array([-np.pi / 2]))  # body x -> z
+    spm, p, dt = _run([[16.3, 16.2, 15.7]], q,
+                      [JanusSpec("Y", "TUMBLER", torque=(1.0, 0.0, 0.0))], L=L, fac=0.5)
+    c = 4 / 3 * np.pi * A ** 3 / L ** 3
+    W = (1 - c - 1.95708 * c ** (10 / 3)) / (8 * np.pi * A ** 3)
+    n_tau, prev = int(round(A ** 2 / dt)), None
+    while spm.step_index * dt < 40 * A ** 2:
+        spm.run(n_tau)
+        w = p.omega[0, 2]
+        if prev is not None and abs(w - prev) < 5e-4 * abs(w):
+            break
+        prev = w
+    print(f"\ntumbler: Omega / Omega_theory = {p.omega[0, 2] / W:.4f}")
+    assert abs(p.omega[0, 2] / W - 1) < 0.05
+    assert np.abs(p.omega[0, :2]).max() < 5e-3 * W
+
+
+@pytest.mark.slow
+def test_neutral_squirmer_swims_at_two_thirds_B1():
+    """U = (2/3) B1 (1 - c) within 5% (module docstring: the finite-box correction), L = 32,
+    auto_dt(0.5), t = 100 (about 2 min on a loaded core)."""
+    L = 32
+    spm, p, dt = _run([[16.3, 16.2, 15.8]], [[1.0, 0, 0, 0]],
+                      [JanusSpec("Z", "SQUIRMER", slip_vel=B1)], L=L, fac=0.5)
+    spm.run(int(100 / dt))
+    c = 4 / 3 * np.pi * A ** 3 / L ** 3
+    ratio = p.v[0, 2] / (2 / 3 * B1 * (1 - c))
+    print(f"\nneutral squirmer: U / (2/3 B1 (1 - c)) = {ratio:.4f}")
+    assert abs(ratio - 1) < 0.05
+
+
+# ---------------------------------------------------------------------- configuration / runs
+def _sample(tmp_path, old, new):
+    for f in ("define.udf", "kapsel_unit.udf"):
+        shutil.copy(os.path.join(SAMPLES, f), tmp_path / f)
+    text = open(os.path.join(SAMPLES, "input.udf")).read()
+    for o, n in zip(old, new):
+        assert o in text, o
+        text = text.replace(o, n, 1)
+    p = tmp_path / "input.udf"
+    p.write_text(text)
+    return str(p)
