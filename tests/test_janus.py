@@ -100,22 +100,27 @@ def _lj(L):
 
 @pytest.mark.slow
 def test_two_squirmers_head_on_do_not_overlap():
-    """Two squirmers swimming at each other (B1 = 0.1, WCA 12:6, EPSILON 1): their distance
-    stays above 2A * 0.95 and they stop (about 20 s)."""
+    """Two squirmers swimming at each other (B1 = 0.02, gap 1, WCA 12:6, EPSILON 1; about
+    40 s): they meet, stop, and their distance stays above 0.95 sigma (sigma = 2A).
+    (Measured: closest 0.98 sigma at step 1500; with B1 = 0.1 the thrust pushes them to
+    0.875 sigma against EPSILON = 1.)"""
     L = 32
     q_down = from_axis_angle(np.array([[1.0, 0, 0]]), np.array([np.pi]))[0]
-    spm, p, dt = _run([[16.0, 16.0, 10.5], [16.1, 15.9, 21.5]],
-                      [[1.0, 0, 0, 0], q_down], [JanusSpec("Z", "SQUIRMER", slip_vel=0.1)],
+    spm, p, dt = _run([[16.0, 16.0, 11.5], [16.1, 15.9, 20.5]],
+                      [[1.0, 0, 0, 0], q_down], [JanusSpec("Z", "SQUIRMER", slip_vel=0.02)],
                       L=L, forces=_lj(L))
-    dmin = np.inf
-    for _ in range(800):
+    dmin, v0 = np.inf, None
+    for k in range(1500):
         spm.step()
+        if k == 100:
+            v0 = p.v[0, 2] - p.v[1, 2]
         d = p.R[1] - p.R[0]
         d -= L * np.round(d / L)
         dmin = min(dmin, np.linalg.norm(d))
-    print(f"\nhead-on: closest {dmin:.3f} = {dmin / (2 * A):.3f} sigma")
-    assert dmin > 0.95 * 2 * A
-    assert dmin < 1.1 * 2 * A                      # they did meet
+    print(f"\nhead-on: closest {dmin / (2 * A):.3f} sigma, approach speed "
+          f"{p.v[0, 2] - p.v[1, 2]:.2e} (at step 100 {v0:.2e})")
+    assert 0.95 * 2 * A < dmin < 1.01 * 2 * A
+    assert p.v[0, 2] - p.v[1, 2] < 0.2 * v0         # stopped against each other
 
 
 def test_tumbler_torque_is_body_frame_and_obstacle_holds():
@@ -180,3 +185,108 @@ def _sample(tmp_path, old, new):
     p = tmp_path / "input.udf"
     p.write_text(text)
     return str(p)
+
+
+SPECS = ('[{8,1.00000000000000,0.0,"NONE","OFF",{0.0,0.0,0.0}{0.0,0.0,0.0}0.0,0.0}]',
+         '[{2,1.0,0.0,"Y","SQUIRMER",{0.0,0.0,0.0}{0.0,0.0,0.0}0.02,-1.0}'
+         '{1,1.0,0.0,"X","TUMBLER",{0.01,0.0,0.0}{0.0,0.5,0.0}0.0,0.0}'
+         '{1,1.0,0.0,"NONE","OBSTACLE",{0.0,0.0,0.0}{0.0,0.0,0.0}0.0,0.0}]')
+
+
+def _janus_input(d, eq="Navier_Stokes", nsnap=2, rotation="ON"):
+    from udf import UDFManager
+    os.makedirs(d, exist_ok=True)
+    path = _sample(d, [SPECS[0]], [SPECS[1]])
+    u = UDFManager(path)
+    u.put(eq, "constitutive_eq.type")
+    for k in ("NPX", "NPY", "NPZ"):
+        u.put(5, f"mesh.{k}")
+    u.put(0.5, "constitutive_eq.Navier_Stokes.kBT")
+    u.put("random", "switch.INIT_orientation")
+    u.put(rotation, "switch.ROTATION")
+    u.put(1e-3, "switch.SLIP_tol")
+    u.put(3, "switch.SLIP_iter")
+    u.put(2, "output.GTS")
+    u.put(nsnap, "output.Num_snap")
+    u.write(path)
+    return path
+
+
+def _cli(d, inp):
+    from kapsel.cli import main
+    cwd = os.getcwd()
+    os.chdir(d)
+    try:
+        return main([f"-I{inp}", "-Ooutput.udf", "-Ddefine.udf", "-Rrestart.udf", "--seed",
+                     "5", "--quiet"])
+    finally:
+        os.chdir(cwd)
+
+
+def test_config_reads_janus_items_and_refuses_what_the_original_refuses(tmp_path):
+    from kapsel import config
+    cfg = config.load(_janus_input(tmp_path / "a"))
+    s = [sp.janus for sp in cfg.particles.species]
+    assert [j.propulsion for j in s] == ["SQUIRMER", "TUMBLER", "OBSTACLE"]
+    assert s[0].axis == "Y" and s[0].slip_vel == 0.02 and s[0].slip_mode == -1.0
+    assert s[1].force == (0.01, 0.0, 0.0) and s[1].torque == (0.0, 0.5, 0.0)
+    assert cfg.switches.SLIP_tol == 1e-3 and cfg.switches.SLIP_iter == 3
+    with pytest.raises(config.ConfigError, match="Navier_Stokes or Shear_Navier_Stokes"):
+        config.load(_janus_input(tmp_path / "b", eq="Navier_Stokes_FDM"))
+    with pytest.raises(config.ConfigError, match="ROTATION"):
+        config.load(_janus_input(tmp_path / "c", rotation="OFF"))
+
+
+def test_obstacles_run_with_the_fdm_types(tmp_path):
+    """OBSTACLE has no type restriction in the original: held at rest in an FDM run."""
+    from udf import UDFManager
+    d = tmp_path / "o"
+    os.makedirs(d)
+    path = _sample(d, [SPECS[0]], ['[{2,1.0,0.0,"NONE","OBSTACLE",{0.0,0.0,0.0}{0.0,0.0,0.0}'
+                                   '0.0,0.0}{2,1.0,0.0,"NONE","OFF",{0.0,0.0,0.0}{0.0,0.0,0.0}'
+                                   '0.0,0.0}]'])
+    u = UDFManager(path)
+    u.put(2, "output.GTS")
+    u.put(1, "output.Num_snap")
+    u.put(0.5, "constitutive_eq.Navier_Stokes_Cahn_Hilliard_FDM.kBT")
+    u.write(path)
+    assert _cli(d, "input.udf") == 0
+    out = UDFManager(str(d / "output.udf"))
+    out.jump(0)
+    r0 = np.asarray(out.getArray("Particles[].R"))
+    out.jump(out.totalRecord() - 1)
+    r1 = np.asarray(out.getArray("Particles[].R"))
+    v1 = np.asarray(out.getArray("Particles[].v"))
+    assert np.array_equal(r0[:2], r1[:2]) and np.all(v1[:2] == 0)
+    assert not np.array_equal(r0[2:], r1[2:])
+
+
+def test_janus_run_records_slip_and_continues_bit_identically(tmp_path):
+    """Squirmers, a tumbler and an obstacle with thermal noise (32^3): output.udf records
+    carry f_slip / torque_slip; 2 + 2 snapshots through restart.udf (quaternions, slip
+    forces) equal 4 in one run, bit for bit."""
+    from kapsel.io.restart import state_path
+    from udf import UDFManager
+    one = _janus_input(tmp_path / "one", nsnap=4)
+    assert _cli(tmp_path / "one", one) == 0
+    two = _janus_input(tmp_path / "two", nsnap=2)
+    assert _cli(tmp_path / "two", two) == 0
+    rs = UDFManager(str(tmp_path / "two" / "restart.udf"))
+    rs.put(4, "output.Num_snap")
+    rs.write(str(tmp_path / "two" / "cont.udf"))
+    shutil.copy(state_path(str(tmp_path / "two" / "restart.udf")),
+                state_path(str(tmp_path / "two" / "cont.udf")))
+    assert _cli(tmp_path / "two", "cont.udf") == 0
+    oa, ob = UDFManager(str(tmp_path / "one" / "output.udf")), \
+        UDFManager(str(tmp_path / "two" / "output.udf"))
+    assert oa.totalRecord() == ob.totalRecord() == 5
+    for n in range(5):
+        oa.jump(n)
+        ob.jump(n)
+        for item in ("R", "q", "v", "omega", "f_slip", "torque_slip"):
+            a = np.asarray(oa.getArray(f"Particles[].{item}"))
+            assert np.array_equal(a, np.asarray(ob.getArray(f"Particles[].{item}"))), (n, item)
+    f_slip = np.asarray(oa.getArray("Particles[].f_slip"))
+    assert np.all(np.linalg.norm(f_slip[:2], axis=1) > 0)
+    v = np.asarray(oa.getArray("Particles[].v"))
+    assert np.all(v[3] == 0)                                   # the obstacle
