@@ -477,7 +477,7 @@ def from_document(doc: udf.UDFManager, input_path: str = "") -> RunConfig:
         if r.has(opt) and r.get(opt) != off:
             r.fail(opt, r.get(opt), f"is not supported by kapsel-py; set it to {off}")
     fix = tuple(r.get(f"switch.FIX_CELL.{ax}") == "ON" for ax in "xyz")
-    slip = _slip_switches(r, eq_type, species)
+    slip = _slip_switches(r, species)
     switches = Switches(ROTATION=r.get("switch.ROTATION") == "ON", init_distribution=dist,
                         random_walk_iterations=rw, user_particles=user,
                         init_orientation=r.get("switch.INIT_orientation"), fix_cell=fix,
@@ -505,12 +505,12 @@ def from_document(doc: udf.UDFManager, input_path: str = "") -> RunConfig:
                      resume=resume, phase=phase, shear=shear, input_path=input_path)
 
 
-def _slip_switches(r: _Reader, eq_type: str, species) -> dict:
+def _slip_switches(r: _Reader, species) -> dict:
     """switch.SLIP_tol / SLIP_iter (read when present, required with squirmers) and the
     types and ROTATION self-propelled particles need (kapsel.particles.janus)."""
     from .particles.janus import check_types
     specs = [s.janus for s in species]
-    check_types(r, eq_type, r.get("switch.ROTATION") == "ON", specs,
+    check_types(r, r.get("constitutive_eq.type"), r.get("switch.ROTATION") == "ON", specs,
                 [s.number for s in species], "object_type.spherical_particle.Particle_spec")
     squirm = any(j is not None and j.propulsion == "SQUIRMER" and s.number > 0
                  for j, s in zip(specs, species))
