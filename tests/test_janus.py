@@ -290,3 +290,40 @@ def test_janus_run_records_slip_and_continues_bit_identically(tmp_path):
     assert np.all(np.linalg.norm(f_slip[:2], axis=1) > 0)
     v = np.asarray(oa.getArray("Particles[].v"))
     assert np.all(v[3] == 0)                                   # the obstacle
+
+
+def _reads_v302_inputs():
+    """The reader of old (v3.02) inputs: backslash-continued define strings and optional
+    switch sections (helper i11's udf / config work)."""
+    import udf.values
+    return hasattr(udf.values, "string_value")
+
+
+@pytest.mark.skipif(not _reads_v302_inputs(), reason="needs the v3.02 input reader (i11)")
+def test_ex09_squirmer_input_runs(tmp_path):
+    """The real input ex09/squirm_single_a+2.udf (64^3, one puller, B1 = 0.015, alpha = 2),
+    GTS 2 x Num_snap 1 instead of 1000 x 500: it swims along +z (q = 1, janus_axis Z)."""
+    from udf import UDFManager
+    src = os.path.join(SAMPLES, "kapsel-udf", "ex09")
+    for f in os.listdir(src):
+        shutil.copy(os.path.join(src, f), tmp_path / f)
+    text = (tmp_path / "squirm_single_a+2.udf").read_text()
+    for old, new in (("  1000,                                 //GTS", "  2, //GTS"),
+                     ("  500,                                  //Num_snap", "  1, //Num_snap")):
+        assert old in text, old
+        text = text.replace(old, new, 1)
+    (tmp_path / "squirm_single_a+2.udf").write_text(text)
+    from kapsel.cli import main
+    cwd = os.getcwd()
+    os.chdir(tmp_path)
+    try:
+        rc = main(["-Isquirm_single_a+2.udf", "-Ooutput.udf", "-Ddefine.udf", "-Rrestart.udf",
+                   "--seed", "1", "--quiet"])
+    finally:
+        os.chdir(cwd)
+    assert rc == 0
+    out = UDFManager(str(tmp_path / "output.udf"))
+    out.jump(out.totalRecord() - 1)
+    v = np.asarray(out.getArray("Particles[].v"))[0]
+    f = np.asarray(out.getArray("Particles[].f_slip"))[0]
+    assert v[2] > 0 and f[2] > 0 and abs(v[0]) < 1e-3 * v[2]
