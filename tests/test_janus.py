@@ -327,3 +327,14 @@ def test_ex09_squirmer_input_runs(tmp_path):
     v = np.asarray(out.getArray("Particles[].v"))[0]
     f = np.asarray(out.getArray("Particles[].f_slip"))[0]
     assert v[2] > 0 and f[2] > 0 and abs(v[0]) < 1e-3 * v[2]
+
+
+def test_squirmers_run_under_zigzag_shear(tmp_path):
+    """Shear_Navier_Stokes is the other type the original allows squirmers in."""
+    from udf import UDFManager
+    d = tmp_path / "s"
+    assert _cli(d, _janus_input(d, eq="Shear_Navier_Stokes", nsnap=1)) == 0
+    out = UDFManager(str(d / "output.udf"))
+    out.jump(out.totalRecord() - 1)
+    f = np.asarray(out.getArray("Particles[].f_slip"))
+    assert np.all(np.isfinite(f)) and np.all(np.linalg.norm(f[:2], axis=1) > 0)
