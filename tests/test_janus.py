@@ -338,3 +338,37 @@ def test_squirmers_run_under_zigzag_shear(tmp_path):
     out.jump(out.totalRecord() - 1)
     f = np.asarray(out.getArray("Particles[].f_slip"))
     assert np.all(np.isfinite(f)) and np.all(np.linalg.norm(f[:2], axis=1) > 0)
+
+
+def test_extended_trajectory_keeps_obstacles_apart(tmp_path):
+    """output.AVS EXTENDED with an OBSTACLE: nump / nump_obs / nump_total, the obstacle
+    groups (FORMAT-OUTPUT.md §3.4), the .conf block and the obstacle XDMF file."""
+    import h5py
+    from udf import UDFManager
+    d = tmp_path / "x"
+    inp = _janus_input(d, nsnap=1)
+    u = UDFManager(inp)
+    u.put("ON", "output.AVS")
+    u.put("out", "output.ON.Out_dir")
+    u.put("traj", "output.ON.Out_name")
+    u.put("EXTENDED", "output.ON.FileType")
+    pf = "output.ON.EXTENDED.Print_field"
+    u.put("NO", f"{pf}.Crop")
+    for flag in ("Vel", "Phi", "Tau", "Pressure", "Charge"):
+        u.put("NO", f"{pf}.{flag}")
+    u.write(inp)
+    assert _cli(d, inp) == 0
+    with h5py.File(d / "out" / "traj.h5", "r") as f:
+        assert [int(f.attrs[k][0]) for k in ("nump", "nump_obs", "nump_total")] == [3, 1, 4]
+        assert list(f["system_data/particle/id"][...]) == [0, 1, 2]
+        assert list(f["system_data/obstacle/id"][...]) == [3]
+        assert list(f["system_data/obstacle/spec"][...]) == [2]
+        assert f["system_data/obstacle/pos"].shape == (1, 3)
+        fr = f["trajectory_data/frame_1"]
+        assert fr["particle/pos"].shape == (3, 3)
+        assert sorted(fr["obstacle"]) == ["force_h", "force_r"]
+        assert fr["obstacle/force_h"].shape == (1, 3)
+    conf = (d / "out" / "traj.conf").read_text()
+    assert "[Obstacle Number]\n 1\n" in conf and "[Obstacle Grid Const]\n pos\n" in conf
+    xdmf = (d / "out" / "traj_obstacle.xdmf").read_text()
+    assert "KAPSEL Obstacle Trajectory" in xdmf and "/system_data/obstacle/pos" in xdmf
