@@ -6,7 +6,10 @@ auto_dt(0.5) (t = 100): like the SPM drag (tests/test_spm_validation.py) the imp
 slip is the more effective the smaller nu dt / XI^2.  Finite-box correction: U_L =
 (2/3) B1 (1 - c), c = 4/3 pi A^3 / L^3 (first order in c: the periodic images of the
 source dipole D = B1 a^3 / 3 add c B1 / 3 at the swimmer, the zero-mean-flow of FIX_CELL
-removes c (U + B1 / 3)); c = 0.0082 at L = 32.
+removes c (U + B1 / 3)); c = 0.0082 at L = 32.  Checked by the box size (auto_dt(0.5),
+t = 100, test_neutral_squirmer_box_size_extrapolation): U / B1 = 0.65570 (L = 32), 0.65842
+(L = 64); extrapolated in 1/L^3 to 0.65881 = 0.988 (2/3); with (1 - c): 0.9917 (L = 32),
+0.9886 (L = 64).
 """
 import os
 import shutil
@@ -160,18 +163,33 @@ def test_tumbler_spins_at_the_rotational_drag_rate():
     assert np.abs(p.omega[0, :2]).max() < 5e-3 * W
 
 
+def _neutral_speed(L):
+    """U_z / B1 of one neutral squirmer (axis z) at t = 100, auto_dt(0.5), FIX_CELL on."""
+    spm, p, dt = _run([[L / 2 + 0.3, L / 2 + 0.2, L / 2 - 0.2]], [[1.0, 0, 0, 0]],
+                      [JanusSpec("Z", "SQUIRMER", slip_vel=B1)], L=L, fac=0.5)
+    spm.run(int(100 / dt))
+    return p.v[0, 2] / B1
+
+
 @pytest.mark.slow
 def test_neutral_squirmer_swims_at_two_thirds_B1():
     """U = (2/3) B1 (1 - c) within 5% (module docstring: the finite-box correction), L = 32,
-    auto_dt(0.5), t = 100 (about 2 min on a loaded core)."""
+    auto_dt(0.5), t = 100 (about 1-2 min on a loaded core)."""
     L = 32
-    spm, p, dt = _run([[16.3, 16.2, 15.8]], [[1.0, 0, 0, 0]],
-                      [JanusSpec("Z", "SQUIRMER", slip_vel=B1)], L=L, fac=0.5)
-    spm.run(int(100 / dt))
     c = 4 / 3 * np.pi * A ** 3 / L ** 3
-    ratio = p.v[0, 2] / (2 / 3 * B1 * (1 - c))
+    ratio = _neutral_speed(L) / (2 / 3 * (1 - c))
     print(f"\nneutral squirmer: U / (2/3 B1 (1 - c)) = {ratio:.4f}")
     assert abs(ratio - 1) < 0.05
+
+
+@pytest.mark.slow
+def test_neutral_squirmer_box_size_extrapolation():
+    """U(L) = U_inf + k / L^3 from L = 32 and 64: U_inf within 5% of 2/3 B1 (about 12 min)."""
+    u32, u64 = _neutral_speed(32), _neutral_speed(64)
+    u_inf = u64 + (u64 - u32) / 7.0
+    print(f"\nU/B1: L=32 {u32:.5f}, L=64 {u64:.5f}, extrapolated {u_inf:.5f} "
+          f"= {1.5 * u_inf:.4f} (2/3)")
+    assert abs(1.5 * u_inf - 1) < 0.05
 
 
 # ---------------------------------------------------------------------- configuration / runs

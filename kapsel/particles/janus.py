@@ -97,7 +97,7 @@ def read_spec(r, p: str, n: int) -> JanusSpec:
         if axis == "NONE" and n > 0:
             r.fail(f"{p}.janus_axis", axis, "a SQUIRMER needs its swimming axis: X, Y or Z")
         b1 = r.get(f"{p}.janus_slip_vel")
-        if not (np.isfinite(b1) and b1 > 0):
+        if n > 0 and not (np.isfinite(b1) and b1 > 0):
             r.fail(f"{p}.janus_slip_vel", b1, "B1 of a SQUIRMER must be positive")
         mode = r.get(f"{p}.janus_slip_mode")
         if not np.isfinite(mode):
