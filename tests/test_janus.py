@@ -253,6 +253,15 @@ def test_config_reads_janus_items_and_refuses_what_the_original_refuses(tmp_path
         config.load(_janus_input(tmp_path / "b", eq="Navier_Stokes_FDM"))
     with pytest.raises(config.ConfigError, match="ROTATION"):
         config.load(_janus_input(tmp_path / "c", rotation="OFF"))
+    from udf import UDFManager
+    for k, (item, value, words) in enumerate([("janus_slip_vel", 0.0, "B1"),
+                                              ("janus_axis", "NONE", "swimming axis")]):
+        path = _janus_input(tmp_path / f"d{k}")
+        u = UDFManager(path)
+        u.put(value, f"object_type.spherical_particle.Particle_spec[0].{item}")
+        u.write(path)
+        with pytest.raises(config.ConfigError, match=words):
+            config.load(path)
 
 
 def test_obstacles_run_with_the_fdm_types(tmp_path):
