@@ -399,3 +399,27 @@ def test_extended_trajectory_keeps_obstacles_apart(tmp_path):
     assert "[Obstacle Number]\n 1\n" in conf and "[Obstacle Grid Const]\n pos\n" in conf
     xdmf = (d / "out" / "traj_obstacle.xdmf").read_text()
     assert "KAPSEL Obstacle Trajectory" in xdmf and "/system_data/obstacle/pos" in xdmf
+
+
+def test_obstacle_stays_put_under_lees_edwards_shear(tmp_path):
+    """The particles placed by the program start with the imposed flow at their centre; an
+    OBSTACLE (like a pinned sphere) does not, and never moves."""
+    from udf import UDFManager
+    path = _sample(tmp_path, [SPECS[0]],
+                   ['[{1,1.0,0.0,"NONE","OBSTACLE",{0.0,0.0,0.0}{0.0,0.0,0.0}0.0,0.0}'
+                    '{2,1.0,0.0,"NONE","OFF",{0.0,0.0,0.0}{0.0,0.0,0.0}0.0,0.0}]'])
+    u = UDFManager(path)
+    u.put("Shear_Navier_Stokes_Lees_Edwards", "constitutive_eq.type")
+    u.put(2, "output.GTS")
+    u.put(2, "output.Num_snap")
+    for k in ("NPX", "NPY", "NPZ"):
+        u.put(4, f"mesh.{k}")
+    u.write(path)
+    assert _cli(tmp_path, "input.udf") == 0
+    o = UDFManager(str(tmp_path / "output.udf"))
+    o.jump(0)
+    r0 = np.asarray(o.getArray("Particles[].R"))
+    o.jump(o.totalRecord() - 1)
+    r1 = np.asarray(o.getArray("Particles[].R"))
+    assert np.array_equal(r0[0], r1[0]) and np.all(np.asarray(o.getArray("Particles[].v"))[0] == 0)
+    assert not np.array_equal(r0[1:], r1[1:])
