@@ -2,7 +2,7 @@
 
     .venv/bin/python bench/bench_janus.py [--n 64] [--particles 50] [--steps 10] [--iter 4]
 
-Three runs on the same grid (spectral, FIX_CELL on, dt = auto_dt(1), one thread):
+Three runs on the same grid (spectral, FIX_CELL on, dt = 0.07, one thread):
 no particles; ``--particles`` passive spheres; the same number of squirmers (B1 = 0.01,
 alpha = -1, SLIP_tol 0: every step does ``--iter`` slip passes, the worst case; the
 original's ex09 uses SLIP_tol 0.005, SLIP_iter 4).  A = 4, xi = 2, random non-overlapping
@@ -26,13 +26,12 @@ from kapsel.particles.janus import Janus, JanusSpec  # noqa: E402
 from kapsel.particles.placement import orientations, uniform_random  # noqa: E402
 from kapsel.particles.spm import SPM  # noqa: E402
 from kapsel.particles.state import ParticleState  # noqa: E402
-from kapsel.timestep import auto_dt  # noqa: E402
 
 A, XI = 4.0, 2.0
 
 
 def build(n, npart, squirm, slip_iter, seed=0):
-    dt = auto_dt(1.0, 1.0, 1.0, 1.0)
+    dt = 0.07
     fluid = SpectralNS(Grid((n, n, n), 1.0), 1.0, 1.0, dt, fix_cell=(True, True, True))
     rng = np.random.default_rng(seed)
     p = ParticleState.spheres([0] * npart, [A] * npart, [1.0] * npart, 1.0)

@@ -1,12 +1,12 @@
 """Self-propelled particles (kapsel.particles.janus): squirmers, tumblers, obstacles.
 
 Measured (spectral, L = 32, A = 4, XI = 2, B1 = 0.01, FIX_CELL on, SLIP_tol 1e-3, 4 iter.):
-a neutral squirmer swims at U / B1 = 0.5924 with dt = auto_dt(1) (t = 105) and 0.6557 with
-auto_dt(0.5) (t = 100): like the SPM drag (tests/test_spm_validation.py) the imposed
+a neutral squirmer swims at U / B1 = 0.5924 with dt = 1/pi^2 (t = 105) and 0.6557 with
+dt = 0.5/pi^2 (t = 100): like the SPM drag (tests/test_spm_validation.py) the imposed
 slip is the more effective the smaller nu dt / XI^2.  Finite-box correction: U_L =
 (2/3) B1 (1 - c), c = 4/3 pi A^3 / L^3 (first order in c: the periodic images of the
 source dipole D = B1 a^3 / 3 add c B1 / 3 at the swimmer, the zero-mean-flow of FIX_CELL
-removes c (U + B1 / 3)); c = 0.0082 at L = 32.  Checked by the box size (auto_dt(0.5),
+removes c (U + B1 / 3)); c = 0.0082 at L = 32.  Checked by the box size (dt = 0.5/pi^2,
 t = 100, test_neutral_squirmer_box_size_extrapolation): U / B1 = 0.65570 (L = 32), 0.65842
 (L = 64); extrapolated in 1/L^3 to 0.65881 = 0.988 (2/3); with (1 - c): 0.9917 (L = 32),
 0.9886 (L = 64).
@@ -26,16 +26,16 @@ from kapsel.particles.janus import Janus, JanusSpec
 from kapsel.particles.quaternion import from_axis_angle, rotate
 from kapsel.particles.spm import SPM
 from kapsel.particles.state import ParticleState
-from kapsel.timestep import auto_dt
 
 A, XI, B1 = 4.0, 2.0, 0.01
 SAMPLES = os.path.join(os.path.dirname(__file__), "..", "samples")
+DT = 1 / np.pi ** 2            # 0.101: the measurements below were made with these steps
+DT_FINE = 0.5 / np.pi ** 2     # 0.0507
 
 
-def _run(R, q, specs, species=None, L=32, fac=1.0, forces=None, tol=1e-3, it=4):
+def _run(R, q, specs, species=None, L=32, dt=DT, forces=None, tol=1e-3, it=4):
     n = len(R)
     species = [0] * n if species is None else species
-    dt = auto_dt(fac, 1.0, 1.0, 1.0)
     fl = SpectralNS(Grid((L,) * 3, 1.0), 1.0, 1.0, dt, fix_cell=(True,) * 3)
     p = ParticleState.spheres(species, [A] * n, [1.0] * n, 1.0)
     p.R[:] = R
@@ -144,11 +144,11 @@ def test_tumbler_torque_is_body_frame_and_obstacle_holds():
 def test_tumbler_spins_at_the_rotational_drag_rate():
     """Constant janus torque: Omega = T (1 - c - 1.95708 c^(10/3)) / (8 pi eta a^3)
     (periodic correction of the rotlet lattice, as tests/test_spm_validation.py) within 5%
-    (L = 32, auto_dt(0.5); about 15 s)."""
+    (L = 32, dt = 0.5/pi^2; about 15 s)."""
     L = 32
     q = from_axis_angle(np.array([[0.0, 1.0, 0.0]]), np.array([-np.pi / 2]))  # body x -> z
     spm, p, dt = _run([[16.3, 16.2, 15.7]], q,
-                      [JanusSpec("Y", "TUMBLER", torque=(1.0, 0.0, 0.0))], L=L, fac=0.5)
+                      [JanusSpec("Y", "TUMBLER", torque=(1.0, 0.0, 0.0))], L=L, dt=DT_FINE)
     c = 4 / 3 * np.pi * A ** 3 / L ** 3
     W = (1 - c - 1.95708 * c ** (10 / 3)) / (8 * np.pi * A ** 3)
     n_tau, prev = int(round(A ** 2 / dt)), None
@@ -164,9 +164,9 @@ def test_tumbler_spins_at_the_rotational_drag_rate():
 
 
 def _neutral_speed(L):
-    """U_z / B1 of one neutral squirmer (axis z) at t = 100, auto_dt(0.5), FIX_CELL on."""
+    """U_z / B1 of one neutral squirmer (axis z) at t = 100, dt = 0.5/pi^2, FIX_CELL on."""
     spm, p, dt = _run([[L / 2 + 0.3, L / 2 + 0.2, L / 2 - 0.2]], [[1.0, 0, 0, 0]],
-                      [JanusSpec("Z", "SQUIRMER", slip_vel=B1)], L=L, fac=0.5)
+                      [JanusSpec("Z", "SQUIRMER", slip_vel=B1)], L=L, dt=DT_FINE)
     spm.run(int(100 / dt))
     return p.v[0, 2] / B1
 
@@ -174,7 +174,7 @@ def _neutral_speed(L):
 @pytest.mark.slow
 def test_neutral_squirmer_swims_at_two_thirds_B1():
     """U = (2/3) B1 (1 - c) within 5% (module docstring: the finite-box correction), L = 32,
-    auto_dt(0.5), t = 100 (about 1-2 min on a loaded core)."""
+    dt = 0.5/pi^2, t = 100 (about 1-2 min on a loaded core)."""
     L = 32
     c = 4 / 3 * np.pi * A ** 3 / L ** 3
     ratio = _neutral_speed(L) / (2 / 3 * (1 - c))
