@@ -289,6 +289,11 @@ class Janus:
         self._set_slip(p, F_sl, T_sl)
         spm.u += up
         spm.fluid.u_hat += up_hat
+        us = getattr(spm, "_us", None)      # an SPM that samples u at its stencil points once
+        if us is not None and us.shape[1:] == spm.idx.shape:     # a step: keep it current
+            upf = up.reshape(3, -1)
+            for c in range(3):
+                us[c] += upf[c][spm.idx]
 
     def _solenoidal(self, grid, w, idx):
         """u' = P[sum of the per-point vectors w (M, S, 3) at idx]: (u'_hat, u') in buffers
