@@ -16,6 +16,8 @@ import numpy as np
 import udf
 from udf import UDFError
 
+from .particles.janus import read_spec as read_janus
+
 SPECTRAL_TYPES = ("Navier_Stokes", "Shear_Navier_Stokes", "Shear_Navier_Stokes_Lees_Edwards",
                   "Electrolyte")
 FDM_TYPES = ("Navier_Stokes_FDM", "Navier_Stokes_Cahn_Hilliard_FDM",
@@ -133,6 +135,7 @@ class Species:
     rigid_motion: str = "free"
     rigid_velocity: tuple = (0.0, 0.0, 0.0)
     rigid_omega: tuple = (0.0, 0.0, 0.0)
+    janus: object = None           # kapsel.particles.janus.JanusSpec (spheres)
 
     @property
     def particles(self) -> int:
@@ -174,6 +177,8 @@ class Switches:
     OBL_INT: str = "linear"
     quincke: object = None         # kapsel.particles.dipoles.Quincke (switch.quincke ON)
     dipoles: object = None         # kapsel.particles.dipoles.Dipoles (switch.multipole ON)
+    SLIP_tol: float = 1e-3         # squirmer slip iteration (kapsel.particles.janus)
+    SLIP_iter: int = 4
 
 
 @dataclass(frozen=True)
@@ -561,12 +566,9 @@ def _species(r: _Reader, obj: str) -> list:
                 n = r.get(f"{p}.Particle_number")
                 if n < 0:
                     r.fail(f"{p}.Particle_number", n, "must be zero or positive")
-                prop = r.optional(f"{p}.janus_propulsion", "OFF")
-                if prop != "OFF" and n > 0:
-                    r.unsupported_feature("self-propelled (janus) particles",
-                                          f"{p}.janus_propulsion", prop, "set it to OFF")
                 species.append(Species(n, 1, r.positive(f"{p}.MASS_RATIO"),
-                                       r.get(f"{p}.Surface_charge")))
+                                       r.get(f"{p}.Surface_charge"),
+                                       janus=read_janus(r, p, n)))
     elif obj == "chain":       # chains: the original forces janus propulsion OFF
         sp = "object_type.chain.Chain_spec"
         for i in range(doc.size(f"{sp}[]")):
@@ -681,11 +683,35 @@ def _switches(r: _Reader, obj: str, species: list, mesh, particles) -> Switches:
     quincke, dipoles = _electric(r, obj, species, mesh)
     fix = tuple(r.get(f"switch.FIX_CELL.{ax}") == "ON" for ax in "xyz")
     obl = r.optional("switch.ns_solver.OBL_INT", "linear")
+    slip = _slip_switches(r, species)
     return Switches(ROTATION=r.get("switch.ROTATION") == "ON", init_distribution=dist,
                     random_walk_iterations=rw, user_particles=user,
                     init_orientation=r.get("switch.INIT_orientation"), fix_cell=fix,
                     pin=pin, pin_rot=pin_rot, free_rigid=free_rigid, OBL_INT=obl,
-                    quincke=quincke, dipoles=dipoles)
+                    quincke=quincke, dipoles=dipoles, **slip)
+
+
+def _slip_switches(r: _Reader, species) -> dict:
+    """switch.SLIP_tol / SLIP_iter (read when present, required with squirmers) and the
+    types and ROTATION self-propelled particles need (kapsel.particles.janus)."""
+    from .particles.janus import check_types
+    specs = [s.janus for s in species]
+    check_types(r, r.get("constitutive_eq.type"), r.get("switch.ROTATION") == "ON", specs,
+                [s.number for s in species], "object_type.spherical_particle.Particle_spec")
+    squirm = any(j is not None and j.propulsion == "SQUIRMER" and s.number > 0
+                 for j, s in zip(specs, species))
+    out = {}
+    for key, check in (("SLIP_tol", lambda v: v >= 0), ("SLIP_iter", lambda v: v >= 1)):
+        path = f"switch.{key}"
+        if r.has(path):
+            v = r.get(path)
+            if squirm and not check(v):
+                r.fail(path, v, "must be >= 0" if key == "SLIP_tol" else "must be >= 1")
+            if check(v):
+                out[key] = v
+        elif squirm:
+            r.fail(path, None, "squirmers need it (the slip iteration); add it to switch")
+    return out
 
 
 def _field_output(r: _Reader, mesh: Mesh) -> FieldOutput:

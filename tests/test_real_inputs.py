@@ -27,7 +27,7 @@ UNSUPPORTED = {
     "ex02/gravity.udf": [],
     "ex06/s000_t010_free.udf": [],
     "ex06/s001_t010_free.udf": ["chain objects under shear"],
-    "ex09/squirm_single_a+2.udf": ["self-propelled (janus) particles", "'SQUIRMER'"],
+    "ex09/squirm_single_a+2.udf": [],
     "ex10/input_rigid_free1.udf": [],
     "ex11/fdm_4096p_shear_1e-2.udf": [],
     "ex12/a2_N65_Rer025_dipole_mirror.udf": ["electro-osmotic flow", "flat walls"],

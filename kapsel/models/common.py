@@ -36,7 +36,8 @@ def random_seed(args) -> int:
 def make_particles(cfg: RunConfig, rng: np.random.Generator) -> ParticleState:
     """Spheres, chain beads (kapsel.particles.chains) or rigid-body beads
     (kapsel.particles.rigid) of every species, placed and oriented as the input asks;
-    ``constraints`` set for rigid bodies and pinned particles."""
+    ``constraints`` set for rigid bodies and pinned particles (and OBSTACLE janus spheres),
+    ``janus`` for self-propelled spheres (kapsel.particles.janus)."""
     obj = cfg.particles.object_type
     species, ratio = [], []
     for k, s in enumerate(cfg.particles.species):
@@ -89,9 +90,17 @@ def make_particles(cfg: RunConfig, rng: np.random.Generator) -> ParticleState:
     user_q = user[:n, 6:10] if okind == "user_specify" else None
     p.q[:] = placement.orientations(okind, n, rng, user_q)
     p.q_old[:] = p.q
-    if cfg.switches.pin or cfg.switches.pin_rot:
+    pin, pin_rot = tuple(cfg.switches.pin), tuple(cfg.switches.pin_rot)
+    specs = [s.janus for s in cfg.particles.species]
+    if obj == "spherical_particle" and any(j is not None and j.propulsion != "OFF"
+                                           for j in specs):
+        from ..particles.janus import Janus
+        p.janus = Janus(p.species, specs, cfg.switches.SLIP_tol, cfg.switches.SLIP_iter)
+        obstacles = tuple(int(i) for i in p.janus.obstacles)   # held like pinned particles
+        pin, pin_rot = pin + obstacles, pin_rot + obstacles
+    if pin or pin_rot:
         from ..particles.motion import Pinned
-        p.constraints = Pinned(cfg.switches.pin, cfg.switches.pin_rot)
+        p.constraints = Pinned(pin, pin_rot)
         p.constraints.hold(p)
     return p
 
