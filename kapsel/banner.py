@@ -55,6 +55,29 @@ def _particles(cfg) -> str:
             f"A = {_g(p.A)}, A_XI = {_g(p.A_XI)}")
 
 
+def _electric(cfg) -> list[str]:
+    """Quincke constraint and dipoles (kapsel.particles.dipoles), with the Ewald split."""
+    sw, out = cfg.switches, []
+    names = {(1.0, 0.0, 0.0): "X", (0.0, 1.0, 0.0): "Y", (0.0, 0.0, 1.0): "Z"}
+    qk, d = sw.quincke, sw.dipoles
+    if qk is not None:
+        out.append(f"Quincke constraint: field along {names[qk.field_dir]}, body axis "
+                   f"{names[qk.body_axis]}, K = {_g(qk.torque_amp)}")
+    if d is not None:
+        from .particles.ewald import choose_parameters
+        n = cfg.particles.count * (2 if d.mirror_z is not None else 1)
+        e = choose_parameters(cfg.mesh.box, n, d.tol)
+        what = (f"FIXED along body {names[d.axis]}" if d.kind == "FIXED" else
+                f"QUINCKE, Pz_factor {_g(d.pz_factor)}, " +
+                (f"mirror images in z = {_g(d.mirror_z)}" if d.mirror_z is not None
+                 else "no mirror images"))
+        surf = "tin-foil" if d.epsilon_surface == float("inf") else \
+            f"epsilon {_g(d.epsilon_surface)}"
+        out.append(f"dipoles {_g(d.magnitude)} ({what}); Ewald to {d.tol:.2g} ({surf}, "
+                   f"alpha {_g(e.alpha)}, r_cut {_g(e.r_cut)}, k_cut {_g(e.k_cut)})")
+    return out
+
+
 def _files(files: list[tuple[str, str]]) -> list[str]:
     """``files``: (directory, what) pairs -> one line per directory."""
     by_dir: dict[str, list[str]] = {}
@@ -72,7 +95,7 @@ def describe(cfg, args, model, resumed: bool, files: list[tuple[str, str]],
     dt = model.dt
     lines = [f"kapsel-py: {cfg.type} ({_solvers(cfg)})",
              f"mesh {nx} x {ny} x {nz}, DX = {_g(cfg.mesh.DX)}, box {bx} x {by} x {bz}",
-             _particles(cfg),
+             _particles(cfg), *_electric(cfg),
              _dt(cfg, dt)]
     if resumed:
         lines.append(f"continues from step {model.step_index} (t = {_g(model.time)}) to step "

@@ -16,6 +16,8 @@ import numpy as np
 import udf
 from udf import UDFError
 
+from .particles.janus import read_spec as read_janus
+
 SPECTRAL_TYPES = ("Navier_Stokes", "Shear_Navier_Stokes", "Shear_Navier_Stokes_Lees_Edwards",
                   "Electrolyte")
 FDM_TYPES = ("Navier_Stokes_FDM", "Navier_Stokes_Cahn_Hilliard_FDM",
@@ -133,6 +135,7 @@ class Species:
     rigid_motion: str = "free"
     rigid_velocity: tuple = (0.0, 0.0, 0.0)
     rigid_omega: tuple = (0.0, 0.0, 0.0)
+    janus: object = None           # kapsel.particles.janus.JanusSpec (spheres)
 
     @property
     def particles(self) -> int:
@@ -172,6 +175,10 @@ class Switches:
     pin_rot: tuple = ()
     free_rigid: tuple = ()         # ((spec_id, (vx,vy,vz), (ox,oy,oz)), ...) of bools
     OBL_INT: str = "linear"
+    quincke: object = None         # kapsel.particles.dipoles.Quincke (switch.quincke ON)
+    dipoles: object = None         # kapsel.particles.dipoles.Dipoles (switch.multipole ON)
+    SLIP_tol: float = 1e-3         # squirmer slip iteration (kapsel.particles.janus)
+    SLIP_iter: int = 4
 
 
 @dataclass(frozen=True)
@@ -559,12 +566,9 @@ def _species(r: _Reader, obj: str) -> list:
                 n = r.get(f"{p}.Particle_number")
                 if n < 0:
                     r.fail(f"{p}.Particle_number", n, "must be zero or positive")
-                prop = r.optional(f"{p}.janus_propulsion", "OFF")
-                if prop != "OFF" and n > 0:
-                    r.unsupported_feature("self-propelled (janus) particles",
-                                          f"{p}.janus_propulsion", prop, "set it to OFF")
                 species.append(Species(n, 1, r.positive(f"{p}.MASS_RATIO"),
-                                       r.get(f"{p}.Surface_charge")))
+                                       r.get(f"{p}.Surface_charge"),
+                                       janus=read_janus(r, p, n)))
     elif obj == "chain":       # chains: the original forces janus propulsion OFF
         sp = "object_type.chain.Chain_spec"
         for i in range(doc.size(f"{sp}[]")):
@@ -672,18 +676,42 @@ def _switches(r: _Reader, obj: str, species: list, mesh, particles) -> Switches:
                 continue
             rows.append((sid, tuple(x == "YES" for x in vel), tuple(x == "YES" for x in om)))
         free_rigid = tuple(rows)
-    for opt, off, what in (("switch.wall.type", "NONE", "flat walls"),
-                           ("switch.quincke.type", "OFF", "Quincke rotation"),
-                           ("switch.multipole.type", "OFF", "multipole (dipole) interactions")):
+    for opt, off, what in (("switch.wall.type", "NONE", "flat walls"),):
         v = r.optional(opt, off)
         if v != off:
             r.unsupported_feature(what, opt, v, f"set it to {off}")
+    quincke, dipoles = _electric(r, obj, species, mesh)
     fix = tuple(r.get(f"switch.FIX_CELL.{ax}") == "ON" for ax in "xyz")
     obl = r.optional("switch.ns_solver.OBL_INT", "linear")
+    slip = _slip_switches(r, species)
     return Switches(ROTATION=r.get("switch.ROTATION") == "ON", init_distribution=dist,
                     random_walk_iterations=rw, user_particles=user,
                     init_orientation=r.get("switch.INIT_orientation"), fix_cell=fix,
-                    pin=pin, pin_rot=pin_rot, free_rigid=free_rigid, OBL_INT=obl)
+                    pin=pin, pin_rot=pin_rot, free_rigid=free_rigid, OBL_INT=obl,
+                    quincke=quincke, dipoles=dipoles, **slip)
+
+
+def _slip_switches(r: _Reader, species) -> dict:
+    """switch.SLIP_tol / SLIP_iter (read when present, required with squirmers) and the
+    types and ROTATION self-propelled particles need (kapsel.particles.janus)."""
+    from .particles.janus import check_types
+    specs = [s.janus for s in species]
+    check_types(r, r.get("constitutive_eq.type"), r.get("switch.ROTATION") == "ON", specs,
+                [s.number for s in species], "object_type.spherical_particle.Particle_spec")
+    squirm = any(j is not None and j.propulsion == "SQUIRMER" and s.number > 0
+                 for j, s in zip(specs, species))
+    out = {}
+    for key, check in (("SLIP_tol", lambda v: v >= 0), ("SLIP_iter", lambda v: v >= 1)):
+        path = f"switch.{key}"
+        if r.has(path):
+            v = r.get(path)
+            if squirm and not check(v):
+                r.fail(path, v, "must be >= 0" if key == "SLIP_tol" else "must be >= 1")
+            if check(v):
+                out[key] = v
+        elif squirm:
+            r.fail(path, None, "squirmers need it (the slip iteration); add it to switch")
+    return out
 
 
 def _field_output(r: _Reader, mesh: Mesh) -> FieldOutput:
@@ -868,3 +896,69 @@ def _check_time_step(r: _Reader, time: TimeIncrement, fluid: Fluid, mesh: Mesh) 
                f"the automatic time step factor RHO / (ETA KMAX2) (FORMAT.md) with "
                f"RHO = {fluid.RHO:g}, ETA = {fluid.ETA:g}, DX = {mesh.DX:g} is not a finite "
                f"positive time step")
+
+
+def _electric(r: _Reader, obj: str, species, mesh: Mesh):
+    """switch.quincke and switch.multipole (PHYSICS-EXTRA.md §4): (Quincke | None,
+    Dipoles | None), checked as the original does (Quincke needs rigid bodies of one bead;
+    multipole needs Dipole ON; QUINCKE dipoles need switch.quincke ON), plus what kapsel-py
+    needs: QUINCKE dipoles with the field along Z (their Pz term and images are along z),
+    mirror images with a FLAT Z wall (the electrode: images are reflected in its lower
+    surface z = DH DX / 2)."""
+    from .particles.dipoles import AXES, Dipoles, Quincke
+    from .particles.ewald import tolerance_from_original
+    bad = getattr(r, "report", None) or r.fail
+    quincke = dipoles = None
+    q = "switch.quincke"
+    if r.has(f"{q}.type") and r.get(f"{q}.type") == "ON":
+        if obj != "rigid" or any(s.beads != 1 for s in species):
+            bad(f"{q}.type", "ON", "Quincke rollers are rigid bodies of one bead each: needs "
+                                   "object_type rigid with Beads_number 1 (as the original)")
+        quincke = Quincke(AXES[r.get(f"{q}.ON.e_dir")], AXES[r.get(f"{q}.ON.w_dir")],
+                          float(r.finite(f"{q}.ON.torque_amp")))
+    m = "switch.multipole"
+    if not (r.has(f"{m}.type") and r.get(f"{m}.type") == "ON"):
+        return quincke, None
+    d = f"{m}.ON.Dipole"
+    eq = r.get("constitutive_eq.type")
+    if "Lees_Edwards" in eq or eq == "Shear_NS_LE_CH_FDM":
+        bad(f"{m}.type", "ON", f"dipole interactions are summed in a periodic box (Ewald); "
+                               f"{eq} shears it with Lees-Edwards images: not supported")
+        return quincke, None
+    if not (r.has(f"{d}.type") and r.get(f"{d}.type") == "ON"):
+        bad(f"{m}.type", "ON", f"multipole interactions need {d}.type ON (dipoles are the "
+                               f"only multipoles the original reads)")
+        return quincke, None
+    e = f"{m}.ON.EwaldParams"
+    alpha = r.positive(f"{e}.alpha")
+    delta = r.get(f"{e}.delta")
+    if not 0 < delta < 1:
+        bad(f"{e}.delta", delta, "must lie between 0 and 1 (the reciprocal-space tolerance)")
+        delta = 1e-8
+    converge = r.positive(f"{e}.converge")
+    eps = r.finite(f"{e}.epsilon")
+    common = dict(magnitude=float(r.finite(f"{d}.ON.magnitude")),
+                  tol=tolerance_from_original(alpha, delta, converge),
+                  epsilon_surface=float(eps) if eps >= 0 else float("inf"))
+    kind = r.get(f"{d}.ON.type")
+    if kind == "FIXED":
+        return quincke, Dipoles("FIXED", axis=AXES[r.get(f"{d}.ON.FIXED.dir")], **common)
+    qd = f"{d}.ON.QUINCKE"
+    if quincke is None:
+        bad(f"{d}.ON.type", kind, "QUINCKE dipoles need switch.quincke.type ON (as the "
+                                  "original)")
+        return None, None
+    if quincke.field_dir != AXES["Z"]:
+        bad(f"{q}.ON.e_dir", r.get(f"{q}.ON.e_dir"), "QUINCKE dipoles need the field along "
+            "Z: their static Pz part and mirror images are along z (as the original's)")
+    mirror_z = None
+    if r.get(f"{qd}.type") == "with_mirror_image":
+        w = "switch.wall"
+        if not (r.has(f"{w}.type") and r.get(f"{w}.type") == "FLAT"
+                and r.get(f"{w}.FLAT.axis") == "Z"):
+            bad(f"{qd}.type", "with_mirror_image", "mirror images need the electrode: "
+                "switch.wall FLAT with axis Z (images are reflected in its lower surface)")
+        else:
+            mirror_z = 0.5 * r.get(f"{w}.FLAT.DH") * (mesh.DX if mesh is not None else 1.0)
+    return quincke, Dipoles("QUINCKE", pz_factor=float(r.finite(f"{qd}.Pz_factor")),
+                            mirror_z=mirror_z, **common)

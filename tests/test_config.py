@@ -77,7 +77,7 @@ def test_shear_fixture_config():
      "{\"implicit_scheme\",{9.00000000000000,1500}}",
      ["CH_solver.implicit_scheme.tolerance", "negative"]),
     ("\"OFF\",{0.0,0.0,0.0}{0.0,0.0,0.0}0.0,0.0}]", "\"TUMBLER\",{0.0,0.0,0.0}{0.0,0.0,0.0}0.0,0.0}]",
-     ["janus_propulsion", "TUMBLER", "not supported"]),
+     ["janus_propulsion", "TUMBLER", "Navier_Stokes or Shear_Navier_Stokes"]),
     ("output:{100,10,\"OFF\",{\"output\",\"data\",\"EXTENDED\",{{\"HDF5\"}{\"YES\",{{0,8,4}",
      "output:{100,10,\"ON\",{\"output\",\"data\",\"EXTENDED\",{{\"HDF5\"}{\"YES\",{{0,8,5}",
      ["output.ON.EXTENDED.Print_field.YES.Slab_x", "start + (count-1) stride < 32"]),

@@ -18,8 +18,10 @@ files (FORMAT-OUTPUT.md §3).
 ``Crop YES`` writes the hyperslab start + m stride (m < count) of every axis.  Fields are
 the snapshot's (kapsel.snapshot) in the rectangular frame; force_h / torque_h are the
 hydrodynamic plus slip force / torque of the step just taken, force_r / torque_r the others.
-Obstacles (janus_propulsion obstacle) do not exist in kapsel-py, so nump_obs is 0 and there is
-no obstacle group.
+Obstacles (janus_propulsion OBSTACLE) are apart, as the original: nump counts the others,
+nump_obs the obstacles; /system_data/obstacle/{id, spec, pos} (positions once: they do not
+move), frame_<f>/obstacle/{force_h, force_r}, the .conf obstacle block and
+``<Out_name>_obstacle.xdmf``.
 
 ``<Out_name>.conf``: the original's text, from which its Tools/h5kapsel2xdmf.py builds the
 XDMF files; and those XDMF files written directly, as that script names them:
@@ -62,7 +64,8 @@ def _string_attr(obj, name, text):
 class ExtendedHDF5:
     """Writer (kapsel.io.writers protocol) of the EXTENDED trajectory."""
 
-    def __init__(self, directory, spec, shape, dx, dt, gts, n_particles, species, sheared):
+    def __init__(self, directory, spec, shape, dx, dt, gts, n_particles, species, sheared,
+                 obstacles=()):
         self.directory = os.fspath(directory)
         self.name = spec.Out_name
         self.path = os.path.join(self.directory, self.name + ".h5")
@@ -74,8 +77,12 @@ class ExtendedHDF5:
         self.dims = tuple(c for _, c, _ in slabs)
         self.fields = [n for n, on in (("u", spec.Vel), ("phi", spec.Phi),
                                        ("pressure", spec.Pressure), ("tau", spec.Tau)) if on]
-        self.nump = int(n_particles)
-        self.species = np.asarray(species, dtype=np.int32)
+        obs = np.zeros(int(n_particles), dtype=bool)
+        obs[np.asarray(obstacles, dtype=np.int64)] = True
+        self.ids = np.flatnonzero(~obs).astype(np.int32)        # "particle" list
+        self.obs_ids = np.flatnonzero(obs).astype(np.int32)     # "obstacle" list
+        self.nump, self.nobs = len(self.ids), len(self.obs_ids)
+        self.species = np.asarray(species, dtype=np.int32).reshape(-1)
         self.file = None
         self.frames = 0
         self._skip = None
@@ -110,7 +117,7 @@ class ExtendedHDF5:
         n = self.name
         return [(self.directory, f"{n}.h5 (EXTENDED, frames"
                  + (" appended)" if resumed else ")") + f" + {n}.conf + {n}_fluid.xdmf + "
-                 f"{n}_particle.xdmf")]
+                 f"{n}_particle.xdmf" + (f" + {n}_obstacle.xdmf" if self.nobs else ""))]
 
     # ------------------------------------------------------------------ protocol
     def open(self, snap, resumed: bool) -> None:
@@ -121,7 +128,7 @@ class ExtendedHDF5:
             print(f"#{self.path} cannot be continued (another grid, crop or particle "
                   f"number, or not readable): a new trajectory replaces it", file=sys.stderr)
         self.file = h5py.File(self.path, "w")
-        self._header()
+        self._header(snap)
         self.frames, self._times = 0, []
         self.file.flush()
         self._describe()
@@ -135,6 +142,7 @@ class ExtendedHDF5:
             return False
         ok = (list(f.attrs.get("nxnynz", [])) == list(self.dims)
               and int(f.attrs.get("nump", [-1])[0]) == self.nump
+              and int(f.attrs.get("nump_obs", [0])[0]) == self.nobs
               and "trajectory_data" in f)
         if not ok:
             f.close()
@@ -163,6 +171,8 @@ class ExtendedHDF5:
         names = [f"field/{n}" for n in self._dataset_names()]
         if self.nump:
             names += [f"particle/{n}" for n in ("pos", "pos_raw", "QR") + PARTICLE_VECTORS]
+        if self.nobs:
+            names += ["obstacle/force_h", "obstacle/force_r"]
         try:
             return "time" in frame.attrs and all(n in frame for n in names)
         except (OSError, KeyError):
@@ -186,10 +196,16 @@ class ExtendedHDF5:
             fg = g.create_group("field")
             for name, data in self._field_data(snap):
                 fg.create_dataset(name, data=data)
+        if self.nump or self.nobs:
+            data = particle_data(snap.particles)
         if self.nump:
             pg = g.create_group("particle")
-            for name, data in particle_data(snap.particles).items():
-                pg.create_dataset(name, data=data)
+            for name, d in data.items():
+                pg.create_dataset(name, data=d[self.ids] if self.nobs else d)
+        if self.nobs:
+            og = g.create_group("obstacle")
+            for name in ("force_h", "force_r"):
+                og.create_dataset(name, data=data[name][self.obs_ids])
         self.frames += 1
         self._times.append(float(np.float32(snap.time)))
         self.file.flush()
@@ -218,14 +234,14 @@ class ExtendedHDF5:
             else:
                 yield name, self._crop(snap.get(name))
 
-    def _header(self):
+    def _header(self, snap=None):
         f = self.file
         f.attrs.create("dx", np.array([self.dx], dtype=F32))
         f.attrs.create("nxnynz", np.array(self.dims, dtype=np.int64))
         f.attrs.create("origin", np.array([s * self.dx for s, _, _ in self.slabs], dtype=F32))
         f.attrs.create("nump", np.array([self.nump], dtype=np.int32))
-        f.attrs.create("nump_obs", np.array([0], dtype=np.int32))
-        f.attrs.create("nump_total", np.array([self.nump], dtype=np.int32))
+        f.attrs.create("nump_obs", np.array([self.nobs], dtype=np.int32))
+        f.attrs.create("nump_total", np.array([self.nump + self.nobs], dtype=np.int32))
         from .. import __version__
         _string_attr(f, "git_version", f"kapsel-py {__version__}")
         _string_attr(f, "git_ref", "kapsel-py")
@@ -238,8 +254,14 @@ class ExtendedHDF5:
                 fg.create_dataset(name, data=a.astype(F32))
         if self.nump:
             pg = sysd.create_group("particle")
-            pg.create_dataset("id", data=np.arange(self.nump, dtype=np.int32))
-            pg.create_dataset("spec", data=self.species)
+            pg.create_dataset("id", data=self.ids)
+            pg.create_dataset("spec", data=self.species[self.ids])
+        if self.nobs:
+            og = sysd.create_group("obstacle")
+            og.create_dataset("id", data=self.obs_ids)
+            og.create_dataset("spec", data=self.species[self.obs_ids])
+            og.create_dataset("pos", data=np.ascontiguousarray(
+                snap.particles.R[self.obs_ids], dtype=F32))
         f.create_group("trajectory_data")
 
     # ------------------------------------------------------------------ .conf and XDMF
@@ -248,13 +270,17 @@ class ExtendedHDF5:
         out = ["#Configure file needed to generate xdmf trajectory", "#v1.1",
                "[Filename]", f" {self.name}", "[Grid Dimensions]", f" {cx} {cy} {cz}",
                "[Time Series]", f" 0.0 {self.dt * self.gts:.6f} {self.frames}",
-               "[Particle Number]", f" {self.nump}", "[Obstacle Number]", " 0", ""]
+               "[Particle Number]", f" {self.nump}", "[Obstacle Number]", f" {self.nobs}", ""]
         if self.nump:
             out += ["[Particle Grid]", " pos", "#[Particle Grid]", "#pos_raw",
                     "[Particle Scalar Const]", " id", "[Particle Scalar Const]", " spec"]
             for v in PARTICLE_VECTORS:
                 out += ["[Particle Vector]", f" {v}"]
             out += ["[Particle Tensor]", " QR", ""]
+        if self.nobs:
+            out += ["[Obstacle Grid Const]", " pos", "[Obstacle Scalar Const]", " id",
+                    "[Obstacle Scalar Const]", " spec", "[Obstacle Vector]", " force_h",
+                    "[Obstacle Vector]", " force_r", ""]
         if self.fields:
             out += ["[Field GridX Const]", " x", "[Field GridY Const]", " y",
                     "[Field GridZ Const]", " z"]
@@ -277,6 +303,9 @@ class ExtendedHDF5:
         if self.nump:
             atomic_write_text(os.path.join(self.directory, self.name + "_particle.xdmf"),
                               self.particle_xdmf())
+        if self.nobs:
+            atomic_write_text(os.path.join(self.directory, self.name + "_obstacle.xdmf"),
+                              self.obstacle_xdmf())
 
     def _xdmf(self, collection, frame_lines):
         out = ['<?xml version="1.0" ?>', '<!DOCTYPE Xdmf SYSTEM "Xdmf.dtd" []>',
@@ -335,6 +364,28 @@ class ExtendedHDF5:
                     self._item(f"{n} 9", f"{base}/QR"), '   </Attribute>', '  </Grid>']
             return out
         return self._xdmf("KAPSEL Particle Trajectory", frame)
+
+    def obstacle_xdmf(self) -> str:
+        """The obstacle file of h5kapsel2xdmf.py: static positions, id, spec, force_h / _r."""
+        n = self.nobs
+
+        def frame(i, t):
+            base = f"/trajectory_data/frame_{i}/obstacle"
+            out = ['  <Grid Name="Obstacle Frame" GridType="Uniform">',
+                   f'   <Time Value="{fmt(t)}"/>',
+                   f'   <Topology TopologyType="Polyvertex" NodesPerElement="{n}"/>',
+                   '   <Geometry GeometryType="XYZ">',
+                   self._item(f"{n} 3", "/system_data/obstacle/pos"), '   </Geometry>']
+            for name in ("id", "spec"):
+                out += [f'   <Attribute AttributeType="Scalar" Name="{name}" Center="Node">',
+                        self._item(f"{n} 1", f"/system_data/obstacle/{name}", "Int"),
+                        '   </Attribute>']
+            for name in ("force_h", "force_r"):
+                out += [f'   <Attribute AttributeType="Vector" Name="{name}" Center="Node">',
+                        self._item(f"{n} 3", f"{base}/{name}"), '   </Attribute>']
+            out.append('  </Grid>')
+            return out
+        return self._xdmf("KAPSEL Obstacle Trajectory", frame)
 
 
 def particle_data(p) -> dict:

@@ -183,6 +183,12 @@ def field_directory(cfg, args) -> str:
     return d if os.path.isabs(d) else os.path.join(output_dir(args), d)
 
 
+def _obstacles(snap):
+    """Indices of the OBSTACLE janus particles (kapsel.particles.janus), written apart."""
+    janus = getattr(snap.particles, "janus", None) if snap.n_particles else None
+    return () if janus is None else tuple(int(i) for i in janus.obstacles)
+
+
 def field_writer(cfg, args, snap, announce: bool = True):
     """The writer of output.AVS ON: EXTENDED (kapsel.io.extended) or legacy AVS
     (kapsel.io.avs)."""
@@ -192,7 +198,8 @@ def field_writer(cfg, args, snap, announce: bool = True):
     if spec.FileType == "EXTENDED":
         from .extended import ExtendedHDF5
         w = ExtendedHDF5(directory, spec, cfg.mesh.shape, cfg.mesh.DX, snap.dt,
-                         cfg.output.GTS, snap.n_particles, species, snap.sheared)
+                         cfg.output.GTS, snap.n_particles, species, snap.sheared,
+                         obstacles=_obstacles(snap))
     else:
         from .avs import LegacyAVS
         w = LegacyAVS(directory, spec, cfg.mesh.shape, cfg.mesh.DX, cfg.output.Num_snap,

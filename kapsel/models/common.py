@@ -36,7 +36,8 @@ def random_seed(args) -> int:
 def make_particles(cfg: RunConfig, rng: np.random.Generator) -> ParticleState:
     """Spheres, chain beads (kapsel.particles.chains) or rigid-body beads
     (kapsel.particles.rigid) of every species, placed and oriented as the input asks;
-    ``constraints`` set for rigid bodies and pinned particles."""
+    ``constraints`` set for rigid bodies and pinned particles (and OBSTACLE janus spheres),
+    ``janus`` for self-propelled spheres (kapsel.particles.janus)."""
     obj = cfg.particles.object_type
     species, ratio = [], []
     for k, s in enumerate(cfg.particles.species):
@@ -89,23 +90,37 @@ def make_particles(cfg: RunConfig, rng: np.random.Generator) -> ParticleState:
     user_q = user[:n, 6:10] if okind == "user_specify" else None
     p.q[:] = placement.orientations(okind, n, rng, user_q)
     p.q_old[:] = p.q
-    if cfg.switches.pin or cfg.switches.pin_rot:
+    pin, pin_rot = tuple(cfg.switches.pin), tuple(cfg.switches.pin_rot)
+    specs = [s.janus for s in cfg.particles.species]
+    if obj == "spherical_particle" and any(j is not None and j.propulsion != "OFF"
+                                           for j in specs):
+        from ..particles.janus import Janus
+        p.janus = Janus(p.species, specs, cfg.switches.SLIP_tol, cfg.switches.SLIP_iter)
+        obstacles = tuple(int(i) for i in p.janus.obstacles)   # held like pinned particles
+        pin, pin_rot = pin + obstacles, pin_rot + obstacles
+    if pin or pin_rot:
         from ..particles.motion import Pinned
-        p.constraints = Pinned(cfg.switches.pin, cfg.switches.pin_rot)
+        p.constraints = Pinned(pin, pin_rot)
         p.constraints.hold(p)
     return p
 
 
 def make_forces(cfg: RunConfig, particles: ParticleState, strain=None):
     """``forces(p) -> (F, T, min_ratio)``: pair interactions (skipped for LJ_truncate NONE;
-    not between beads of one rigid body), FENE bonds of chains (kapsel.particles.chains)
-    and net gravity; None when a scene has none of them.  ``strain()``: the Lees-Edwards frame strain of the
+    not between beads of one rigid body), FENE bonds of chains (kapsel.particles.chains),
+    net gravity, and the dipole forces and torques and Quincke constraint torque
+    (kapsel.particles.dipoles); None when a scene has none of them.  ``strain()``: the Lees-Edwards frame strain of the
     sheared types (pairs by the Lees-Edwards minimum image)."""
     inter = cfg.interactions
     pairs = inter.LJ_truncate != "NONE" and particles.n > 1 and inter.EPSILON > 0
     gravity = inter.G != 0 and particles.n > 0
     chain = cfg.particles.object_type == "chain" and particles.n > 1
-    if not (pairs or gravity or chain):
+    sw = cfg.switches
+    electric = None
+    if particles.n and (sw.quincke is not None or sw.dipoles is not None):
+        from ..particles.dipoles import make_electric
+        electric = make_electric(sw.dipoles, sw.quincke, cfg.mesh.box, particles.n)
+    if not (pairs or gravity or chain or electric):
         return None
     from ..particles import forces as pf
     box = cfg.mesh.box
@@ -139,7 +154,11 @@ def make_forces(cfg: RunConfig, particles: ParticleState, strain=None):
                 raise FloatingPointError(f"a chain bond stretched to {stretch:.3f} of the FENE "
                                          f"maximum R0 = {chains.FENE_R0} (2 A)")
             F = F + Fb
-        return F, zeros, ratio_min
+        T = zeros
+        if electric is not None:          # dipoles (Ewald) and the Quincke constraint
+            Fe, T = electric(p)
+            F = F + Fe
+        return F, T, ratio_min
     forces.virial = virial
     return forces
 

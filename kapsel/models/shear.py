@@ -61,6 +61,9 @@ def start_with_flow(cfg: RunConfig, particles, fluid) -> bool:
     if not particles.n or cfg.switches.init_distribution == "user_specify":
         return False
     particles.v[:] += fluid.background(particles.R)
+    from ..particles.motion import Pinned
+    if isinstance(particles.constraints, Pinned):     # pinned and OBSTACLE spheres stay put
+        particles.constraints.hold(particles)
     return True
 
 

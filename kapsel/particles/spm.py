@@ -19,6 +19,10 @@ One ``step()``:
    the k = 0 mean of du), MAC ``u += du; project(u)`` (the projection keeps the mean);
 5. R, q by Crank-Nicolson (§5.2), new profiles.
 
+With self-propelled particles (``particles.janus``, kapsel.particles.janus) step 3 adds the
+tumblers' self force and, with squirmers, iterates the slip flow to self-consistency and adds
+it to u before step 4.
+
 Steps 3 and 5 are those of free particles (motion.update_velocities / update_positions) or,
 when ``particles.constraints`` is set, its own (motion.Pinned: pinned particles;
 rigid.RigidBodies: beads moving as rigid bodies).
@@ -124,6 +128,10 @@ class SPM:
         self.excess_inertia = particles.inertia - 0.4 * self.rho * vol * a ** 2
         self.step_index = 0
         self.motion = getattr(particles, "constraints", None) or _free_motion
+        self.janus = getattr(particles, "janus", None)      # janus.Janus: self-propulsion
+        if self.janus is not None and len(self.janus.squirmers) and (
+                self.mode != "spectral" or self.oblique):
+            raise ValueError("squirmers need the spectral (rectangular) fluid")
         if particles.n:
             self._profiles()
             if impose:
@@ -229,8 +237,11 @@ class SPM:
             dP = dL = None
             if self.noise is not None:
                 dP, dL = self.noise(p.n, self.dt)
-            self.motion.update_velocities(p, F_H, T_H, F_o, T_o, self.dt, self.rotation, dP,
-                                          dL, mass=self.mass, inertia=self.inertia)
+            if self.janus is not None and self.janus.active:   # self force, squirmer slip
+                self.janus.update_velocities(self, F_H, T_H, F_o, T_o, dP, dL)
+            else:
+                self.motion.update_velocities(p, F_H, T_H, F_o, T_o, self.dt, self.rotation,
+                                              dP, dL, mass=self.mass, inertia=self.inertia)
             v, shear = self._relative_velocity()
             du = rigidity_increment(u, self.idx, self.phi_i, self.r, v, p.omega, self.size,
                                     out=self._du, shear=shear,

@@ -52,6 +52,7 @@ class ParticleState:
     torque_slip: np.ndarray = field(default=None)
     torque_slip_previous: np.ndarray = field(default=None)
     constraints: object = field(default=None, compare=False)
+    janus: object = field(default=None, compare=False)    # janus.Janus (self-propulsion)
 
     def __post_init__(self):
         for name in VECTOR_FIELDS:
@@ -77,4 +78,5 @@ class ParticleState:
         import copy
         return ParticleState(n=self.n, species=self.species.copy(), radius=self.radius.copy(),
                              mass=self.mass.copy(), inertia=self.inertia.copy(),
-                             constraints=copy.deepcopy(self.constraints), **kw)
+                             constraints=copy.deepcopy(self.constraints), janus=self.janus,
+                             **kw)

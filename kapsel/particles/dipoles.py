@@ -1,0 +1,145 @@
+"""Quincke rollers and point dipoles (switch.quincke, switch.multipole; PHYSICS-EXTRA.md §4).
+
+Quincke constraint (§4.1): with n the field direction (space frame) and e = R(q) e_w the
+body's intended rotation axis, U = (K/2)(n.e)^2 and the torque T = K (n.e)(n x e) keeps e
+perpendicular to the field.  It does not drive rotation itself.
+
+Dipoles (§4.2), Gaussian-like units (U = mu.mu/r^3 - ..., no 4 pi epsilon):
+  FIXED:   mu = R(q) p0 e_dir (a body-frame axis), every particle of every species;
+  QUINCKE: mu = p0 (n x e)/|n x e| - p0 Pz n  (n = z: e_dir must be Z);
+  images (QUINCKE with_mirror_image): the electrode is the lower surface of the FLAT Z wall,
+  z_w = DH DX / 2; each dipole at (x, y, z) has the conducting-plane image
+  (-mu_x, -mu_y, +mu_z) of its rotating part, minus p0 Pz z, at (x, y, 2 z_w - z).
+The dipoles (and images) are summed periodically by kapsel.particles.ewald; every real
+dipole gets F_i and T_i = mu_i x E_i (images get none; a real dipole feels its own image).
+
+Differences from the original, on purpose (README "Dipoles"): the original puts every image
+at a fixed 4.1 length units below its particle instead of reflecting it in the electrode
+plane, and fills the dipoles species by species from offset 0 each time, so with more than
+one species the particles of species >= 1 carry no dipole.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from . import ewald
+from . import quaternion as quat
+
+AXES = {"X": (1.0, 0.0, 0.0), "Y": (0.0, 1.0, 0.0), "Z": (0.0, 0.0, 1.0)}
+
+
+@dataclass(frozen=True)
+class Quincke:
+    """switch.quincke ON: field direction n (space frame), body axis e_w, amplitude K."""
+    field_dir: tuple
+    body_axis: tuple
+    torque_amp: float
+
+
+@dataclass(frozen=True)
+class Dipoles:
+    """switch.multipole ON with Dipole ON.  kind 'FIXED' (body-frame ``axis``) or 'QUINCKE'
+    (``pz_factor``; images in the plane z = ``mirror_z`` when not None); Ewald accuracy
+    ``tol`` and the surrounding dielectric ``epsilon_surface`` (inf: tin-foil)."""
+    kind: str
+    magnitude: float
+    axis: tuple = (0.0, 0.0, 1.0)
+    pz_factor: float = 0.0
+    mirror_z: float | None = None
+    tol: float = 1e-8
+    epsilon_surface: float = np.inf
+
+
+def body_axes(q, axis) -> np.ndarray:
+    """e = R(q) e_body (N, 3) for one body-frame axis."""
+    q = np.asarray(q, dtype=float)
+    return quat.rotate(q, np.broadcast_to(np.asarray(axis, dtype=float), (len(q), 3)))
+
+
+def quincke_torque(q, quincke: Quincke) -> np.ndarray:
+    """T = K (n.e)(n x e) (N, 3), e = R(q) e_w: the constraint torque of §4.1."""
+    n = np.asarray(quincke.field_dir, dtype=float)
+    e = body_axes(q, quincke.body_axis)
+    return quincke.torque_amp * (e @ n)[:, None] * np.cross(n, e)
+
+
+def quincke_energy(q, quincke: Quincke) -> np.ndarray:
+    """U = (K/2)(n.e)^2 per body."""
+    e = body_axes(q, quincke.body_axis)
+    return 0.5 * quincke.torque_amp * (e @ np.asarray(quincke.field_dir, dtype=float)) ** 2
+
+
+def rotating_part(q, dip: Dipoles, quincke: Quincke | None) -> np.ndarray:
+    """The dipole without the static Pz term: R(q) p0 e_dir (FIXED) or p0 (n x e)/|n x e|
+    (QUINCKE; zero when e is along the field)."""
+    q = np.asarray(q, dtype=float)
+    if dip.kind == "FIXED":
+        return dip.magnitude * body_axes(q, dip.axis)
+    n = np.asarray(quincke.field_dir, dtype=float)
+    c = np.cross(n, body_axes(q, quincke.body_axis))
+    norm = np.linalg.norm(c, axis=1)
+    safe = np.where(norm > 1e-12, norm, 1.0)
+    return dip.magnitude * np.where((norm > 1e-12)[:, None], c / safe[:, None], 0.0)
+
+
+def static_part(dip: Dipoles) -> np.ndarray:
+    """-p0 Pz z of the QUINCKE dipoles (zero for FIXED)."""
+    if dip.kind != "QUINCKE":
+        return np.zeros(3)
+    return np.array([0.0, 0.0, -dip.magnitude * dip.pz_factor])
+
+
+def moments(q, dip: Dipoles, quincke: Quincke | None = None) -> np.ndarray:
+    """Space-frame dipoles of all particles (N, 3)."""
+    return rotating_part(q, dip, quincke) + static_part(dip)
+
+
+def sources(R, q, dip: Dipoles, quincke: Quincke | None = None):
+    """(positions, dipoles) of the Ewald sum: the N real dipoles, then their images."""
+    R = np.asarray(R, dtype=float)
+    rot = rotating_part(q, dip, quincke)
+    mu = rot + static_part(dip)
+    if dip.mirror_z is None:
+        return R, mu
+    Ri = R.copy()
+    Ri[:, 2] = 2.0 * dip.mirror_z - R[:, 2]
+    mui = rot * np.array([-1.0, -1.0, 1.0]) + static_part(dip)
+    return np.concatenate([R, Ri]), np.concatenate([mu, mui])
+
+
+def dipole_forces(R, q, box, dip: Dipoles, quincke: Quincke | None = None,
+                  params: ewald.EwaldParameters | None = None):
+    """(F, T) on the N real dipoles (N, 3 each): Ewald forces and mu x E."""
+    n = len(R)
+    X, mu = sources(R, q, dip, quincke)
+    if params is None:
+        params = ewald.choose_parameters(box, len(X), dip.tol)
+    _, F, E = ewald.dipolar_ewald(X, mu, box, params, dip.epsilon_surface)
+    return F[:n], np.cross(mu[:n], E[:n])
+
+
+def make_electric(dip: Dipoles | None, quincke: Quincke | None, box, n: int):
+    """``electric(p) -> (F, T)`` of dipoles and the Quincke constraint on the particles
+    ``p`` (positions R, orientations q), or None when neither is on.  The Ewald split is
+    chosen once for the box and the number of dipoles."""
+    if dip is None and quincke is None:
+        return None
+    box = np.asarray(box, dtype=float)
+    params = None
+    if dip is not None:
+        params = ewald.choose_parameters(box, 2 * n if dip.mirror_z is not None else n,
+                                         dip.tol)
+
+    def electric(p):
+        F = np.zeros((p.n, 3))
+        T = np.zeros((p.n, 3))
+        if quincke is not None:
+            T += quincke_torque(p.q, quincke)
+        if dip is not None and p.n:
+            Fd, Td = dipole_forces(p.R, p.q, box, dip, quincke, params)
+            F += Fd
+            T += Td
+        return F, T
+    return electric

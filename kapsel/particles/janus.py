@@ -1,0 +1,353 @@
+"""Self-propelled (Janus) spheres: TUMBLER, SQUIRMER, OBSTACLE (PHYSICS-EXTRA §3).
+
+Per species (``object_type.spherical_particle.Particle_spec[]``, §3.1):
+
+* ``janus_axis`` X / Y / Z: the propulsion axis e3 in the body frame (the particle's
+  quaternion rotates it to the space frame, kapsel.particles.quaternion);
+* ``janus_propulsion``
+  - ``TUMBLER``: a body-frame self force ``janus_force`` and torque ``janus_torque``,
+    F_self = R(q) janus_force, T_self = R(q) janus_torque (§3.5), added to the particle only
+    (no momentum to the fluid);
+  - ``SQUIRMER``: the surface slip of Blake's squirmer (§3.3),
+        u_s = B1 (sin t + beta sin 2t) t^ + (C1 sin t + 3/2 C2 sin 2t) tau^,
+    B1 = ``janus_slip_vel``, beta = ``janus_slip_mode`` / 2: the input is alpha = B2 / B1
+    and the original halves it after reading, so u_theta = B1 sin t + B2 sin t cos t, the
+    usual Blake mode (alpha < 0 pusher, alpha > 0 puller); C1 = ``janus_rotlet_C1``,
+    C2 = ``janus_rotlet_dipole_C2`` (0 when the define file lacks them, as in the original);
+    an isolated neutral squirmer swims at 2/3 B1 along +e3;
+  - ``OBSTACLE``: velocity and angular velocity held at 0 (kapsel.particles.motion.Pinned);
+    still in phi and the rigidity force, F_H still computed.
+* ``switch.SLIP_tol``, ``switch.SLIP_iter``: the self-consistent slip iteration (§3.4).
+
+The slip step (``Janus.update_velocities``, called by spm.SPM in place of the plain velocity
+update; spectral fluids only, as the original: TUMBLER and SQUIRMER need Navier_Stokes or
+Shear_Navier_Stokes and ROTATION ON).  With u the fluid velocity after the fluid step, for
+each squirmer over its stencil (r about its centre), phi_i its profile and the shell weight
+phi_s = (1 - phi_i) cos(pi (a - |r|) / XI) for | |r| - a | < XI/2 (0 elsewhere):
+
+    M0 = sum phi, M1 = sum phi r, M2 = sum phi (|r|^2 I - r r); S0, S1, S2 likewise with phi_s;
+    dP_s = sum phi_s (u_s - u), dL_s = sum phi_s r x (u_s - u).
+
+From V* = V, Omega* = Omega, iterate: the counter-flow inside the particle
+(dV, dOmega) carrying dP = -(S0 V* + Omega* x S1 + dP_s), dL = -(S1 x V* + S2 Omega* + dL_s)
+([M2 + (M1 M1^T - |M1|^2 I)/M0] dOmega = dL - M1 x dP / M0, dV = (dP - dOmega x M1)/M0);
+u' = sum_i phi_i (dV + dOmega x r) + phi_s (V* + Omega* x r + u_s - u), made solenoidal;
+F_slip = RHO DX^3/dt sum phi_i u', T_slip = RHO DX^3/dt sum phi_i r x u' (every particle);
+the velocity update of spm.SPM with F_H + F_slip + F_self (kapsel-py's explicit step, the
+original's hydro/slip/self terms are explicit too); eps = max over squirmers of
+sqrt(|V* - V|^2/|V|^2 + |Omega* - Omega|^2/|Omega|^2) (a ratio divided only where the norm
+is > 0); stop when eps < SLIP_tol or after SLIP_iter passes, else V* <- 0.3 V* + 0.7 V
+(Omega* likewise), V reset to its value before the update, and repeat.  Then u <- u + u'
+(zero net momentum: the two parts cancel exactly) and spm.SPM imposes the rigidity with the
+new V, Omega as usual.  ``iterations`` / ``unconverged`` count the passes of the last step
+and the steps that hit SLIP_iter.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .quaternion import to_matrix
+
+__all__ = ["JanusSpec", "Janus", "read_spec", "check_types", "PROPULSIONS"]
+
+PROPULSIONS = ("OFF", "TUMBLER", "SQUIRMER", "OBSTACLE")
+AXES = {"X": 0, "Y": 1, "Z": 2}
+SELF_PROPELLED_TYPES = ("Navier_Stokes", "Shear_Navier_Stokes")   # §3.1 restrictions
+
+
+@dataclass(frozen=True)
+class JanusSpec:
+    """The janus items of one Particle_spec (§3.1); slip_mode is the input's alpha = B2/B1."""
+    axis: str = "NONE"
+    propulsion: str = "OFF"
+    force: tuple = (0.0, 0.0, 0.0)
+    torque: tuple = (0.0, 0.0, 0.0)
+    slip_vel: float = 0.0
+    slip_mode: float = 0.0
+    rotlet_C1: float = 0.0
+    rotlet_C2: float = 0.0
+
+
+def _vec3(r, path):
+    v = r.get(path)
+    if isinstance(v, dict):
+        v = [v.get(k, 0.0) for k in ("x", "y", "z")]
+    v = np.asarray(v, dtype=float).reshape(-1)
+    if v.size != 3 or not np.all(np.isfinite(v)):
+        r.fail(path, list(v), "must be three finite numbers")
+    return tuple(float(x) for x in v)
+
+
+def read_spec(r, p: str, n: int) -> JanusSpec:
+    """The janus items of Particle_spec ``p`` as the original reads them (§1.2): axis and
+    propulsion (absent: NONE / OFF), force and torque only for TUMBLER, slip items only for
+    SQUIRMER (rotlet C1 / C2 only if the define file declares them).  ``r``: config._Reader."""
+    axis = r.get(f"{p}.janus_axis") if r.has(f"{p}.janus_axis") else "NONE"
+    prop = r.get(f"{p}.janus_propulsion") if r.has(f"{p}.janus_propulsion") else "OFF"
+    if axis not in ("NONE", "X", "Y", "Z"):
+        r.fail(f"{p}.janus_axis", axis, "must be NONE, X, Y or Z")
+    if prop not in PROPULSIONS:
+        r.fail(f"{p}.janus_propulsion", prop, "must be OFF, TUMBLER, SQUIRMER or OBSTACLE")
+    if prop == "TUMBLER":
+        return JanusSpec(axis, prop, force=_vec3(r, f"{p}.janus_force"),
+                         torque=_vec3(r, f"{p}.janus_torque"))
+    if prop == "SQUIRMER":
+        if axis == "NONE" and n > 0:
+            r.fail(f"{p}.janus_axis", axis, "a SQUIRMER needs its swimming axis: X, Y or Z")
+        b1 = r.get(f"{p}.janus_slip_vel")
+        if n > 0 and not (np.isfinite(b1) and b1 > 0):
+            r.fail(f"{p}.janus_slip_vel", b1, "B1 of a SQUIRMER must be positive")
+        mode = r.get(f"{p}.janus_slip_mode")
+        if not np.isfinite(mode):
+            r.fail(f"{p}.janus_slip_mode", mode, "must be a finite number")
+        c1 = float(r.get(f"{p}.janus_rotlet_C1")) if r.has(f"{p}.janus_rotlet_C1") else 0.0
+        c2 = (float(r.get(f"{p}.janus_rotlet_dipole_C2"))
+              if r.has(f"{p}.janus_rotlet_dipole_C2") else 0.0)
+        return JanusSpec(axis, prop, slip_vel=float(b1), slip_mode=float(mode),
+                         rotlet_C1=c1, rotlet_C2=c2)
+    return JanusSpec(axis, prop)
+
+
+def check_types(r, eq_type: str, rotation: bool, specs, counts, path: str) -> None:
+    """§3.1: TUMBLER / SQUIRMER only with Navier_Stokes or Shear_Navier_Stokes and ROTATION
+    ON (the original exits otherwise)."""
+    active = [k for k, (s, n) in enumerate(zip(specs, counts))
+              if s is not None and s.propulsion in ("TUMBLER", "SQUIRMER") and n > 0]
+    if not active:
+        return
+    k = active[0]
+    where = f"{path}[{k}].janus_propulsion"
+    if eq_type not in SELF_PROPELLED_TYPES:
+        r.fail(where, specs[k].propulsion,
+               f"self-propelled particles (TUMBLER, SQUIRMER) need constitutive_eq "
+               f"Navier_Stokes or Shear_Navier_Stokes, as in the original (not {eq_type})")
+    if not rotation:
+        r.fail("switch.ROTATION", "OFF", "self-propelled particles (TUMBLER, SQUIRMER) need "
+                                         "switch.ROTATION ON, as in the original")
+
+
+_CYC = ((1, 2), (2, 0), (0, 1))
+
+
+def _cross(a, b):
+    """a x b over the last axis (broadcasting), without np.cross's overhead."""
+    return np.stack([a[..., 1] * b[..., 2] - a[..., 2] * b[..., 1],
+                     a[..., 2] * b[..., 0] - a[..., 0] * b[..., 2],
+                     a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]], axis=-1)
+
+
+def _second_moment(w, r):
+    """sum_s w (|r|^2 I - r r) per particle: (N, 3, 3)."""
+    rr = np.einsum("ns,nsa,nsb->nab", w, r, r)
+    tr = np.trace(rr, axis1=1, axis2=2)
+    return tr[:, None, None] * np.eye(3) - rr
+
+
+class Janus:
+    """Per-particle janus parameters of a run and the slip step (module docstring).
+
+    species (N,) species index per particle; specs: JanusSpec per species;
+    slip_tol, slip_iter: switch.SLIP_tol / SLIP_iter."""
+
+    def __init__(self, species, specs, slip_tol=1e-3, slip_iter=4):
+        species = np.asarray(species, dtype=np.int64)
+        n = len(species)
+        self.n = n
+        prop = np.array([specs[s].propulsion for s in species] if n else [], dtype=object)
+        self.tumblers = np.flatnonzero(prop == "TUMBLER")
+        self.squirmers = np.flatnonzero(prop == "SQUIRMER")
+        self.obstacles = np.flatnonzero(prop == "OBSTACLE")
+        self.force_body = np.array([specs[s].force for s in species], dtype=float).reshape(n, 3)
+        self.torque_body = np.array([specs[s].torque for s in species],
+                                    dtype=float).reshape(n, 3)
+        e3 = np.zeros((n, 3))
+        for i, s in enumerate(species):
+            if specs[s].axis in AXES:
+                e3[i, AXES[specs[s].axis]] = 1.0
+        self.axis_body = e3
+        self.B1 = np.array([specs[s].slip_vel for s in species], dtype=float)
+        self.beta = 0.5 * np.array([specs[s].slip_mode for s in species], dtype=float)
+        self.C1 = np.array([specs[s].rotlet_C1 for s in species], dtype=float)
+        self.C2 = np.array([specs[s].rotlet_C2 for s in species], dtype=float)
+        self.slip_tol = float(slip_tol)
+        self.slip_iter = max(1, int(slip_iter))
+        self.iterations = 0
+        self.unconverged = 0
+        self._bufs = None
+
+    @property
+    def active(self) -> bool:
+        """Whether the velocity update differs from the plain one (tumblers or squirmers)."""
+        return bool(len(self.tumblers) or len(self.squirmers))
+
+    # ------------------------------------------------------------------ kinematics
+    def axis(self, q, which=None):
+        """e3 in the space frame, (N, 3) (or of the particles ``which``)."""
+        which = slice(None) if which is None else which
+        return np.einsum("nij,nj->ni", to_matrix(q[which]), self.axis_body[which])
+
+    def self_force(self, q):
+        """(F_self, T_self) (N, 3): the tumblers' body-frame force and torque rotated to the
+        space frame (§3.5); zero for the others."""
+        F = np.zeros((self.n, 3))
+        T = np.zeros((self.n, 3))
+        t = self.tumblers
+        if len(t):
+            R = to_matrix(q[t])
+            F[t] = np.einsum("nij,nj->ni", R, self.force_body[t])
+            T[t] = np.einsum("nij,nj->ni", R, self.torque_body[t])
+        return F, T
+
+    def slip_velocity(self, r, q, which):
+        """u_s (M, S, 3) at offsets r (M, S, 3) from the squirmers ``which`` (§3.3), written
+        without dividing by sin(theta): B1 (1 + 2 beta cos t)(cos t r^ - e3)
+        + (C1 + 3 C2 cos t)(e3 x r^)."""
+        e3 = self.axis(q, which)[:, None, :]
+        d = np.sqrt(np.einsum("nsk,nsk->ns", r, r))
+        rhat = r / np.where(d > 0, d, 1.0)[..., None]
+        c = np.einsum("nsk,nsk->ns", rhat, e3)
+        B1 = self.B1[which][:, None]
+        beta = self.beta[which][:, None]
+        us = (B1 * (1.0 + 2.0 * beta * c))[..., None] * (c[..., None] * rhat - e3)
+        C1, C2 = self.C1[which][:, None], self.C2[which][:, None]
+        if np.any(C1) or np.any(C2):
+            us += (C1 + 3.0 * C2 * c)[..., None] * _cross(e3, rhat)
+        return us
+
+    @staticmethod
+    def shell_weight(r, phi, a, xi):
+        """phi_s = (1 - phi_i) cos(pi (a - |r|)/XI) in | |r| - a | < XI/2, else 0 (§3.3)."""
+        d = np.sqrt(np.einsum("nsk,nsk->ns", r, r))
+        x = a - d
+        return np.where(np.abs(x) < 0.5 * xi, (1.0 - phi) * np.cos(np.pi * x / xi), 0.0)
+
+    # ------------------------------------------------------------------ time step
+    def update_velocities(self, spm, F_H, T_H, F_o, T_o, dP, dL):
+        """The velocity update of one spm.SPM step with self forces and, with squirmers,
+        the self-consistent slip (module docstring).  Leaves f_hydro / torque_hydro = F_H /
+        T_H and f_slip / torque_slip in the particle state and, with squirmers, adds the
+        solenoidal slip flow u' to the fluid (spm.u and the solver's state)."""
+        p = spm.p
+        F_s, T_s = self.self_force(p.q)
+        if not len(self.squirmers):
+            self._update(spm, F_H + F_s, T_H + T_s, F_o, T_o, dP, dL, F_H, T_H)
+            self._set_slip(p, np.zeros((p.n, 3)), np.zeros((p.n, 3)))
+            return
+        sq = self.squirmers
+        a, xi = spm.stencil.A, spm.stencil.xi
+        u = spm.u
+        idx = spm.idx[sq]
+        phi = spm.phi_i[sq]
+        r = np.ascontiguousarray(spm.r[sq])                       # (M, S, 3)
+        ws = self.shell_weight(r, phi, a, xi)
+        us = self.slip_velocity(r, p.q, sq)
+        uf = u.reshape(3, -1)
+        ul = np.stack([uf[c][idx] for c in range(3)], axis=-1)    # u at the stencil points
+        du_s = us - ul
+        M0 = phi.sum(axis=1)
+        M1 = np.einsum("ns,nsk->nk", phi, r)
+        M2 = _second_moment(phi, r)
+        S0 = ws.sum(axis=1)
+        S1 = np.einsum("ns,nsk->nk", ws, r)
+        S2 = _second_moment(ws, r)
+        dPs = np.einsum("ns,nsk->nk", ws, du_s)
+        dLs = np.einsum("ns,nsk->nk", ws, _cross(r, du_s))
+        K = M2 + (np.einsum("na,nb->nab", M1, M1)
+                  - np.einsum("nk,nk->n", M1, M1)[:, None, None] * np.eye(3)) / M0[:, None, None]
+        shell_fixed = ws[..., None] * du_s                        # phi_s (u_s - u)
+
+        saved = {k: getattr(p, k).copy() for k in _SAVED}
+        Vs, Ws = p.v[sq].copy(), p.omega[sq].copy()
+        grid = spm.fluid.grid
+        scale = spm.rho * spm.dx ** 3 / spm.dt
+        for k in range(self.slip_iter):
+            dPk = -(S0[:, None] * Vs + _cross(Ws, S1) + dPs)
+            dLk = -(_cross(S1, Vs) + np.einsum("nab,nb->na", S2, Ws) + dLs)
+            dW = np.linalg.solve(K, (dLk - _cross(M1, dPk) / M0[:, None])[..., None])[..., 0]
+            dV = (dPk - _cross(dW, M1)) / M0[:, None]
+            w = phi[..., None] * (dV[:, None, :] + _cross(dW[:, None, :], r))
+            w += ws[..., None] * (Vs[:, None, :] + _cross(Ws[:, None, :], r))
+            w += shell_fixed
+            up_hat, up = self._solenoidal(grid, w, idx)
+            F_sl, T_sl = self._slip_force(spm, up, scale)
+            if k:
+                for name, val in saved.items():
+                    getattr(p, name)[...] = val
+            self._update(spm, F_H + F_sl + F_s, T_H + T_sl + T_s, F_o, T_o, dP, dL, F_H, T_H)
+            V, W = p.v[sq], p.omega[sq]
+            eps = np.max(_rel2(Vs, V) + _rel2(Ws, W)) ** 0.5
+            self.iterations = k + 1
+            if eps < self.slip_tol:
+                break
+            if k + 1 == self.slip_iter:
+                self.unconverged += 1
+                break
+            Vs = 0.3 * Vs + 0.7 * V
+            Ws = 0.3 * Ws + 0.7 * W
+        self._set_slip(p, F_sl, T_sl)
+        spm.u += up
+        spm.fluid.u_hat += up_hat
+        us = getattr(spm, "_us", None)      # an SPM that samples u at its stencil points once
+        if us is not None and us.shape[1:] == spm.idx.shape:     # a step: keep it current
+            upf = up.reshape(3, -1)
+            for c in range(3):
+                us[c] += upf[c][spm.idx]
+
+    def _solenoidal(self, grid, w, idx):
+        """u' = P[sum of the per-point vectors w (M, S, 3) at idx]: (u'_hat, u') in buffers
+        owned by this object (valid until the next call)."""
+        if self._bufs is None or self._bufs[0].shape[1:] != tuple(grid.shape):
+            self._bufs = (grid.empty_real(), grid.empty_complex(), grid.empty_complex(),
+                          grid.empty_real())
+        field, uh, c, up = self._bufs
+        flat = idx.reshape(-1)
+        ff = field.reshape(3, -1)
+        for k in range(3):
+            ff[k] = np.bincount(flat, weights=w[..., k].reshape(-1), minlength=grid.size)
+        grid.forward(field, out=uh)
+        grid.project(uh)
+        np.multiply(uh, 1.0 / grid.size, out=c)
+        grid.backward_raw(c, out=up)
+        return uh, up
+
+    @staticmethod
+    def _slip_force(spm, up, scale):
+        """F_slip = RHO DX^3/dt sum phi_i u', T_slip = ... r x u' for every particle."""
+        uf = up.reshape(3, -1)
+        idx, phi, r = spm.idx, spm.phi_i, spm.r
+        w = np.stack([uf[c][idx] for c in range(3)], axis=0) * phi     # (3, N, S)
+        F = w.sum(axis=2).T * scale
+        T = np.empty_like(F)
+        for c, (i, j) in enumerate(_CYC):
+            T[:, c] = (np.einsum("ns,ns->n", r[..., i], w[j])
+                       - np.einsum("ns,ns->n", r[..., j], w[i])) * scale
+        return F, T
+
+    @staticmethod
+    def _update(spm, F, T, F_o, T_o, dP, dL, F_H, T_H):
+        p = spm.p
+        spm.motion.update_velocities(p, F, T, F_o, T_o, spm.dt, spm.rotation, dP, dL,
+                                     mass=spm.mass, inertia=spm.inertia)
+        p.f_hydro[...] = F_H           # the records keep F_H; slip and self forces apart
+        p.torque_hydro[...] = T_H
+
+    @staticmethod
+    def _set_slip(p, F, T):
+        p.f_slip_previous[...] = p.f_slip
+        p.torque_slip_previous[...] = p.torque_slip
+        p.f_slip[...] = F
+        p.torque_slip[...] = T
+
+
+_SAVED = ("v", "omega", "v_old", "omega_old", "f_hydro", "f_hydro_previous", "f_r",
+          "f_r_previous", "torque_hydro", "torque_hydro_previous", "torque_r",
+          "torque_r_previous")
+
+
+def _rel2(a, b):
+    """|a - b|^2 / |b|^2 per row, undivided where |b| = 0 (§3.4 f)."""
+    d = np.einsum("nk,nk->n", a - b, a - b)
+    nb = np.einsum("nk,nk->n", b, b)
+    return np.where(nb > 0, d / np.where(nb > 0, nb, 1.0), d)

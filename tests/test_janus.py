@@ -1,0 +1,425 @@
+"""Self-propelled particles (kapsel.particles.janus): squirmers, tumblers, obstacles.
+
+Measured (spectral, L = 32, A = 4, XI = 2, B1 = 0.01, FIX_CELL on, SLIP_tol 1e-3, 4 iter.):
+a neutral squirmer swims at U / B1 = 0.5924 with dt = 1/pi^2 (t = 105) and 0.6514 with
+dt = 0.5/pi^2 (t = 100): like the SPM drag (tests/test_spm_validation.py) the imposed
+slip is the more effective the smaller nu dt / XI^2.  Finite-box correction: U_L =
+(2/3) B1 (1 - c), c = 4/3 pi A^3 / L^3 (first order in c: the periodic images of the
+source dipole D = B1 a^3 / 3 add c B1 / 3 at the swimmer, the zero-mean-flow of FIX_CELL
+removes c (U + B1 / 3)); c = 0.0082 at L = 32.  Checked by the box size (dt = 0.5/pi^2,
+t = 100, test_neutral_squirmer_box_size_extrapolation): U / B1 = 0.65143 (L = 32), 0.65414
+(L = 64); extrapolated in 1/L^3 to 0.65453 = 0.982 (2/3); with (1 - c): 0.985 (L = 32),
+0.982 (L = 64).  (The sub-grid position of the centre moves U by ~0.5%.)
+"""
+import os
+import shutil
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from kapsel.fluid.spectral import SpectralNS
+from kapsel.grid import Grid
+from kapsel.particles.forces import pair_forces
+from kapsel.particles.janus import Janus, JanusSpec
+from kapsel.particles.quaternion import from_axis_angle, rotate
+from kapsel.particles.spm import SPM
+from kapsel.particles.state import ParticleState
+
+A, XI, B1 = 4.0, 2.0, 0.01
+SAMPLES = os.path.join(os.path.dirname(__file__), "..", "samples")
+DT = 1 / np.pi ** 2            # 0.101: the measurements below were made with these steps
+DT_FINE = 0.5 / np.pi ** 2     # 0.0507
+
+
+def _run(R, q, specs, species=None, L=32, dt=DT, forces=None, tol=1e-3, it=4):
+    n = len(R)
+    species = [0] * n if species is None else species
+    fl = SpectralNS(Grid((L,) * 3, 1.0), 1.0, 1.0, dt, fix_cell=(True,) * 3)
+    p = ParticleState.spheres(species, [A] * n, [1.0] * n, 1.0)
+    p.R[:] = R
+    p.R_raw[:] = R
+    p.q[:] = q
+    p.q_old[:] = q
+    p.janus = Janus(p.species, specs, tol, it)
+    spm = SPM(fl, p, A, XI, 1.0, 1.0, dt, forces=forces)
+    return spm, p, dt
+
+
+def test_slip_is_blake_mode_and_shell_weight_is_local():
+    j = Janus([0], [JanusSpec("Z", "SQUIRMER", slip_vel=2.0, slip_mode=3.0)])
+    q = np.array([[1.0, 0, 0, 0]])
+    th = np.linspace(0.1, 3.0, 7)
+    r = (A * np.stack([np.sin(th), 0 * th, np.cos(th)], axis=1))[None]
+    us = j.slip_velocity(r, q, np.array([0]))[0]
+    that = np.stack([np.cos(th), 0 * th, -np.sin(th)], axis=1)
+    # u_theta = B1 sin t + B2 sin t cos t with B2 = alpha B1 (the input's slip_mode)
+    expect = 2.0 * np.sin(th) + 6.0 * np.sin(th) * np.cos(th)
+    assert np.allclose(np.einsum("sk,sk->s", us, that), expect)
+    assert np.allclose(np.einsum("sk,sk->s", us, r[0]), 0.0)       # tangential
+    d = np.array([[A - 1.2, A - 0.5, A, A + 0.5, A + 1.01]])
+    w = Janus.shell_weight(np.stack([d, 0 * d, 0 * d], axis=-1), np.full_like(d, 0.5), A, XI)
+    assert w[0, 0] == 0 and w[0, -1] == 0 and w[0, 2] == pytest.approx(0.5)
+
+
+def test_squirmer_swims_along_its_rotated_axis_and_conserves_momentum():
+    q = from_axis_angle(np.array([[0.0, 1.0, 0.0]]), np.array([np.pi / 2]))  # body z -> x
+    spm, p, dt = _run([[16.3, 16.2, 15.8]], q, [JanusSpec("Z", "SQUIRMER", slip_vel=B1)])
+    e3 = rotate(q, [0.0, 0.0, 1.0])[0]
+    assert np.allclose(e3, [1, 0, 0])
+    spm.run(60)
+    v = p.v[0]
+    assert v @ e3 > 0.4 * B1 and np.linalg.norm(v - (v @ e3) * e3) < 0.02 * (v @ e3)
+    assert np.abs(spm.total_momentum()).max() < 1e-12
+    assert p.f_slip[0] @ e3 != 0 and np.all(np.isfinite(p.torque_slip))
+    assert 1 <= p.janus.iterations <= 4
+
+
+@pytest.mark.parametrize("alpha,sign", [(-5.0, 1), (5.0, -1)])
+def test_pusher_and_puller_far_field_along_the_axis(alpha, sign):
+    """Stress dipole of the Blake squirmer: u_r ~ -B2 a^2 / r^2 P2(cos t) far away, so along
+    the axis a pusher (B2 < 0) pushes fluid out, a puller draws it in; (u_front - u_back)/2
+    along e3 (the source dipole, the same on both sides, cancels) has the sign of -B2."""
+    L, z0 = 32, 16.0
+    spm, p, dt = _run([[16.0, 16.0, z0]], [[1.0, 0, 0, 0]],
+                      [JanusSpec("Z", "SQUIRMER", slip_vel=B1, slip_mode=alpha)], L=L)
+    spm.run(150)
+    u = spm.velocity()
+    zc = int(round(p.R[0, 2]))
+    front, back = u[2, 16, 16, (zc + 11) % L], u[2, 16, 16, (zc - 11) % L]
+    s = 0.5 * (front - back)
+    assert np.sign(s) == sign and abs(s) > 1e-4 * B1
+
+
+def _lj(L):
+    box = np.full(3, float(L))
+
+    def forces(p):
+        F, _, _ = pair_forces(p.R, box, p.radius, "12:6", 1.0, "ON")
+        return F, np.zeros_like(F)
+    return forces
+
+
+@pytest.mark.slow
+def test_two_squirmers_head_on_do_not_overlap():
+    """Two squirmers swimming at each other (B1 = 0.02, gap 1, WCA 12:6, EPSILON 1; about
+    40 s): they meet, stop, and their distance stays above 0.95 sigma (sigma = 2A).
+    (Measured: closest 0.98 sigma at step 1500; with B1 = 0.1 the thrust pushes them to
+    0.875 sigma against EPSILON = 1.)"""
+    L = 32
+    q_down = from_axis_angle(np.array([[1.0, 0, 0]]), np.array([np.pi]))[0]
+    spm, p, dt = _run([[16.0, 16.0, 11.5], [16.1, 15.9, 20.5]],
+                      [[1.0, 0, 0, 0], q_down], [JanusSpec("Z", "SQUIRMER", slip_vel=0.02)],
+                      L=L, forces=_lj(L))
+    dmin, v0 = np.inf, None
+    for k in range(1500):
+        spm.step()
+        if k == 100:
+            v0 = p.v[0, 2] - p.v[1, 2]
+        d = p.R[1] - p.R[0]
+        d -= L * np.round(d / L)
+        dmin = min(dmin, np.linalg.norm(d))
+    print(f"\nhead-on: closest {dmin / (2 * A):.3f} sigma, approach speed "
+          f"{p.v[0, 2] - p.v[1, 2]:.2e} (at step 100 {v0:.2e})")
+    assert 0.95 * 2 * A < dmin < 1.01 * 2 * A
+    assert p.v[0, 2] - p.v[1, 2] < 0.2 * v0         # stopped against each other
+
+
+def test_tumbler_torque_is_body_frame_and_obstacle_holds():
+    q = from_axis_angle(np.array([[0.0, 1.0, 0.0]]), np.array([-np.pi / 2]))  # body x -> z
+    spec = [JanusSpec("Z", "TUMBLER", force=(0.0, 0.0, 0.0), torque=(1.0, 0.0, 0.0)),
+            JanusSpec("NONE", "OBSTACLE")]
+    spm, p, dt = _run([[8.0, 8.0, 8.0], [24.0, 24.0, 24.0]], np.repeat(q, 2, axis=0), spec,
+                      species=[0, 1])
+    from kapsel.particles.motion import Pinned
+    p.constraints = spm.motion = Pinned(p.janus.obstacles, p.janus.obstacles)
+    spm.run(10)
+    assert p.omega[0, 2] > 0 and abs(p.omega[0, 0]) < 1e-3 * p.omega[0, 2]
+    assert np.all(p.omega[1] == 0) and np.all(p.v[1] == 0)
+    assert np.all(p.R[1] == 24.0)
+
+
+@pytest.mark.slow
+def test_tumbler_spins_at_the_rotational_drag_rate():
+    """Constant janus torque: Omega = T (1 - c - 1.95708 c^(10/3)) / (8 pi eta a^3)
+    (periodic correction of the rotlet lattice, as tests/test_spm_validation.py) within 5%
+    (L = 32, dt = 0.5/pi^2; about 15 s)."""
+    L = 32
+    q = from_axis_angle(np.array([[0.0, 1.0, 0.0]]), np.array([-np.pi / 2]))  # body x -> z
+    spm, p, dt = _run([[16.3, 16.2, 15.7]], q,
+                      [JanusSpec("Y", "TUMBLER", torque=(1.0, 0.0, 0.0))], L=L, dt=DT_FINE)
+    c = 4 / 3 * np.pi * A ** 3 / L ** 3
+    W = (1 - c - 1.95708 * c ** (10 / 3)) / (8 * np.pi * A ** 3)
+    n_tau, prev = int(round(A ** 2 / dt)), None
+    while spm.step_index * dt < 40 * A ** 2:
+        spm.run(n_tau)
+        w = p.omega[0, 2]
+        if prev is not None and abs(w - prev) < 5e-4 * abs(w):
+            break
+        prev = w
+    print(f"\ntumbler: Omega / Omega_theory = {p.omega[0, 2] / W:.4f}")
+    assert abs(p.omega[0, 2] / W - 1) < 0.05
+    assert np.abs(p.omega[0, :2]).max() < 5e-3 * W
+
+
+def _neutral_speed(L):
+    """U_z / B1 of one neutral squirmer (axis z) at t = 100, dt = 0.5/pi^2, FIX_CELL on."""
+    spm, p, dt = _run([[L / 2 + 0.3, L / 2 + 0.2, L / 2 - 0.2]], [[1.0, 0, 0, 0]],
+                      [JanusSpec("Z", "SQUIRMER", slip_vel=B1)], L=L, dt=DT_FINE)
+    spm.run(int(100 / dt))
+    return p.v[0, 2] / B1
+
+
+@pytest.mark.slow
+def test_neutral_squirmer_swims_at_two_thirds_B1():
+    """U = (2/3) B1 (1 - c) within 5% (module docstring: the finite-box correction), L = 32,
+    dt = 0.5/pi^2, t = 100 (about 1-2 min on a loaded core)."""
+    L = 32
+    c = 4 / 3 * np.pi * A ** 3 / L ** 3
+    ratio = _neutral_speed(L) / (2 / 3 * (1 - c))
+    print(f"\nneutral squirmer: U / (2/3 B1 (1 - c)) = {ratio:.4f}")
+    assert abs(ratio - 1) < 0.05
+
+
+@pytest.mark.slow
+def test_neutral_squirmer_box_size_extrapolation():
+    """U(L) = U_inf + k / L^3 from L = 32 and 64: U_inf within 5% of 2/3 B1 (about 12 min)."""
+    u32, u64 = _neutral_speed(32), _neutral_speed(64)
+    u_inf = u64 + (u64 - u32) / 7.0
+    print(f"\nU/B1: L=32 {u32:.5f}, L=64 {u64:.5f}, extrapolated {u_inf:.5f} "
+          f"= {1.5 * u_inf:.4f} (2/3)")
+    assert abs(1.5 * u_inf - 1) < 0.05
+
+
+# ---------------------------------------------------------------------- configuration / runs
+def _sample(tmp_path, old, new):
+    for f in ("define.udf", "kapsel_unit.udf"):
+        shutil.copy(os.path.join(SAMPLES, f), tmp_path / f)
+    text = open(os.path.join(SAMPLES, "input.udf")).read()
+    for o, n in zip(old, new):
+        assert o in text, o
+        text = text.replace(o, n, 1)
+    p = tmp_path / "input.udf"
+    p.write_text(text)
+    return str(p)
+
+
+SPECS = ('[{8,1.00000000000000,0.0,"NONE","OFF",{0.0,0.0,0.0}{0.0,0.0,0.0}0.0,0.0}]',
+         '[{2,1.0,0.0,"Y","SQUIRMER",{0.0,0.0,0.0}{0.0,0.0,0.0}0.02,-1.0}'
+         '{1,1.0,0.0,"X","TUMBLER",{0.01,0.0,0.0}{0.0,0.5,0.0}0.0,0.0}'
+         '{1,1.0,0.0,"NONE","OBSTACLE",{0.0,0.0,0.0}{0.0,0.0,0.0}0.0,0.0}]')
+
+
+def _janus_input(d, eq="Navier_Stokes", nsnap=2, rotation="ON"):
+    from udf import UDFManager
+    os.makedirs(d, exist_ok=True)
+    path = _sample(d, [SPECS[0]], [SPECS[1]])
+    u = UDFManager(path)
+    u.put(eq, "constitutive_eq.type")
+    for k in ("NPX", "NPY", "NPZ"):
+        u.put(5, f"mesh.{k}")
+    u.put(0.5, "constitutive_eq.Navier_Stokes.kBT")
+    u.put("random", "switch.INIT_orientation")
+    u.put(rotation, "switch.ROTATION")
+    u.put(1e-3, "switch.SLIP_tol")
+    u.put(3, "switch.SLIP_iter")
+    u.put(2, "output.GTS")
+    u.put(nsnap, "output.Num_snap")
+    u.write(path)
+    return path
+
+
+def _cli(d, inp):
+    from kapsel.cli import main
+    cwd = os.getcwd()
+    os.chdir(d)
+    try:
+        return main([f"-I{inp}", "-Ooutput.udf", "-Ddefine.udf", "-Rrestart.udf", "--seed",
+                     "5", "--quiet"])
+    finally:
+        os.chdir(cwd)
+
+
+def test_config_reads_janus_items_and_refuses_what_the_original_refuses(tmp_path):
+    from kapsel import config
+    cfg = config.load(_janus_input(tmp_path / "a"))
+    s = [sp.janus for sp in cfg.particles.species]
+    assert [j.propulsion for j in s] == ["SQUIRMER", "TUMBLER", "OBSTACLE"]
+    assert s[0].axis == "Y" and s[0].slip_vel == 0.02 and s[0].slip_mode == -1.0
+    assert s[1].force == (0.01, 0.0, 0.0) and s[1].torque == (0.0, 0.5, 0.0)
+    assert cfg.switches.SLIP_tol == 1e-3 and cfg.switches.SLIP_iter == 3
+    with pytest.raises(config.ConfigError, match="Navier_Stokes or Shear_Navier_Stokes"):
+        config.load(_janus_input(tmp_path / "b", eq="Navier_Stokes_FDM"))
+    with pytest.raises(config.ConfigError, match="ROTATION"):
+        config.load(_janus_input(tmp_path / "c", rotation="OFF"))
+    from udf import UDFManager
+    for k, (item, value, words) in enumerate([("janus_slip_vel", 0.0, "B1"),
+                                              ("janus_axis", "NONE", "swimming axis")]):
+        path = _janus_input(tmp_path / f"d{k}")
+        u = UDFManager(path)
+        u.put(value, f"object_type.spherical_particle.Particle_spec[0].{item}")
+        u.write(path)
+        with pytest.raises(config.ConfigError, match=words):
+            config.load(path)
+
+
+def test_obstacles_run_with_the_fdm_types(tmp_path):
+    """OBSTACLE has no type restriction in the original: held at rest in an FDM run."""
+    from udf import UDFManager
+    d = tmp_path / "o"
+    os.makedirs(d)
+    path = _sample(d, [SPECS[0]], ['[{2,1.0,0.0,"NONE","OBSTACLE",{0.0,0.0,0.0}{0.0,0.0,0.0}'
+                                   '0.0,0.0}{2,1.0,0.0,"NONE","OFF",{0.0,0.0,0.0}{0.0,0.0,0.0}'
+                                   '0.0,0.0}]'])
+    u = UDFManager(path)
+    u.put(2, "output.GTS")
+    u.put(1, "output.Num_snap")
+    u.put(0.5, "constitutive_eq.Navier_Stokes_Cahn_Hilliard_FDM.kBT")
+    u.write(path)
+    assert _cli(d, "input.udf") == 0
+    out = UDFManager(str(d / "output.udf"))
+    out.jump(0)
+    r0 = np.asarray(out.getArray("Particles[].R"))
+    out.jump(out.totalRecord() - 1)
+    r1 = np.asarray(out.getArray("Particles[].R"))
+    v1 = np.asarray(out.getArray("Particles[].v"))
+    assert np.array_equal(r0[:2], r1[:2]) and np.all(v1[:2] == 0)
+    assert not np.array_equal(r0[2:], r1[2:])
+
+
+def test_janus_run_records_slip_and_continues_bit_identically(tmp_path):
+    """Squirmers, a tumbler and an obstacle with thermal noise (32^3): output.udf records
+    carry f_slip / torque_slip; 2 + 2 snapshots through restart.udf (quaternions, slip
+    forces) equal 4 in one run, bit for bit."""
+    from kapsel.io.restart import state_path
+    from udf import UDFManager
+    one = _janus_input(tmp_path / "one", nsnap=4)
+    assert _cli(tmp_path / "one", one) == 0
+    two = _janus_input(tmp_path / "two", nsnap=2)
+    assert _cli(tmp_path / "two", two) == 0
+    rs = UDFManager(str(tmp_path / "two" / "restart.udf"))
+    rs.put(4, "output.Num_snap")
+    rs.write(str(tmp_path / "two" / "cont.udf"))
+    shutil.copy(state_path(str(tmp_path / "two" / "restart.udf")),
+                state_path(str(tmp_path / "two" / "cont.udf")))
+    assert _cli(tmp_path / "two", "cont.udf") == 0
+    oa, ob = UDFManager(str(tmp_path / "one" / "output.udf")), \
+        UDFManager(str(tmp_path / "two" / "output.udf"))
+    assert oa.totalRecord() == ob.totalRecord() == 5
+    for n in range(5):
+        oa.jump(n)
+        ob.jump(n)
+        for item in ("R", "q", "v", "omega", "f_slip", "torque_slip"):
+            a = np.asarray(oa.getArray(f"Particles[].{item}"))
+            assert np.array_equal(a, np.asarray(ob.getArray(f"Particles[].{item}"))), (n, item)
+    f_slip = np.asarray(oa.getArray("Particles[].f_slip"))
+    assert np.all(np.linalg.norm(f_slip[:2], axis=1) > 0)
+    v = np.asarray(oa.getArray("Particles[].v"))
+    assert np.all(v[3] == 0)                                   # the obstacle
+
+
+def _reads_v302_inputs():
+    """The reader of old (v3.02) inputs: backslash-continued define strings and optional
+    switch sections (helper i11's udf / config work)."""
+    import udf.values
+    return hasattr(udf.values, "string_value")
+
+
+@pytest.mark.skipif(not _reads_v302_inputs(), reason="needs the v3.02 input reader (i11)")
+def test_ex09_squirmer_input_runs(tmp_path):
+    """The real input ex09/squirm_single_a+2.udf (64^3, one puller, B1 = 0.015, alpha = 2),
+    GTS 2 x Num_snap 1 instead of 1000 x 500: it swims along +z (q = 1, janus_axis Z)."""
+    from udf import UDFManager
+    src = os.path.join(SAMPLES, "kapsel-udf", "ex09")
+    for f in os.listdir(src):
+        shutil.copy(os.path.join(src, f), tmp_path / f)
+    text = (tmp_path / "squirm_single_a+2.udf").read_text()
+    for old, new in (("  1000,                                 //GTS", "  2, //GTS"),
+                     ("  500,                                  //Num_snap", "  1, //Num_snap")):
+        assert old in text, old
+        text = text.replace(old, new, 1)
+    (tmp_path / "squirm_single_a+2.udf").write_text(text)
+    from kapsel.cli import main
+    cwd = os.getcwd()
+    os.chdir(tmp_path)
+    try:
+        rc = main(["-Isquirm_single_a+2.udf", "-Ooutput.udf", "-Ddefine.udf", "-Rrestart.udf",
+                   "--seed", "1", "--quiet"])
+    finally:
+        os.chdir(cwd)
+    assert rc == 0
+    out = UDFManager(str(tmp_path / "output.udf"))
+    out.jump(out.totalRecord() - 1)
+    v = np.asarray(out.getArray("Particles[].v"))[0]
+    f = np.asarray(out.getArray("Particles[].f_slip"))[0]
+    assert v[2] > 0 and f[2] > 0 and abs(v[0]) < 1e-3 * v[2]
+
+
+def test_squirmers_run_under_zigzag_shear(tmp_path):
+    """Shear_Navier_Stokes is the other type the original allows squirmers in."""
+    from udf import UDFManager
+    d = tmp_path / "s"
+    assert _cli(d, _janus_input(d, eq="Shear_Navier_Stokes", nsnap=1)) == 0
+    out = UDFManager(str(d / "output.udf"))
+    out.jump(out.totalRecord() - 1)
+    f = np.asarray(out.getArray("Particles[].f_slip"))
+    assert np.all(np.isfinite(f)) and np.all(np.linalg.norm(f[:2], axis=1) > 0)
+
+
+def test_extended_trajectory_keeps_obstacles_apart(tmp_path):
+    """output.AVS EXTENDED with an OBSTACLE: nump / nump_obs / nump_total, the obstacle
+    groups (FORMAT-OUTPUT.md §3.4), the .conf block and the obstacle XDMF file."""
+    import h5py
+    from udf import UDFManager
+    d = tmp_path / "x"
+    inp = _janus_input(d, nsnap=1)
+    u = UDFManager(inp)
+    u.put("ON", "output.AVS")
+    u.put("out", "output.ON.Out_dir")
+    u.put("traj", "output.ON.Out_name")
+    u.put("EXTENDED", "output.ON.FileType")
+    pf = "output.ON.EXTENDED.Print_field"
+    u.put("NO", f"{pf}.Crop")
+    for flag in ("Vel", "Phi", "Tau", "Pressure", "Charge"):
+        u.put("NO", f"{pf}.{flag}")
+    u.write(inp)
+    assert _cli(d, inp) == 0
+    with h5py.File(d / "out" / "traj.h5", "r") as f:
+        assert [int(f.attrs[k][0]) for k in ("nump", "nump_obs", "nump_total")] == [3, 1, 4]
+        assert list(f["system_data/particle/id"][...]) == [0, 1, 2]
+        assert list(f["system_data/obstacle/id"][...]) == [3]
+        assert list(f["system_data/obstacle/spec"][...]) == [2]
+        assert f["system_data/obstacle/pos"].shape == (1, 3)
+        fr = f["trajectory_data/frame_1"]
+        assert fr["particle/pos"].shape == (3, 3)
+        assert sorted(fr["obstacle"]) == ["force_h", "force_r"]
+        assert fr["obstacle/force_h"].shape == (1, 3)
+    conf = (d / "out" / "traj.conf").read_text()
+    assert "[Obstacle Number]\n 1\n" in conf and "[Obstacle Grid Const]\n pos\n" in conf
+    xdmf = (d / "out" / "traj_obstacle.xdmf").read_text()
+    assert "KAPSEL Obstacle Trajectory" in xdmf and "/system_data/obstacle/pos" in xdmf
+
+
+def test_obstacle_stays_put_under_lees_edwards_shear(tmp_path):
+    """The particles placed by the program start with the imposed flow at their centre; an
+    OBSTACLE (like a pinned sphere) does not, and never moves."""
+    from udf import UDFManager
+    path = _sample(tmp_path, [SPECS[0]],
+                   ['[{1,1.0,0.0,"NONE","OBSTACLE",{0.0,0.0,0.0}{0.0,0.0,0.0}0.0,0.0}'
+                    '{2,1.0,0.0,"NONE","OFF",{0.0,0.0,0.0}{0.0,0.0,0.0}0.0,0.0}]'])
+    u = UDFManager(path)
+    u.put("Shear_Navier_Stokes_Lees_Edwards", "constitutive_eq.type")
+    u.put(2, "output.GTS")
+    u.put(2, "output.Num_snap")
+    for k in ("NPX", "NPY", "NPZ"):
+        u.put(4, f"mesh.{k}")
+    u.write(path)
+    assert _cli(tmp_path, "input.udf") == 0
+    o = UDFManager(str(tmp_path / "output.udf"))
+    o.jump(0)
+    r0 = np.asarray(o.getArray("Particles[].R"))
+    o.jump(o.totalRecord() - 1)
+    r1 = np.asarray(o.getArray("Particles[].R"))
+    assert np.array_equal(r0[0], r1[0]) and np.all(np.asarray(o.getArray("Particles[].v"))[0] == 0)
+    assert not np.array_equal(r0[1:], r1[1:])
