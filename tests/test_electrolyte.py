@@ -1,0 +1,203 @@
+"""The Electrolyte type (PHYSICS-EXTRA §6): input, time step, conservation of ions and
+charge, the Debye-Hueckel double layer, restart, the Coulomb force on a particle."""
+import os
+import shutil
+import time
+
+import numpy as np
+import pytest
+
+from kapsel import config
+from kapsel.cli import main
+from kapsel.fluid.ions import Ions, bulk_densities, profile_slope
+from kapsel.grid import Grid
+from kapsel.io.restart import state_path
+from kapsel.particles.profile import Stencil, g as profile, particle_profiles
+from kapsel.timestep import auto_dt, electrolyte_dt
+from udf import UDFManager
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+EX01 = os.path.join(HERE, "..", "samples", "kapsel-udf", "ex01")
+EL = "constitutive_eq.Electrolyte"
+
+
+def make_input(d, npx=4, particles=None, salt=True, field="DC", init="Uniform", gts=2,
+               nsnap=2, charge=-20.0, debye=3.0, A=3.0):
+    """ex01/colloid_1.udf shrunk to 2^npx cells per side; ``particles``: user positions."""
+    os.makedirs(d, exist_ok=True)
+    shutil.copy(os.path.join(EX01, "define.udf"), os.path.join(d, "define.udf"))
+    u = UDFManager(os.path.join(EX01, "colloid_1.udf"))
+    for k in ("NPX", "NPY", "NPZ"):
+        u.put(npx, f"mesh.{k}")
+    n = 2 ** npx
+    if particles is None:
+        particles = [[n / 4, n / 4, n / 4], [3 * n / 4 - 0.3, 3 * n / 4, n / 2 + 0.2]]
+    u.put(len(particles), "object_type.spherical_particle.Particle_spec[0].Particle_number")
+    u.put(charge, "object_type.spherical_particle.Particle_spec[0].Surface_charge")
+    rows = np.array([list(map(float, p)) + [0.0] * 3 + [1.0, 0.0, 0.0, 0.0] + [0.0] * 3
+                     for p in particles])
+    u.put(rows, "switch.INIT_distribution.user_specify.Particles[]")
+    u.put(A, "A")
+    u.put(init, f"{EL}.INIT_profile")
+    u.put("salt" if salt else "saltfree", f"{EL}.Add_salt.type")
+    u.put(debye, f"{EL}.Add_salt.salt.Debye_length")
+    u.put("OFF" if field == "OFF" else "ON", f"{EL}.Electric_field.type")
+    if field != "OFF":
+        u.put(field, f"{EL}.Electric_field.ON.type")
+    u.put(gts, "output.GTS")
+    u.put(nsnap, "output.Num_snap")
+    u.put("OFF", "output.AVS")
+    u.put("ON", "output.UDF")
+    path = os.path.join(d, "input.udf")
+    u.write(path)
+    return path
+
+
+def cli(d, inp, *extra):
+    cwd = os.getcwd()
+    os.chdir(d)
+    try:
+        return main([f"-I{inp}", "-Ooutput.udf", "-Ddefine.udf", "-Rrestart.udf", "--seed",
+                     "3", "--quiet", *extra])
+    finally:
+        os.chdir(cwd)
+
+
+def model_of(path, **kw):
+    from kapsel.models.electrolyte import ElectrolyteModel
+
+    class Args:
+        quiet, threads, seed = True, 1, 1
+    cfg = config.load(path)
+    return ElectrolyteModel(cfg, Args())
+
+
+# ---------------------------------------------------------------------------- input
+def test_ex01_is_read():
+    cfg = config.load(os.path.join(EX01, "colloid_1.udf"))
+    el = cfg.electrolyte
+    assert el.salt and el.valency == (1.0, -1.0) and el.onsager == (1.0, 1.0)
+    assert el.debye_length == 10.0 and el.dielectric == 1.0
+    assert el.init_profile == "Poisson_Boltzmann"
+    assert el.field_kind == "DC" and el.E == (0.1, 0.0, 0.0)
+    assert cfg.particles.species[0].surface_charge == -100.0
+
+
+def test_zero_charge_and_wrong_sign_counterions_are_refused(tmp_path):
+    p = make_input(tmp_path / "a", charge=0.0)
+    with pytest.raises(config.ConfigError, match="Surface_charge"):
+        config.load(p)
+    p = make_input(tmp_path / "b", charge=5.0, salt=False)   # counterion valency +1
+    with pytest.raises(config.ConfigError, match="sign of the counterions"):
+        config.load(p)
+
+
+def test_time_step_limit():
+    """§6.5: min(1/(nu K2), 1/(kBT L K2)), AC <= 0.01/f, times the factor."""
+    shape = (32, 32, 32)
+    ns = auto_dt(1.0, 1.0, 1.0, 1.0, shape)
+    assert electrolyte_dt(1.0, 1.0, 1.0, 1.0, 1.0, 1.0, shape) == ns
+    assert electrolyte_dt(0.5, 1.0, 1.0, 1.0, 4.0, 1.0, shape) == pytest.approx(ns / 8)
+    assert electrolyte_dt(1.0, 1.0, 1.0, 1.0, 1.0, 1.0, shape, frequency=1.0) == 0.01
+    assert electrolyte_dt(1.0, 1.0, 1.0, 0.0, 1.0, 1.0, shape) == ns
+
+
+def test_profile_slope_is_the_derivative_of_the_profile():
+    r = np.linspace(0.5, 6.0, 400)
+    eps = 1e-6
+    num = (profile(r + eps, 3.0, 2.0) - profile(r - eps, 3.0, 2.0)) / (2 * eps)
+    assert np.allclose(profile_slope(r, 3.0, 2.0), num, atol=1e-7)
+
+
+def test_bulk_densities_give_the_debye_length():
+    n = bulk_densities((2.0, -1.0), 4.0, 2.0, 0.5)
+    assert 2 * n[0] - n[1] == pytest.approx(0.0, abs=1e-15)       # neutral
+    assert (4 * n[0] + n[1]) / (2.0 * 0.5) == pytest.approx(1 / 16)
+
+
+# ---------------------------------------------------------------------------- conservation
+@pytest.mark.parametrize("salt,field", [(True, "DC"), (False, "AC")])
+def test_ion_numbers_and_neutrality_are_conserved(tmp_path, salt, field):
+    """40 steps of two charged particles moving in a field: each species' number in the
+    fluid and the total charge stay at their initial values to 1e-10."""
+    m = model_of(make_input(tmp_path, salt=salt, field=field, charge=-30.0))
+    if field == "AC":
+        m.el = m.el.__class__(**{**m.el.__dict__, "frequency": 0.05})
+    n0 = m.ion_numbers()
+    Z = -30.0 * 2
+    assert abs(m.total_charge()) < 1e-10 * abs(Z)
+    for _ in range(40):
+        m.advance()
+    assert np.abs(m.particles.v).max() > 1e-5             # the field moves the particles
+    assert np.allclose(m.ion_numbers(), n0, rtol=1e-10, atol=0)
+    assert abs(m.total_charge()) < 1e-10 * abs(Z)
+    assert np.all(m.ions.c > 0)
+
+
+# ---------------------------------------------------------------------------- double layer
+def debye_hueckel(r, Z, a, kappa, eps):
+    return Z / (4 * np.pi * eps * (1 + kappa * a)) * np.exp(-kappa * (r - a)) / r
+
+
+def test_double_layer_matches_debye_hueckel():
+    """Poisson-Boltzmann equilibrium of a weakly charged sphere (e Psi / kBT < 0.05) in a
+    1:1 salt, lambda_D = 3, A = 4, xi = 2 on 32^3: Psi(r) within 5 % of the linearised
+    (Debye-Hueckel) potential for a + xi/2 <= r <= a + xi/2 + 2 lambda_D.  The periodic
+    potential has zero mean (Psi_k=0 = 0), so both are measured from their value at the
+    point farthest from the particle (the corner of the box)."""
+    N, A, xi, lam, Z, eps = 32, 4.0, 2.0, 3.0, -1.0, 1.0
+    grid = Grid((N, N, N))
+    R = np.array([[N / 2 + 0.3, N / 2, N / 2]])
+    idx, phi, r = particle_profiles(R, Stencil(A, xi, 1.0), grid.shape, 1.0)
+    ions = Ions(grid, (1.0, -1.0), (1.0, 1.0), eps, 1.0, 0.05)
+    ions.set_particles(idx, phi, r, [Z], A, xi)
+    vfree = float(np.sum(1 - ions.phi))
+    n = bulk_densities((1.0, -1.0), lam, eps, 1.0)
+    ions.init_poisson_boltzmann([n[0] * vfree - Z, n[1] * vfree])
+    ions.potential()
+    psi = ions.potential_real()
+    x, y, z = grid.coordinates()
+    d = np.sqrt((x - R[0, 0]) ** 2 + (y - R[0, 1]) ** 2 + (z - R[0, 2]) ** 2)
+    sel = (d >= A + xi / 2) & (d <= A + xi / 2 + 2 * lam)
+    far = np.unravel_index(np.argmax(d), d.shape)
+    ref = debye_hueckel(d[sel], Z, A, 1 / lam, eps) - debye_hueckel(d[far], Z, A, 1 / lam, eps)
+    assert np.abs(psi).max() < 0.05
+    err = np.abs(psi[sel] - psi[far] - ref) / np.abs(ref)
+    assert err.max() < 0.05, err.max()
+
+
+# ---------------------------------------------------------------------------- restart
+def test_continuation_is_bit_identical(tmp_path):
+    one = make_input(tmp_path / "one", nsnap=4, init="Poisson_Boltzmann")
+    assert cli(tmp_path / "one", one) == 0
+    two = make_input(tmp_path / "two", nsnap=2, init="Poisson_Boltzmann")
+    assert cli(tmp_path / "two", two) == 0
+    rs = UDFManager(str(tmp_path / "two" / "restart.udf"))
+    rs.put(4, "output.Num_snap")
+    rs.write(str(tmp_path / "two" / "cont.udf"))
+    shutil.copy(state_path(str(tmp_path / "two" / "restart.udf")),
+                state_path(str(tmp_path / "two" / "cont.udf")))
+    assert cli(tmp_path / "two", "cont.udf") == 0
+    za = np.load(state_path(str(tmp_path / "one" / "restart.udf")))
+    zb = np.load(state_path(str(tmp_path / "two" / "restart.udf")))
+    for k in ("ion_c", "u_hat", "R_raw"):
+        assert np.array_equal(za[k], zb[k]), k
+    a = UDFManager(str(tmp_path / "one" / "restart.udf"))
+    b = UDFManager(str(tmp_path / "two" / "restart.udf"))
+    base = "resume.CONTINUE.Saved_Data"
+    ca = np.asarray(a.getArray(f"{base}.Concentration[]"), dtype=float)
+    assert ca.shape[:4] == (2, 16, 16, 18)
+    assert np.array_equal(ca, np.asarray(b.getArray(f"{base}.Concentration[]"), dtype=float))
+
+
+def test_continuation_from_concentration_alone(tmp_path):
+    """Without the state file the ion densities come back from Concentration (Fourier)."""
+    p = make_input(tmp_path, nsnap=1)
+    assert cli(tmp_path, p) == 0
+    m0 = np.load(state_path(str(tmp_path / "restart.udf")))["ion_c"]
+    os.remove(state_path(str(tmp_path / "restart.udf")))
+    from kapsel.io.restart import read_restart
+    m = model_of(str(tmp_path / "restart.udf"))
+    doc = UDFManager(str(tmp_path / "restart.udf"))
+    m.load_restart(read_restart(doc, str(tmp_path / "restart.udf"), "CONTINUE"))
+    assert np.allclose(m.ions.c, m0, rtol=1e-12, atol=1e-14)
