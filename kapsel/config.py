@@ -522,7 +522,7 @@ def from_document(doc: udf.UDFManager, input_path: str = "") -> RunConfig:
             r.report("output.Num_snap", nsnap,
                      "must be at least 1 (the run is GTS x Num_snap steps)")
         avs = r.get("output.AVS") == "ON"
-        fields = _field_output(r, mesh) if avs and mesh is not None else None
+        fields = _field_output(r, mesh, eq_type) if avs and mesh is not None else None
         output = Output(gts, nsnap, r.get("output.UDF") == "ON", avs, fields)
     resume = None
     with r.block():
@@ -766,10 +766,11 @@ def _switches(r: _Reader, obj: str, species: list, mesh, particles) -> Switches:
                     pin=pin, pin_rot=pin_rot, free_rigid=free_rigid, OBL_INT=obl)
 
 
-def _field_output(r: _Reader, mesh: Mesh) -> FieldOutput:
+def _field_output(r: _Reader, mesh: Mesh, eq_type: str = "") -> FieldOutput:
     """output.ON (FORMAT-OUTPUT.md §2.1, §3.1): the crop is checked as the original does
     (0 <= start < N, 0 < stride < N, 0 < count <= N, start + (count-1) stride < N).
-    Charge is forced off (the original does so for every type but Electrolyte)."""
+    Charge is forced off for every type but Electrolyte, which forces Pressure and Tau off
+    (as the original, FORMAT-OUTPUT.md §3.1)."""
     on = "output.ON"
     out_dir, name, kind = r.get(f"{on}.Out_dir"), r.get(f"{on}.Out_name"), r.get(f"{on}.FileType")
     if not name or "/" in name:
@@ -799,8 +800,9 @@ def _field_output(r: _Reader, mesh: Mesh) -> FieldOutput:
                        f"start + (count-1) stride < {n} (N{ax.upper()} = {n})")
             slabs.append((start, count, stride))
         slabs = tuple(slabs)
-    return FieldOutput(out_dir, name, kind, slabs, yes["Vel"], yes["Phi"], False,
-                       yes["Pressure"], yes["Tau"])
+    el = eq_type == "Electrolyte"
+    return FieldOutput(out_dir, name, kind, slabs, yes["Vel"], yes["Phi"], el and yes["Charge"],
+                       yes["Pressure"] and not el, yes["Tau"] and not el)
 
 
 # ---------------------------------------------------------------------------------------

@@ -201,3 +201,58 @@ def test_continuation_from_concentration_alone(tmp_path):
     doc = UDFManager(str(tmp_path / "restart.udf"))
     m.load_restart(read_restart(doc, str(tmp_path / "restart.udf"), "CONTINUE"))
     assert np.allclose(m.ions.c, m0, rtol=1e-12, atol=1e-14)
+
+
+# ---------------------------------------------------------------------------- output
+SAMPLES = os.path.join(HERE, "..", "samples")
+
+
+def sample_el_input(d):
+    """The manual's sample as a salt-free Electrolyte run, 16^3, two particles of Z = -10,
+    EXTENDED output with every print switch on."""
+    os.makedirs(d, exist_ok=True)
+    for f in ("define.udf", "kapsel_unit.udf"):
+        shutil.copy(os.path.join(SAMPLES, f), os.path.join(d, f))
+    u = UDFManager(os.path.join(SAMPLES, "input.udf"))
+    u.put("Electrolyte", "constitutive_eq.type")
+    for k, v in (("DX", 1.0), ("RHO", 1.0), ("ETA", 1.0), ("kBT", 1.0), ("alpha_v", 1.0),
+                 ("alpha_o", 1.0), ("Dielectric_cst", 1.0), ("INIT_profile", "Poisson_Boltzmann"),
+                 ("Add_salt.type", "saltfree"), ("Add_salt.saltfree.Valency_counterion", 1.0),
+                 ("Add_salt.saltfree.Onsager_coeff_counterion", 1.0),
+                 ("Electric_field.type", "OFF")):
+        u.put(v, f"{EL}.{k}")
+    for k in ("NPX", "NPY", "NPZ"):
+        u.put(4, f"mesh.{k}")
+    u.put(2, "object_type.spherical_particle.Particle_spec[0].Particle_number")
+    u.put(-10.0, "object_type.spherical_particle.Particle_spec[0].Surface_charge")
+    u.put(3.0, "A")
+    u.put(2, "output.GTS")
+    u.put(2, "output.Num_snap")
+    u.put("ON", "output.AVS")
+    u.put("EXTENDED", "output.ON.FileType")
+    for k in ("Vel", "Phi", "Charge", "Pressure", "Tau"):
+        u.put("YES", f"output.ON.EXTENDED.Print_field.{k}")
+    u.put("NO", "output.ON.EXTENDED.Print_field.Crop")
+    path = os.path.join(d, "input.udf")
+    u.write(path)
+    return path
+
+
+def test_extended_output_holds_the_charge_fields(tmp_path):
+    """Charge YES: surface_charge, solute_charge, e_potential in every frame; Pressure and
+    Tau forced off (FORMAT-OUTPUT.md §3.1).  surface_charge is the charge density itself:
+    DX^3 sum = sum Z (the original writes it times 4 pi a^2), and the frame is neutral."""
+    import h5py
+    p = sample_el_input(tmp_path)
+    assert cli(tmp_path, p) == 0
+    with h5py.File(tmp_path / "output" / "data.h5") as f:
+        fr = f["trajectory_data/frame_2/field"]
+        assert sorted(fr) == sorted(["u_x", "u_y", "u_z", "phi", "surface_charge",
+                                     "solute_charge", "e_potential"])
+        surf = fr["surface_charge"][...].astype(float)
+        ionic = fr["solute_charge"][...].astype(float)
+        assert surf.sum() == pytest.approx(-20.0, rel=1e-5)
+        assert abs((surf + ionic).sum()) < 1e-4
+        assert abs(fr["e_potential"][...].astype(float).mean()) < 1e-5
+    conf = (tmp_path / "output" / "data.conf").read_text()
+    assert " surface_charge" in conf and " e_potential" in conf and "tau_xx" not in conf
