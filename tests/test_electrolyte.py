@@ -256,3 +256,18 @@ def test_extended_output_holds_the_charge_fields(tmp_path):
         assert abs(fr["e_potential"][...].astype(float).mean()) < 1e-5
     conf = (tmp_path / "output" / "data.conf").read_text()
     assert " surface_charge" in conf and " e_potential" in conf and "tau_xx" not in conf
+
+
+def test_legacy_avs_of_electrolyte_holds_the_charge_fields(tmp_path):
+    """FORMAT-OUTPUT.md §2.4: EL writes u_x u_y u_z phi surface_charge rho e_potential."""
+    p = sample_el_input(tmp_path)
+    u = UDFManager(p)
+    u.put("BINARY", "output.ON.FileType")
+    u.write(p)
+    assert cli(tmp_path, p) == 0
+    fld = (tmp_path / "output" / "data.fld").read_text()
+    assert "veclen=7" in fld and "label = ux uy uz phi surface_charge rho e_potential" in fld
+    raw = np.fromfile(tmp_path / "output" / "avs" / "data_4.dat", dtype=np.float32)
+    assert raw.size == 7 * 16 ** 3
+    surf = raw[4 * 16 ** 3:5 * 16 ** 3].astype(float)
+    assert surf.sum() == pytest.approx(-20.0, rel=1e-5)

@@ -191,7 +191,7 @@ def field_writer(cfg, args, snap, announce: bool = True):
     else:
         from .avs import LegacyAVS
         w = LegacyAVS(directory, spec, cfg.mesh.shape, cfg.mesh.DX, cfg.output.Num_snap,
-                      snap.n_particles, snap.particles)
+                      snap.n_particles, snap.particles, charge=cfg.type == "Electrolyte")
     if announce and not getattr(args, "quiet", False):
         print(w.console(), end="", file=sys.stderr)
     return w
