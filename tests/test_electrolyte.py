@@ -271,3 +271,22 @@ def test_legacy_avs_of_electrolyte_holds_the_charge_fields(tmp_path):
     assert raw.size == 7 * 16 ** 3
     surf = raw[4 * 16 ** 3:5 * 16 ** 3].astype(float)
     assert surf.sum() == pytest.approx(-20.0, rel=1e-5)
+
+
+def test_free_energy_table_on_stderr(tmp_path, capsys, monkeypatch):
+    """FORMAT-OUTPUT.md §1.5: a header and a row per snapshot; with salt two ion columns;
+    the ions' charge (col 5) neutralises the particles and their numbers do not change."""
+    p = make_input(tmp_path, nsnap=2)
+    monkeypatch.chdir(tmp_path)
+    assert main([f"-I{p}", "-Ooutput.udf", "-Ddefine.udf", "-Rrestart.udf", "--seed", "1"]) == 0
+    err = capsys.readouterr().err.splitlines()
+    heads = [i for i, ln in enumerate(err) if ln.startswith("#1:time 2:total")]
+    assert len(heads) == 3
+    assert err[heads[0]].endswith("6:total_positive_ion 7:total_negative_ion ")
+    rows = [err[i + 1].split() for i in heads]
+    assert [r[0] for r in rows] == ["0", "2", "4"]
+    for r in rows:
+        assert len(r) == 7
+        assert float(r[4]) == pytest.approx(40.0, rel=1e-10)      # two particles of Z = -20
+        assert float(r[5]) == pytest.approx(float(rows[0][5]), rel=1e-12)
+        assert float(r[6]) == pytest.approx(float(rows[0][6]), rel=1e-12)

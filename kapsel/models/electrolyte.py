@@ -166,6 +166,7 @@ class ElectrolyteModel(SpectralModel):
         src["solute_charge"] = ions.ionic_charge
         src["e_potential"] = potential
         src["concentration"] = lambda: ions.c.copy()
+        src["free_energy"] = self.free_energy
         return src
 
     # ------------------------------------------------------------------ restart
