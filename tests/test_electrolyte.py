@@ -290,3 +290,40 @@ def test_free_energy_table_on_stderr(tmp_path, capsys, monkeypatch):
         assert float(r[4]) == pytest.approx(40.0, rel=1e-10)      # two particles of Z = -20
         assert float(r[5]) == pytest.approx(float(rows[0][5]), rel=1e-12)
         assert float(r[6]) == pytest.approx(float(rows[0][6]), rel=1e-12)
+
+
+@pytest.mark.slow
+def test_nernst_planck_relaxes_to_the_poisson_boltzmann_double_layer():
+    """From the uniform start, ion diffusion and migration alone (fluid at rest, as the
+    original's Set_steadystate_ion_density) reach the Poisson-Boltzmann equilibrium at the
+    same ion numbers: Psi within 2 % (of its maximum) everywhere after t = 71 (1000 steps),
+    Z = -5, A = 4, lambda_D = 3, 32^3.  About 30 s on the shared machine (load 6)."""
+    N, A, xi, lam, Z, eps = 32, 4.0, 2.0, 3.0, -5.0, 1.0
+    grid = Grid((N, N, N))
+    R = np.array([[N / 2 + 0.3, N / 2, N / 2]])
+    idx, phi, r = particle_profiles(R, Stencil(A, xi, 1.0), grid.shape, 1.0)
+    dt = electrolyte_dt(1.0, 1.0, 1.0, 1.0, 1.0, 1.0, grid.shape)
+
+    def make():
+        ions = Ions(grid, (1.0, -1.0), (1.0, 1.0), eps, 1.0, dt)
+        ions.set_particles(idx, phi, r, [Z], A, xi)
+        return ions
+    ref = make()
+    vfree = float(np.sum(1 - ref.phi))
+    n = bulk_densities((1.0, -1.0), lam, eps, 1.0)
+    counts = [n[0] * vfree - Z, n[1] * vfree]
+    ref.init_poisson_boltzmann(counts)
+    ref.potential()
+    pb = ref.potential_real().copy()
+    ions = make()
+    ions.init_uniform(counts)
+    ions.potential()
+    start = np.abs(ions.potential_real() - pb).max() / np.abs(pb).max()
+    for _ in range(1000):
+        ions.potential()
+        ions.step(None)
+        ions.rescale()
+    ions.potential()
+    err = np.abs(ions.potential_real() - pb).max() / np.abs(pb).max()
+    assert start > 0.2 and err < 0.02, (start, err)
+    assert np.allclose(ions.fluid_counts(), counts, rtol=1e-10)
