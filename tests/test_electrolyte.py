@@ -118,7 +118,7 @@ def test_bulk_densities_give_the_debye_length():
 # ---------------------------------------------------------------------------- conservation
 @pytest.mark.parametrize("salt,field", [(True, "DC"), (False, "AC")])
 def test_ion_numbers_and_neutrality_are_conserved(tmp_path, salt, field):
-    """40 steps of two charged particles moving in a field: each species' number in the
+    """150 steps of two charged particles moving in a field: each species' number in the
     fluid and the total charge stay at their initial values to 1e-10."""
     m = model_of(make_input(tmp_path, salt=salt, field=field, charge=-30.0))
     if field == "AC":
@@ -126,7 +126,7 @@ def test_ion_numbers_and_neutrality_are_conserved(tmp_path, salt, field):
     n0 = m.ion_numbers()
     Z = -30.0 * 2
     assert abs(m.total_charge()) < 1e-10 * abs(Z)
-    for _ in range(40):
+    for _ in range(150):
         m.advance()
     assert np.abs(m.particles.v).max() > 1e-5             # the field moves the particles
     assert np.allclose(m.ion_numbers(), n0, rtol=1e-10, atol=0)
@@ -327,3 +327,17 @@ def test_nernst_planck_relaxes_to_the_poisson_boltzmann_double_layer():
     err = np.abs(ions.potential_real() - pb).max() / np.abs(pb).max()
     assert start > 0.2 and err < 0.02, (start, err)
     assert np.allclose(ions.fluid_counts(), counts, rtol=1e-10)
+
+
+def test_an_unstable_manual_time_step_is_named(tmp_path, capsys):
+    """A manual dt far past the ion limit: the run stops (exit 1) naming the ion densities
+    and the limit, not a traceback."""
+    p = make_input(tmp_path, nsnap=10, gts=10)
+    u = UDFManager(p)
+    u.put("manual", "time_increment.type")
+    u.put(2.0, "time_increment.manual.delta_t")
+    u.write(p)
+    assert cli(tmp_path, p) == 1
+    err = capsys.readouterr().err
+    assert "Traceback" not in err
+    assert "ion densities are not finite or negative" in err and "1 / (kBT L_max" in err, err

@@ -130,6 +130,19 @@ class ElectrolyteModel(SpectralModel):
         ions.rescale()
         self.tick()
 
+    def stability(self):
+        """The CFL check of every type, and finite ion densities (an explicit ion step past
+        its limit 1 / (kBT L_max K2max), e.g. with a manual dt, blows them up first)."""
+        from ..timestep import kmax2
+        lim = 1.0 / (self.cfg.fluid.kBT * max(self.el.onsager)
+                     * kmax2(self.cfg.mesh.DX, self.cfg.mesh.shape))
+        c = self.ions.c
+        if not np.isfinite(c).all() or (self.dt > 2 * lim and c.min() < 0):
+            return 2.0, (f"the ion densities are not finite or negative; the explicit "
+                         f"ion step is stable for dt <= 1 / (kBT L_max KMAX2) = {lim:.6g}, "
+                         f"dt is {self.dt:.6g}")
+        return super().stability()
+
     # ------------------------------------------------------------------ diagnostics
     def ion_numbers(self) -> np.ndarray:
         return self.ions.fluid_counts()
