@@ -477,6 +477,19 @@ def from_document(doc: udf.UDFManager, input_path: str = "") -> RunConfig:
     if electrolyte is not None and obj is not None:
         with r.block():
             _check_charges(r, electrolyte, species, obj)
+        # the original refuses walls and janus propulsion with Electrolyte (PHYSICS-EXTRA §6.1)
+        if r.optional("switch.wall.type", "NONE") != "NONE":
+            r.report("switch.wall.type", r.get("switch.wall.type"),
+                     "walls are not allowed with Electrolyte (as in the original)")
+        if obj == "spherical_particle":
+            sp = "object_type.spherical_particle.Particle_spec"
+            for i, s_ in enumerate(species):
+                prop = r.optional(f"{sp}[{i}].janus_propulsion", "OFF")
+                if prop != "OFF" and s_.particles:
+                    r.report(f"{sp}[{i}].janus_propulsion", prop, "self-propelled particles "
+                                                                  "are not allowed with "
+                                                                  "Electrolyte (as in the "
+                                                                  "original)")
 
     # ---- interactions ----------------------------------------------------------------
     inter = None

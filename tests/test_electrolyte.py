@@ -341,3 +341,4 @@ def test_an_unstable_manual_time_step_is_named(tmp_path, capsys):
     err = capsys.readouterr().err
     assert "Traceback" not in err
     assert "ion densities are not finite or negative" in err and "1 / (kBT L_max" in err, err
+
