@@ -41,7 +41,11 @@ def _solvers(cfg) -> str:
         fld = ("no field" if el.field_kind == "OFF" else
                f"{el.field_kind} field ({', '.join(_g(e) for e in el.E)})"
                + (f", frequency {_g(el.frequency)}" if el.field_kind == "AC" else ""))
-        parts.append(f"ions: {ions}, {el.init_profile} start, {fld}")
+        import math
+        kbt = cfg.fluid.kBT
+        bjerrum = (f", Bjerrum length {_g(1.0 / (4 * math.pi * el.dielectric * kbt))}"
+                   if kbt > 0 else "")
+        parts.append(f"ions: {ions}{bjerrum}, {el.init_profile} start, {fld}")
     return "; ".join(parts)
 
 

@@ -342,3 +342,13 @@ def test_an_unstable_manual_time_step_is_named(tmp_path, capsys):
     assert "Traceback" not in err
     assert "ion densities are not finite or negative" in err and "1 / (kBT L_max" in err, err
 
+
+
+def test_check_banner_names_ions_lengths_and_the_dt_limit(tmp_path, capsys, monkeypatch):
+    p = make_input(tmp_path)
+    monkeypatch.chdir(tmp_path)
+    assert main(["--check", f"-I{p}", "-Ooutput.udf", "-Ddefine.udf", "-Rrestart.udf"]) == 0
+    out = capsys.readouterr()
+    text = out.out + out.err
+    assert "ions: salt z = 1, -1, Debye length 3, Bjerrum length 0.0795775" in text
+    assert "kBT = 1, Onsager 1" in text
