@@ -33,10 +33,29 @@ def _solvers(cfg) -> str:
         parts.append(f"{cfg.shear.kind} shear rate {_g(cfg.shear.shear_rate)}"
                      + (f", frequency {_g(cfg.shear.frequency)}" if cfg.shear.kind == "AC"
                         else ""))
+    el = getattr(cfg, "electrolyte", None)
+    if el is not None:
+        ions = (f"salt z = {_g(el.valency[0])}, {_g(el.valency[1])}, Debye length "
+                f"{_g(el.debye_length)}" if el.salt else
+                f"salt-free, counterion z = {_g(el.valency[0])}")
+        fld = ("no field" if el.field_kind == "OFF" else
+               f"{el.field_kind} field ({', '.join(_g(e) for e in el.E)})"
+               + (f", frequency {_g(el.frequency)}" if el.field_kind == "AC" else ""))
+        import math
+        kbt = cfg.fluid.kBT
+        bjerrum = (f", Bjerrum length {_g(1.0 / (4 * math.pi * el.dielectric * kbt))}"
+                   if kbt > 0 else "")
+        parts.append(f"ions: {ions}{bjerrum}, {el.init_profile} start, {fld}")
     return "; ".join(parts)
 
 
 def _dt(cfg, dt: float) -> str:
+    el = getattr(cfg, "electrolyte", None)
+    if cfg.time.kind == "auto" and el is not None:
+        ac = f", AC Frequency = {_g(el.frequency)}" if el.field_kind == "AC" else ""
+        return (f"dt = {_g(dt)} (auto, factor {_g(cfg.time.factor)}, from RHO = "
+                f"{_g(cfg.fluid.RHO)}, ETA = {_g(cfg.fluid.ETA)}, kBT = {_g(cfg.fluid.kBT)}, "
+                f"Onsager {_g(max(el.onsager))}, DX = {_g(cfg.mesh.DX)}{ac})")
     if cfg.time.kind == "auto":
         return (f"dt = {_g(dt)} (auto, factor {_g(cfg.time.factor)}, from RHO = "
                 f"{_g(cfg.fluid.RHO)}, ETA = {_g(cfg.fluid.ETA)}, DX = {_g(cfg.mesh.DX)})")

@@ -107,6 +107,23 @@ class Fluid:
 
 
 @dataclass(frozen=True)
+class Electrolyte:
+    """constitutive_eq.Electrolyte (PHYSICS-EXTRA §6.1): ion species (one counterion species
+    salt-free, or positive and negative ions with salt), their valences z_s and Onsager
+    coefficients L_s, the dielectric constant, the initial ion profile and the external
+    field E(t) = E (DC) or E sin(2 pi f t) (AC)."""
+    dielectric: float
+    init_profile: str              # 'Uniform' | 'Poisson_Boltzmann'
+    salt: bool
+    valency: tuple                 # z_s
+    onsager: tuple                 # L_s
+    debye_length: float = 0.0      # lambda_D (salt only), length units
+    field_kind: str = "OFF"        # 'OFF' | 'DC' | 'AC'
+    E: tuple = (0.0, 0.0, 0.0)
+    frequency: float = 0.0
+
+
+@dataclass(frozen=True)
 class PhaseField:
     ch_solver: str                 # 'explicit_scheme' | 'implicit_scheme'
     tolerance: float
@@ -235,6 +252,7 @@ class RunConfig:
     resume: Resume
     phase: PhaseField | None = None
     shear: Shear | None = None
+    electrolyte: Electrolyte | None = None
     input_path: str = ""
 
     @property
@@ -366,9 +384,6 @@ def from_document(doc: udf.UDFManager, input_path: str = "") -> RunConfig:
     _check_is_input(doc, input_path)
     eq_type = r.get("constitutive_eq.type")
     base = f"constitutive_eq.{eq_type}"
-    if eq_type == "Electrolyte":
-        r.unsupported_feature("the Electrolyte type (charged particles and ions)",
-                              "constitutive_eq.type", eq_type, "no other type replaces it")
 
     # ---- mesh ------------------------------------------------------------------------
     nps, DX = [], None
@@ -425,6 +440,11 @@ def from_document(doc: udf.UDFManager, input_path: str = "") -> RunConfig:
             freq = r.non_negative(f"{ef}.AC.Frequency") if kind == "AC" else 0.0
             shear = Shear(kind, rate, freq)
 
+    electrolyte = None
+    if eq_type == "Electrolyte":
+        with r.block():
+            electrolyte = _electrolyte(r, base)
+
     # ---- phase field -----------------------------------------------------------------
     phase = None
     if eq_type in PHASE_TYPES:
@@ -460,6 +480,23 @@ def from_document(doc: udf.UDFManager, input_path: str = "") -> RunConfig:
     if mesh is not None and particles is not None and count:
         with r.block():
             _check_particles_fit(r, mesh, particles)
+
+    if electrolyte is not None and obj is not None:
+        with r.block():
+            _check_charges(r, electrolyte, species, obj)
+        # the original refuses walls and janus propulsion with Electrolyte (PHYSICS-EXTRA §6.1)
+        if r.optional("switch.wall.type", "NONE") != "NONE":
+            r.report("switch.wall.type", r.get("switch.wall.type"),
+                     "walls are not allowed with Electrolyte (as in the original)")
+        if obj == "spherical_particle":
+            sp = "object_type.spherical_particle.Particle_spec"
+            for i, s_ in enumerate(species):
+                prop = r.optional(f"{sp}[{i}].janus_propulsion", "OFF")
+                if prop != "OFF" and s_.particles:
+                    r.report(f"{sp}[{i}].janus_propulsion", prop, "self-propelled particles "
+                                                                  "are not allowed with "
+                                                                  "Electrolyte (as in the "
+                                                                  "original)")
 
     # ---- interactions ----------------------------------------------------------------
     inter = None
@@ -505,7 +542,7 @@ def from_document(doc: udf.UDFManager, input_path: str = "") -> RunConfig:
             r.report("output.Num_snap", nsnap,
                      "must be at least 1 (the run is GTS x Num_snap steps)")
         avs = r.get("output.AVS") == "ON"
-        fields = _field_output(r, mesh) if avs and mesh is not None else None
+        fields = _field_output(r, mesh, eq_type) if avs and mesh is not None else None
         output = Output(gts, nsnap, r.get("output.UDF") == "ON", avs, fields)
     resume = None
     with r.block():
@@ -513,7 +550,66 @@ def from_document(doc: udf.UDFManager, input_path: str = "") -> RunConfig:
     r.finish()
     return RunConfig(type=eq_type, mesh=mesh, fluid=fluid, particles=particles,
                      interactions=inter, switches=switches, time=time, output=output,
-                     resume=resume, phase=phase, shear=shear, input_path=input_path)
+                     resume=resume, phase=phase, shear=shear, electrolyte=electrolyte,
+                     input_path=input_path)
+
+
+def _electrolyte(r: _Reader, base: str) -> Electrolyte:
+    """constitutive_eq.Electrolyte (PHYSICS-EXTRA §6.1); alpha_v, alpha_o are not used."""
+    eps = r.positive(f"{base}.Dielectric_cst")
+    init = r.get(f"{base}.INIT_profile")
+    salt = r.get(f"{base}.Add_salt.type") == "salt"
+    kw = {}
+    if salt:
+        sp = f"{base}.Add_salt.salt"
+        zp, zn = r.get(f"{sp}.Valency_positive_ion"), r.get(f"{sp}.Valency_negative_ion")
+        if not zp > 0:
+            r.report(f"{sp}.Valency_positive_ion", zp, "must be positive")
+        if not zn < 0:
+            r.report(f"{sp}.Valency_negative_ion", zn, "must be negative")
+        valency = (float(zp), float(zn))
+        onsager = (r.positive(f"{sp}.Onsager_coeff_positive_ion"),
+                   r.positive(f"{sp}.Onsager_coeff_negative_ion"))
+        kw["debye_length"] = r.positive(f"{sp}.Debye_length")
+    else:
+        sp = f"{base}.Add_salt.saltfree"
+        z = r.get(f"{sp}.Valency_counterion")
+        if z == 0 or not math.isfinite(z):
+            r.report(f"{sp}.Valency_counterion", z, "must be a non-zero number")
+        valency = (float(z),)
+        onsager = (r.positive(f"{sp}.Onsager_coeff_counterion"),)
+    ef = f"{base}.Electric_field"
+    if r.get(f"{ef}.type") == "ON":
+        kind = r.get(f"{ef}.ON.type")
+        kw["field_kind"] = kind
+        kw["E"] = tuple(float(r.finite(f"{ef}.ON.{kind}.E{ax}")) for ax in "xyz")
+        if kind == "AC":
+            kw["frequency"] = r.positive(f"{ef}.ON.AC.Frequency")
+    return Electrolyte(eps, init, salt, valency, onsager, **kw)
+
+
+def _check_charges(r: _Reader, el: Electrolyte, species: list, obj: str) -> None:
+    """Surface_charge Z per species (PHYSICS-EXTRA §6.1): Z = 0 is refused (the original
+    exits); salt-free, all particle charges have one sign, opposite to the counterions'."""
+    spec = {"spherical_particle": "Particle_spec", "chain": "Chain_spec",
+            "rigid": "Rigid_spec"}[obj]
+    signs = set()
+    for i, s in enumerate(species):
+        if not s.particles:
+            continue
+        path = f"object_type.{obj}.{spec}[{i}].Surface_charge"
+        if s.surface_charge == 0 or not math.isfinite(s.surface_charge):
+            r.report(path, s.surface_charge, "must be non-zero for Electrolyte (the charge of "
+                                             "one particle in units of e)")
+            continue
+        signs.add(s.surface_charge > 0)
+        if not el.salt and s.surface_charge * el.valency[0] > 0:
+            r.report(path, s.surface_charge, f"has the sign of the counterions (valency "
+                                             f"{el.valency[0]:g}): salt-free, the counterions "
+                                             f"must neutralise the particles")
+    if not el.salt and len(signs) > 1:
+        r.report(f"object_type.{obj}", "Surface_charge", "salt-free, all particle charges "
+                                                         "must have one sign")
 
 
 def _phase_field(r: _Reader, base: str) -> PhaseField:
@@ -714,10 +810,11 @@ def _slip_switches(r: _Reader, species) -> dict:
     return out
 
 
-def _field_output(r: _Reader, mesh: Mesh) -> FieldOutput:
+def _field_output(r: _Reader, mesh: Mesh, eq_type: str = "") -> FieldOutput:
     """output.ON (FORMAT-OUTPUT.md §2.1, §3.1): the crop is checked as the original does
     (0 <= start < N, 0 < stride < N, 0 < count <= N, start + (count-1) stride < N).
-    Charge is forced off (the original does so for every type but Electrolyte)."""
+    Charge is forced off for every type but Electrolyte, which forces Pressure and Tau off
+    (as the original, FORMAT-OUTPUT.md §3.1)."""
     on = "output.ON"
     out_dir, name, kind = r.get(f"{on}.Out_dir"), r.get(f"{on}.Out_name"), r.get(f"{on}.FileType")
     if not name or "/" in name:
@@ -747,8 +844,9 @@ def _field_output(r: _Reader, mesh: Mesh) -> FieldOutput:
                        f"start + (count-1) stride < {n} (N{ax.upper()} = {n})")
             slabs.append((start, count, stride))
         slabs = tuple(slabs)
-    return FieldOutput(out_dir, name, kind, slabs, yes["Vel"], yes["Phi"], False,
-                       yes["Pressure"], yes["Tau"])
+    el = eq_type == "Electrolyte"
+    return FieldOutput(out_dir, name, kind, slabs, yes["Vel"], yes["Phi"], el and yes["Charge"],
+                       yes["Pressure"] and not el, yes["Tau"] and not el)
 
 
 # ---------------------------------------------------------------------------------------

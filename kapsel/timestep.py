@@ -19,3 +19,17 @@ def auto_dt(factor: float, rho: float, eta: float, dx: float, shape) -> float:
     With it nu dt / DX^2 <= 1 / (3 (2 pi / 3)^2) ~ 0.076 < 1/6, so the explicit
     finite-difference diffusion of the MAC scheme is stable too."""
     return factor * rho / (eta * kmax2(dx, shape))
+
+
+def electrolyte_dt(factor: float, rho: float, eta: float, kBT: float, onsager_max: float,
+                   dx: float, shape, frequency: float = 0.0) -> float:
+    """Electrolyte (PHYSICS-EXTRA §6.5): dt = factor T_dump, T_dump = min(1 / (NU KMAX2),
+    1 / (kBT L_max KMAX2)) (L_max the largest Onsager coefficient: the explicit ion
+    diffusion's limit), and with an AC field (frequency f > 0) T_dump <= 0.01 / f."""
+    k2 = kmax2(dx, shape)
+    t = rho / (eta * k2)
+    if kBT * onsager_max > 0:
+        t = min(t, 1.0 / (kBT * onsager_max * k2))
+    if frequency > 0:
+        t = min(t, 0.01 / frequency)
+    return factor * t

@@ -79,9 +79,10 @@ CORPUS = {
                                      "unknown choice 'Navier_Stokes_Cahn_Hilliard'",
                                      "Navier_Stokes_Cahn_Hilliard_FDM",
                                      "(at constitutive_eq.type)"]),
-    "unsupported_electrolyte.udf": ("constitutive_eq type Electrolyte (not in kapsel-py)",
-                                    ["unsupported_electrolyte.udf:7:18:",
-                                     "constitutive_eq.type = 'Electrolyte'", "not supported"]),
+    "electrolyte_zero_charge.udf": ("constitutive_eq type Electrolyte with uncharged "
+                                    "particles (Surface_charge 0, the original exits)",
+                                    ["electrolyte_zero_charge.udf:11:24:",
+                                     "Surface_charge = 0.0", "must be non-zero"]),
     "bad_lj_powers.udf": ('LJ_powers:"12:7"',
                           ["bad_lj_powers.udf:24:11:", "unknown choice '12:7'", "36:18",
                            "(at LJ_powers)"]),
@@ -194,11 +195,14 @@ CORPUS = {
                              ["several_problems.udf:25:7: mesh.NPX = 0",
                               "several_problems.udf:21:3: A = 0.0",
                               "several_problems.udf:56:9: output.GTS = 0"]),
-    "unsupported_together.udf": ("the Electrolyte type and TUMBLER janus particles: both "
-                                 "named in one line",
-                                 ["unsupported_together.udf:7:18:", "not supported by kapsel-py",
-                                  "Electrolyte", "janus_propulsion = 'TUMBLER' at 11:",
-                                  "set it to OFF"]),
+    "unsupported_together.udf": ("TUMBLER janus particles in an Electrolyte run with "
+                                 "uncharged particles: the unsupported feature first, then "
+                                 "the other problems (janus particles are not allowed with "
+                                 "Electrolyte, as in the original)",
+                                 ["unsupported_together.udf:11:35:", "not supported by kapsel-py",
+                                  "janus_propulsion = 'TUMBLER' at 11:", "set it to OFF",
+                                  "unsupported_together.udf:11:24:", "Surface_charge = 0.0",
+                                  "not allowed with Electrolyte"]),
     # --- resume
     "continue_without_saved_data.udf": ("resume CONTINUE_FDM_PHASE_SEPARATION in a fresh "
                                         "input (no saved data)",
@@ -226,7 +230,7 @@ CORPUS = {
 }
 
 # files with several independent problems: one line each (all others: one line)
-LINES = {"several_problems.udf": 3}
+LINES = {"several_problems.udf": 3, "unsupported_together.udf": 3}
 
 FLAGS = ["-Ooutput.udf", "-Ddefine.udf", "-Rrestart.udf"]
 

@@ -23,7 +23,7 @@ INPUTS = sorted(p for p in glob.glob(os.path.join(REAL, "*", "*.udf"))
 
 # input -> the unsupported features its refusal must name (empty: it runs)
 UNSUPPORTED = {
-    "ex01/colloid_1.udf": ["Electrolyte type"],
+    "ex01/colloid_1.udf": [],
     "ex02/gravity.udf": [],
     "ex06/s000_t010_free.udf": [],
     "ex06/s001_t010_free.udf": ["chain objects under shear"],

@@ -34,6 +34,9 @@ import numpy as np
 from .atomic import atomic_write, atomic_write_text
 
 LABELS = "ux uy uz phi pressure tau_xy tau_yz tau_zx tau_xx tau_yy"
+# Electrolyte (FORMAT-OUTPUT.md §2.4): the charge fields replace pressure and stress
+EL_LABELS = "ux uy uz phi surface_charge rho e_potential"
+EL_FIELDS = ("surface_charge", "solute_charge", "e_potential")
 PLABELS = "Radius x1 x2 x3 y1 y2 y3 z1 z2 z3"
 VECLEN = 10
 # snapshot stress (xx, xy, xz, yy, yz) -> AVS order tau_xy tau_yz tau_zx tau_xx tau_yy
@@ -43,8 +46,12 @@ TAU_ORDER = (1, 4, 2, 0, 3)
 class LegacyAVS:
     """Writer (kapsel.io.writers protocol) of the legacy AVS files."""
 
-    def __init__(self, directory, spec, shape, dx, num_snap, n_particles, particles=None):
+    def __init__(self, directory, spec, shape, dx, num_snap, n_particles, particles=None,
+                 charge=False):
         self.directory = os.fspath(directory)
+        self.charge = bool(charge)         # Electrolyte: u, phi and the charge fields
+        self.labels = EL_LABELS if self.charge else LABELS
+        self.veclen = len(self.labels.split())
         self.name = spec.Out_name
         self.binary = spec.FileType == "BINARY"
         self.shape, self.dx = tuple(int(s) for s in shape), float(dx)
@@ -56,7 +63,7 @@ class LegacyAVS:
         self._skip = None
 
     def needs(self) -> set:
-        return {"u", "pressure", "tau"}
+        return {"u"} | (set(EL_FIELDS) if self.charge else {"pressure", "tau"})
 
     def console(self) -> str:
         kind = "binary" if self.binary else "ascii"
@@ -122,8 +129,8 @@ class LegacyAVS:
     def _write_fld(self):
         nx, ny, nz = self.shape
         head = (f"# AVS field file\nndim=3\ndim1={nx}\ndim2={ny}\ndim3={nz}\nnspace=3\n"
-                f"veclen={VECLEN}\ndata=float\nfield=uniform\nnstep={self.nstep}\n"
-                f"label = {LABELS}\n")
+                f"veclen={self.veclen}\ndata=float\nfield=uniform\nnstep={self.nstep}\n"
+                f"label = {self.labels}\n")
         atomic_write_text(self._fld(), head + "".join(b for _, b in self.blocks))
         if self.nump:
             head = (f"# AVS field file\nndim=1\ndim1={self.nump}\nnspace=3\nveclen={VECLEN}\n"
@@ -136,13 +143,13 @@ class LegacyAVS:
         out += [f"coord {i + 1} file = {name}.cod filetype = ascii skip = {2 * i}"
                 for i in range(3)]
         size = 4 * int(np.prod(self.shape))
-        for n in range(1, VECLEN + 1):
+        for n in range(1, self.veclen + 1):
             if self.binary:
                 out.append(f"variable {n} file = avs/{name}_{ts}.dat filetype = binary "
                            f"skip = {(n - 1) * size}")
             else:
                 out.append(f"variable {n} file = avs/{name}_{ts}.dat filetype = ascii "
-                           f"skip = 2 offset = {n - 1} stride = {VECLEN}")
+                           f"skip = 2 offset = {n - 1} stride = {self.veclen}")
         return "\n".join(out + ["EOT"]) + "\n"
 
     def _particle_block(self, snap) -> str:
@@ -167,10 +174,14 @@ class LegacyAVS:
 
     # ------------------------------------------------------------------ data files
     def field_columns(self, snap) -> np.ndarray:
-        """(10, NX, NY, NZ) float32 in the AVS order."""
-        out = np.empty((VECLEN,) + self.shape, dtype=np.float32)
+        """(10, NX, NY, NZ) float32 in the AVS order (Electrolyte: (7, ...))."""
+        out = np.empty((self.veclen,) + self.shape, dtype=np.float32)
         out[0:3] = snap.get("u")
         out[3] = snap.get("phi") if snap.offers("phi") else 0.0     # no particles: phi = 0
+        if self.charge:
+            for k, n in enumerate(EL_FIELDS):
+                out[4 + k] = snap.get(n)
+            return out
         out[4] = snap.get("pressure")
         tau = snap.get("tau")
         for k, i in enumerate(TAU_ORDER):
@@ -184,8 +195,8 @@ class LegacyAVS:
                 for c in cols:                      # x fastest: [z][y][x] in C order
                     fh.write(np.ascontiguousarray(c.T).tobytes())
             else:
-                fh.write(f"timesteps={snap.step} time={snap.time:f}\n{LABELS}\n".encode())
-                fh.write(_g3(cols.reshape(VECLEN, -1, order="F").T))
+                fh.write(f"timesteps={snap.step} time={snap.time:f}\n{self.labels}\n".encode())
+                fh.write(_g3(cols.reshape(self.veclen, -1, order="F").T))
 
     def _particle_cod(self, tmp, snap):
         R = np.asarray(snap.particles.R, dtype=np.float32)[:, ::-1]     # z, y, x

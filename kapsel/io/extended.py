@@ -49,6 +49,9 @@ from .atomic import atomic_write_text, fmt
 
 F32 = np.float32
 TAU = ("tau_xx", "tau_xy", "tau_xz", "tau_yy", "tau_yz")
+# Charge (Electrolyte only): the particles' surface charge density, the ions' charge density
+# sum_s z_s c_s (1 - phi), the potential of the internal charges (kapsel.models.electrolyte)
+CHARGE = ("surface_charge", "solute_charge", "e_potential")
 PARTICLE_VECTORS = ("vel", "omega", "force_h", "force_r", "torque_h", "torque_r")
 
 
@@ -76,7 +79,8 @@ class ExtendedHDF5:
         self.index = tuple(slice(s, s + (c - 1) * st + 1, st) for s, c, st in slabs)
         self.dims = tuple(c for _, c, _ in slabs)
         self.fields = [n for n, on in (("u", spec.Vel), ("phi", spec.Phi),
-                                       ("pressure", spec.Pressure), ("tau", spec.Tau)) if on]
+                                       ("pressure", spec.Pressure), ("tau", spec.Tau),
+                                       ("charge", spec.Charge)) if on]
         obs = np.zeros(int(n_particles), dtype=bool)
         obs[np.asarray(obstacles, dtype=np.int64)] = True
         self.ids = np.flatnonzero(~obs).astype(np.int32)        # "particle" list
@@ -89,7 +93,8 @@ class ExtendedHDF5:
         self._times: list[float] = []
 
     def needs(self) -> set:
-        return set(self.fields)
+        return {n for n in self.fields if n != "charge"} | (
+            set(CHARGE) if "charge" in self.fields else set())
 
     def console(self) -> str:
         """The original's HDF5 block at initialisation (FORMAT-OUTPUT.md §3.8)."""
@@ -104,7 +109,7 @@ class ExtendedHDF5:
                            f"count = {c:4d}")
             o = [s * self.dx for s, _, _ in self.slabs]
             out.append(f"# Output Origin        : ({o[0]:.3g}, {o[1]:.3g}, {o[2]:.3g})")
-            for label, name in (("velocity", "u"), ("phi", "phi"), ("charge", None),
+            for label, name in (("velocity", "u"), ("phi", "phi"), ("charge", "charge"),
                                 ("Pressure", "pressure"), ("Stress", "tau")):
                 out.append(f"# Print {label + ' field':<15}: "
                            f"{'YES' if name in self.fields else 'NO'}")
@@ -181,7 +186,8 @@ class ExtendedHDF5:
     def _dataset_names(self):
         out = []
         for name in self.fields:
-            out += {"u": ["u_x", "u_y", "u_z"], "tau": list(TAU)}.get(name, [name])
+            out += {"u": ["u_x", "u_y", "u_z"], "tau": list(TAU),
+                    "charge": list(CHARGE)}.get(name, [name])
         return out
 
     def write(self, snap) -> None:
@@ -229,6 +235,8 @@ class ExtendedHDF5:
             elif name == "tau":
                 tau = snap.get("tau")
                 yield from ((n, self._crop(tau[i])) for i, n in enumerate(TAU))
+            elif name == "charge":
+                yield from ((n, self._crop(snap.get(n))) for n in CHARGE)
             elif name == "phi" and not snap.offers("phi"):      # no particles: phi = 0
                 yield "phi", np.zeros(self.dims, dtype=F32)
             else:
@@ -293,7 +301,8 @@ class ExtendedHDF5:
 
     def _scalars(self):
         names = [n for n in ("phi", "pressure") if n in self.fields]
-        return names + (list(TAU) if "tau" in self.fields else [])
+        return (names + (list(TAU) if "tau" in self.fields else [])
+                + (list(CHARGE) if "charge" in self.fields else []))
 
     def _describe(self):
         atomic_write_text(os.path.join(self.directory, self.name + ".conf"), self.conf())

@@ -137,6 +137,36 @@ class RotationalEnergyWriter(_LogWriter):
         self.log.write(snap.step, snap.time, snap.get("E_rot"))
 
 
+class ElectrolyteTable:
+    """The Electrolyte free-energy table on stderr at every snapshot (FORMAT-OUTPUT.md §1.5):
+    a header line, then ts and, as %.15g, total, ideal_gas, electrostatic free energy, the
+    ions' total charge and the number of every species.  Silent with --quiet."""
+
+    def __init__(self, stream=None):
+        self.stream = stream
+
+    def files(self, resumed: bool) -> list:
+        return []
+
+    def open(self, snap, resumed: bool) -> None:
+        pass
+
+    def write(self, snap) -> None:
+        if self.stream is None:
+            return
+        fe = snap.get("free_energy")
+        n = fe["numbers"]
+        labels = ("6:total_counterion " if len(n) == 1 else
+                  "6:total_positive_ion 7:total_negative_ion ")
+        vals = [fe["total"], fe["ideal_gas"], fe["electrostatic"], fe["liquid_charge"], *n]
+        print("#1:time 2:total 3:ideal_gas 4:electrostatic 5:liquid_charge " + labels,
+              file=self.stream)
+        print(f"{snap.step}" + "".join(f" {v:.15g}" for v in vals), file=self.stream)
+
+    def close(self, reason: str) -> None:
+        pass
+
+
 def _last_row_step(path):
     try:
         with open(path, encoding="utf-8") as fh:
@@ -174,6 +204,8 @@ def make_writers(cfg, args, input_doc, snap, announce: bool = True, comment=None
         writers.append(ShearLogWriter(os.path.join(out_dir, "shear_stress.dat")))
     if snap.offers("E_rot"):
         writers.append(RotationalEnergyWriter(os.path.join(out_dir, "rotational_energy.dat")))
+    if snap.offers("free_energy"):
+        writers.append(ElectrolyteTable(None if getattr(args, "quiet", False) else sys.stderr))
     return writers
 
 
@@ -203,7 +235,7 @@ def field_writer(cfg, args, snap, announce: bool = True):
     else:
         from .avs import LegacyAVS
         w = LegacyAVS(directory, spec, cfg.mesh.shape, cfg.mesh.DX, cfg.output.Num_snap,
-                      snap.n_particles, snap.particles)
+                      snap.n_particles, snap.particles, charge=cfg.type == "Electrolyte")
     if announce and not getattr(args, "quiet", False):
         print(w.console(), end="", file=sys.stderr)
     return w

@@ -18,7 +18,12 @@ def time_step(cfg: RunConfig) -> float:
     """dt = factor * T_dump (auto) or delta_t (manual), manual §5.5."""
     if cfg.time.kind == "manual":
         return cfg.time.delta_t
-    from ..timestep import auto_dt
+    from ..timestep import auto_dt, electrolyte_dt
+    el = cfg.electrolyte
+    if el is not None:
+        return electrolyte_dt(cfg.time.factor, cfg.fluid.RHO, cfg.fluid.ETA, cfg.fluid.kBT,
+                              max(el.onsager), cfg.mesh.DX, cfg.mesh.shape,
+                              el.frequency if el.field_kind == "AC" else 0.0)
     return auto_dt(cfg.time.factor, cfg.fluid.RHO, cfg.fluid.ETA, cfg.mesh.DX, cfg.mesh.shape)
 
 

@@ -100,7 +100,7 @@ FILES = {
     # --- select values
     "unknown_constitutive_eq.udf": edit(('"Navier_Stokes_Cahn_Hilliard_FDM"',
                                          '"Navier_Stokes_Cahn_Hilliard"')),
-    "unsupported_electrolyte.udf": edit(('"Navier_Stokes_Cahn_Hilliard_FDM"',
+    "electrolyte_zero_charge.udf": edit(('"Navier_Stokes_Cahn_Hilliard_FDM"',
                                          '"Electrolyte"')),
     "bad_lj_powers.udf": edit(('LJ_powers:"12:6"', 'LJ_powers:"12:7"')),
     "unknown_time_increment.udf": edit(('time_increment:{"auto"', 'time_increment:{"fixed"')),

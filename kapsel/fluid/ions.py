@@ -1,0 +1,283 @@
+"""Ions of the ``Electrolyte`` type (PHYSICS-EXTRA §6.2): densities c_s of the ion species,
+the particles' surface charge, Poisson's equation and the Nernst-Planck step.
+
+Units: elementary charge e = 1, lengths and times as the fluid's.  Per species s: valence
+z_s, Onsager coefficient L_s (diffusion coefficient D_s = kBT L_s).  phi = sum_i phi_i.
+
+    rho_surf = sum_i Z_i |phi_i'(r)| / (DX^3 sum_x |phi_i'|)    (each particle carries Z_i)
+    rho_e    = rho_surf + sum_s z_s c_s (1 - phi)                 (charge density)
+    eps lap Psi = -rho_e:  Psi_k = rho_e,k / (eps k^2), Psi_0 = 0  (spectral, periodic)
+    dc_s/dt  = div J_s,  J_s = P[L_s (kBT grad c_s + z_s c_s grad Psi_tot)] - c_s u,
+    grad Psi_tot = grad Psi - E(t)
+
+P removes the normal component of the diffusive-migrative flux where the surface normal
+n = grad phi (sum of the particles' analytic profile gradients, non-zero only in their
+interface shells) is non-zero: J <- J - n (J.n)/|n|^2 (impermeable particle surfaces).
+The divergence is spectral, its k = 0 mode set to its exact value 0, so sum_x c_s is
+conserved to round-off by the step; the 2/3 rule truncates c_s, Psi and div J (the state
+stays band-limited).  The ions in the fluid, N_s = DX^3 sum_x (1 - phi) c_s, change when
+particles move (the profile covers or uncovers fluid); ``rescale`` multiplies c_s by
+N_s(0) / N_s after each move so that every N_s stays at its initial value to round-off
+(the original's ``Rescale_solute``).
+
+The step is explicit Euler (the original's); stable under the time step limit of §6.5,
+dt <= 1 / (kBT L_max K2max) (kapsel.timestep.electrolyte_dt).
+
+Initial profiles (``init_uniform``, ``init_poisson_boltzmann``): see their docstrings.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ..particles.profile import h as _h
+
+__all__ = ["Ions", "profile_slope", "bulk_densities"]
+
+
+def profile_slope(r, A, xi, dx=1.0):
+    """d g / d r of the particle profile g (manual eq 2): <= 0, non-zero only for
+    A - xi/2 < r < A + xi/2.  With h'(x) = 2 DX^2 / x^3 h(x):
+    g' = -(h'(A + xi/2 - r) h(r - A + xi/2) + h(A + xi/2 - r) h'(r - A + xi/2)) / (ho + hi)^2."""
+    r = np.asarray(r, dtype=float)
+    xo = np.maximum(A + 0.5 * xi - r, 1e-3 * dx)      # h = 0 exactly below 1e-3 DX
+    xi_ = np.maximum(r - (A - 0.5 * xi), 1e-3 * dx)
+    ho, hi = _h(xo, dx), _h(xi_, dx)
+    dho = 2 * dx * dx / xo ** 3 * ho
+    dhi = 2 * dx * dx / xi_ ** 3 * hi
+    den = ho + hi
+    return -(dho * hi + ho * dhi) / (den * den)
+
+
+def bulk_densities(valency, debye_length, eps, kBT):
+    """Salt: n_+inf, n_-inf of the electroneutral bulk with e^2 sum z^2 n / (eps kBT) =
+    1 / lambda_D^2 (PHYSICS-EXTRA §6.4)."""
+    zp, zn = valency
+    rho = kBT * eps / debye_length ** 2
+    return rho / (zp * (zp - zn)), -rho / (zn * (zp - zn))
+
+
+class Ions:
+    """Ion densities c (S, NX, NY, NZ) on ``grid`` and the electrostatics of the particles.
+
+    valency, onsager : per species;  eps : Dielectric_cst;  kBT;  dt.
+    Call ``set_particles(idx, phi_i, r, Z, A, xi)`` whenever the particles moved (SPM
+    stencil arrays), then ``potential()``, ``step(u, E)``, ``coulomb_force(E)``.
+    """
+
+    def __init__(self, grid, valency, onsager, eps, kBT, dt):
+        self.grid = g = grid
+        self.z = np.asarray(valency, dtype=float)
+        self.L = np.asarray(onsager, dtype=float)
+        self.S = len(self.z)
+        self.eps, self.kBT, self.dt = float(eps), float(kBT), float(dt)
+        self.dv = g.dx ** 3
+        self.c = np.zeros((self.S,) + g.shape)
+        self.counts = np.zeros(self.S)           # N_s held fixed by rescale
+        self.phi = np.zeros(g.shape)
+        self.rho_surf = np.zeros(g.shape)
+        self.normal = np.zeros((3,) + g.shape)
+        self._has_normal = np.zeros(g.shape, dtype=bool)
+        self._inv_n2 = np.zeros(g.shape)
+        # buffers
+        self._ch = g.empty_complex(None)
+        self._vh = g.empty_complex()
+        self._v = g.empty_real()
+        self._J = g.empty_real()
+        self._rho = g.empty_real(None)
+        self.psi_hat = g.empty_complex(None)
+        self.grad_psi = g.empty_real()
+        self._t = g.empty_real(None)
+        self._mask = g.dealias_f
+        self._ik = (1j * g.kx, 1j * g.ky, 1j * g.kz)
+
+    # ------------------------------------------------------------------ particles
+    def set_particles(self, idx, phi_i, r, Z, A, xi):
+        """phi, rho_surf (each particle normalised to carry exactly Z_i) and the surface
+        normal n = grad phi from the particles' stencil arrays."""
+        g, size = self.grid, self.grid.size
+        self.phi[...] = np.bincount(idx.ravel(), weights=phi_i.ravel(),
+                                    minlength=size).reshape(g.shape)
+        dist = np.sqrt(np.einsum("nsc,nsc->ns", r, r))
+        slope = profile_slope(dist, A, xi, g.dx)              # (N, S) <= 0
+        w = -slope
+        tot = w.sum(axis=1) * self.dv
+        q = np.asarray(Z, dtype=float)[:, None] * w / tot[:, None]
+        self.rho_surf[...] = np.bincount(idx.ravel(), weights=q.ravel(),
+                                         minlength=size).reshape(g.shape)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            rhat = np.where(dist[..., None] > 0, r / dist[..., None], 0.0)
+        for c in range(3):
+            self.normal[c] = np.bincount(idx.ravel(), weights=(slope * rhat[..., c]).ravel(),
+                                         minlength=size).reshape(g.shape)
+        n2 = np.einsum("c...,c...->...", self.normal, self.normal)
+        self._has_normal = n2 > 1e-300
+        self._inv_n2[...] = 0.0
+        np.divide(1.0, n2, out=self._inv_n2, where=self._has_normal)
+
+    def no_particles(self):
+        self.phi[...] = 0.0
+        self.rho_surf[...] = 0.0
+        self.normal[...] = 0.0
+        self._has_normal[...] = False
+        self._inv_n2[...] = 0.0
+
+    # ------------------------------------------------------------------ charges
+    def fluid_counts(self, c=None):
+        """N_s = DX^3 sum_x (1 - phi) c_s, (S,)."""
+        c = self.c if c is None else c
+        w = 1.0 - self.phi
+        return np.array([float(np.sum(w * c[s])) for s in range(self.S)]) * self.dv
+
+    def ionic_charge(self, c=None):
+        """sum_s z_s c_s (1 - phi)."""
+        c = self.c if c is None else c
+        out = np.zeros(self.grid.shape)
+        for s in range(self.S):
+            out += self.z[s] * c[s]
+        out *= 1.0 - self.phi
+        return out
+
+    def charge_density(self, c=None):
+        """rho_e = rho_surf + sum_s z_s c_s (1 - phi), into an internal buffer."""
+        rho = self._rho
+        np.copyto(rho, self.ionic_charge(c))
+        rho += self.rho_surf
+        return rho
+
+    def total_charge(self):
+        return float(np.sum(self.charge_density())) * self.dv
+
+    def potential(self, c=None):
+        """Psi_hat (2/3-truncated) of the charge density, and grad Psi in real space
+        (``self.grad_psi``, without the external field).  Returns Psi_hat."""
+        g = self.grid
+        g.rfft_scalar(self.charge_density(c), out=self.psi_hat)
+        self.psi_hat *= g.inv_k2
+        self.psi_hat /= self.eps
+        for d in range(3):
+            np.multiply(self.psi_hat, self._ik[d], out=self._vh[d])
+        g.irfft(self._vh, out=self.grad_psi)
+        return self.psi_hat
+
+    def potential_real(self):
+        """Psi in real space (of the last ``potential``)."""
+        return self.grid.irfft_scalar(self.psi_hat)
+
+    # ------------------------------------------------------------------ dynamics
+    def step(self, u, E=(0.0, 0.0, 0.0)):
+        """c_s += dt div J_s (module docstring) with the fluid velocity u (3, ...) or None,
+        grad Psi of the last ``potential`` and the external field E."""
+        g = self.grid
+        E = np.asarray(E, dtype=float)
+        J, v = self._J, self._v
+        for s in range(self.S):
+            c = self.c[s]
+            g.rfft_scalar(c, out=self._ch)
+            self._ch *= self._mask
+            for d in range(3):
+                np.multiply(self._ch, self._ik[d], out=self._vh[d])
+            g.irfft(self._vh, out=J)                       # grad c
+            a, b = self.L[s] * self.kBT, self.L[s] * self.z[s]
+            for d in range(3):
+                J[d] *= a
+                np.subtract(self.grad_psi[d], E[d], out=self._t)
+                self._t *= c
+                self._t *= b
+                J[d] += self._t
+            # impermeable surfaces: J <- J - n (J.n)/|n|^2
+            t = self._t
+            np.multiply(J[0], self.normal[0], out=t)
+            t += J[1] * self.normal[1]
+            t += J[2] * self.normal[2]
+            t *= self._inv_n2
+            for d in range(3):
+                J[d] -= t * self.normal[d]
+            if u is not None:
+                for d in range(3):
+                    np.multiply(c, u[d], out=v[d])
+                    J[d] -= v[d]
+            g.rfft(J, out=self._vh)
+            np.multiply(self._vh[0], self._ik[0], out=self._ch)
+            self._ch += self._vh[1] * self._ik[1]
+            self._ch += self._vh[2] * self._ik[2]
+            self._ch *= self._mask
+            self._ch[0, 0, 0] = 0.0                         # exact: the mean of div J is 0
+            g.irfft_scalar(self._ch, out=t)
+            t *= self.dt
+            c += t
+
+    def rescale(self):
+        """c_s *= N_s(0) / N_s: the ions in the fluid keep their initial numbers."""
+        now = self.fluid_counts()
+        for s in range(self.S):
+            if now[s] > 0:
+                self.c[s] *= self.counts[s] / now[s]
+
+    def coulomb_force(self, E=(0.0, 0.0, 0.0), out=None):
+        """Coulomb force density rho_e (E - grad Psi), (3, NX, NY, NZ), with grad Psi and
+        rho_e of the last ``potential``."""
+        out = self._v if out is None else out
+        rho = self._rho
+        for d in range(3):
+            np.subtract(E[d], self.grad_psi[d], out=out[d])
+            out[d] *= rho
+        return out
+
+    # ------------------------------------------------------------------ initial profiles
+    def init_uniform(self, counts):
+        """c_s = N_s / (DX^3 sum_x (1 - phi)) everywhere (inside the particles too; the
+        (1 - phi) of rho_e and of the counts removes it there)."""
+        self.counts = np.asarray(counts, dtype=float).copy()
+        vfree = float(np.sum(1.0 - self.phi)) * self.dv
+        for s in range(self.S):
+            self.c[s] = self.counts[s] / vfree
+
+    def init_poisson_boltzmann(self, counts, tol=1e-10, max_iter=2000):
+        """The Poisson-Boltzmann equilibrium at fixed ion numbers N_s (canonical):
+        c_s = N_s exp(-z_s Psi / kBT) / (DX^3 sum_x (1 - phi) exp(-z_s Psi / kBT)) with
+        eps lap Psi = -rho_e(Psi).  Solved for Psi by the screened iteration
+        Psi <- Psi + w (eps lap Psi + rho_e(Psi))_k / (eps (k^2 + kappa^2)),
+        kappa^2 = sum_s z_s^2 <c_s> / (eps kBT) (a Newton step with the Jacobian replaced by
+        its mean; w halves when the residual grows), until max |dPsi| < tol kBT.
+        Returns the number of iterations.  Raises FloatingPointError if it does not
+        converge."""
+        g = self.grid
+        self.init_uniform(counts)
+        vfree = float(np.sum(1.0 - self.phi)) * self.dv
+        kappa2 = float(np.sum(self.z ** 2 * self.counts / vfree)) / (self.eps * self.kBT)
+        precond = 1.0 / (self.eps * (g.k2 + kappa2))
+        if kappa2 == 0:
+            precond = g.inv_k2 / self.eps
+        psi = np.zeros(g.shape)
+        res_h = g.empty_complex(None)
+        w, last = 1.0, np.inf
+        free = 1.0 - self.phi
+
+        def boltzmann(psi):
+            c = np.empty_like(self.c)
+            for s in range(self.S):
+                x = -self.z[s] * psi / self.kBT
+                x -= x.max()
+                b = np.exp(x)
+                c[s] = self.counts[s] * b / (float(np.sum(free * b)) * self.dv)
+            return c
+
+        for it in range(1, max_iter + 1):
+            c = boltzmann(psi)
+            g.rfft_scalar(psi, out=res_h)
+            res_h *= -self.eps * g.k2
+            res_h += g.rfft_scalar(self.charge_density(c))
+            res_h[0, 0, 0] = 0.0
+            norm = float(np.abs(res_h).max())
+            if norm > last:
+                w *= 0.5
+            last = norm
+            res_h *= precond
+            res_h *= w
+            dpsi = g.irfft_scalar(res_h)
+            psi += dpsi
+            if float(np.abs(dpsi).max()) < tol * self.kBT:
+                self.c[...] = boltzmann(psi)
+                return it
+        raise FloatingPointError(f"the Poisson-Boltzmann iteration of the initial ion "
+                                 f"profile did not converge in {max_iter} iterations")

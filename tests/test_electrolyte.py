@@ -1,0 +1,354 @@
+"""The Electrolyte type (PHYSICS-EXTRA §6): input, time step, conservation of ions and
+charge, the Debye-Hueckel double layer, restart, the Coulomb force on a particle."""
+import os
+import shutil
+import time
+
+import numpy as np
+import pytest
+
+from kapsel import config
+from kapsel.cli import main
+from kapsel.fluid.ions import Ions, bulk_densities, profile_slope
+from kapsel.grid import Grid
+from kapsel.io.restart import state_path
+from kapsel.particles.profile import Stencil, g as profile, particle_profiles
+from kapsel.timestep import auto_dt, electrolyte_dt
+from udf import UDFManager
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+EX01 = os.path.join(HERE, "..", "samples", "kapsel-udf", "ex01")
+EL = "constitutive_eq.Electrolyte"
+
+
+def make_input(d, npx=4, particles=None, salt=True, field="DC", init="Uniform", gts=2,
+               nsnap=2, charge=-20.0, debye=3.0, A=3.0):
+    """ex01/colloid_1.udf shrunk to 2^npx cells per side; ``particles``: user positions."""
+    os.makedirs(d, exist_ok=True)
+    shutil.copy(os.path.join(EX01, "define.udf"), os.path.join(d, "define.udf"))
+    u = UDFManager(os.path.join(EX01, "colloid_1.udf"))
+    for k in ("NPX", "NPY", "NPZ"):
+        u.put(npx, f"mesh.{k}")
+    n = 2 ** npx
+    if particles is None:
+        particles = [[n / 4, n / 4, n / 4], [3 * n / 4 - 0.3, 3 * n / 4, n / 2 + 0.2]]
+    u.put(len(particles), "object_type.spherical_particle.Particle_spec[0].Particle_number")
+    u.put(charge, "object_type.spherical_particle.Particle_spec[0].Surface_charge")
+    rows = np.array([list(map(float, p)) + [0.0] * 3 + [1.0, 0.0, 0.0, 0.0] + [0.0] * 3
+                     for p in particles])
+    u.put(rows, "switch.INIT_distribution.user_specify.Particles[]")
+    u.put(A, "A")
+    u.put(init, f"{EL}.INIT_profile")
+    u.put("salt" if salt else "saltfree", f"{EL}.Add_salt.type")
+    u.put(debye, f"{EL}.Add_salt.salt.Debye_length")
+    u.put("OFF" if field == "OFF" else "ON", f"{EL}.Electric_field.type")
+    if field != "OFF":
+        u.put(field, f"{EL}.Electric_field.ON.type")
+    u.put(gts, "output.GTS")
+    u.put(nsnap, "output.Num_snap")
+    u.put("OFF", "output.AVS")
+    u.put("ON", "output.UDF")
+    path = os.path.join(d, "input.udf")
+    u.write(path)
+    return path
+
+
+def cli(d, inp, *extra):
+    cwd = os.getcwd()
+    os.chdir(d)
+    try:
+        return main([f"-I{inp}", "-Ooutput.udf", "-Ddefine.udf", "-Rrestart.udf", "--seed",
+                     "3", "--quiet", *extra])
+    finally:
+        os.chdir(cwd)
+
+
+def model_of(path, **kw):
+    from kapsel.models.electrolyte import ElectrolyteModel
+
+    class Args:
+        quiet, threads, seed = True, 1, 1
+    cfg = config.load(path)
+    return ElectrolyteModel(cfg, Args())
+
+
+# ---------------------------------------------------------------------------- input
+def test_ex01_is_read():
+    cfg = config.load(os.path.join(EX01, "colloid_1.udf"))
+    el = cfg.electrolyte
+    assert el.salt and el.valency == (1.0, -1.0) and el.onsager == (1.0, 1.0)
+    assert el.debye_length == 10.0 and el.dielectric == 1.0
+    assert el.init_profile == "Poisson_Boltzmann"
+    assert el.field_kind == "DC" and el.E == (0.1, 0.0, 0.0)
+    assert cfg.particles.species[0].surface_charge == -100.0
+
+
+def test_zero_charge_and_wrong_sign_counterions_are_refused(tmp_path):
+    p = make_input(tmp_path / "a", charge=0.0)
+    with pytest.raises(config.ConfigError, match="Surface_charge"):
+        config.load(p)
+    p = make_input(tmp_path / "b", charge=5.0, salt=False)   # counterion valency +1
+    with pytest.raises(config.ConfigError, match="sign of the counterions"):
+        config.load(p)
+
+
+def test_time_step_limit():
+    """§6.5: min(1/(nu K2), 1/(kBT L K2)), AC <= 0.01/f, times the factor."""
+    shape = (32, 32, 32)
+    ns = auto_dt(1.0, 1.0, 1.0, 1.0, shape)
+    assert electrolyte_dt(1.0, 1.0, 1.0, 1.0, 1.0, 1.0, shape) == ns
+    assert electrolyte_dt(0.5, 1.0, 1.0, 1.0, 4.0, 1.0, shape) == pytest.approx(ns / 8)
+    assert electrolyte_dt(1.0, 1.0, 1.0, 1.0, 1.0, 1.0, shape, frequency=1.0) == 0.01
+    assert electrolyte_dt(1.0, 1.0, 1.0, 0.0, 1.0, 1.0, shape) == ns
+
+
+def test_profile_slope_is_the_derivative_of_the_profile():
+    r = np.linspace(0.5, 6.0, 400)
+    eps = 1e-6
+    num = (profile(r + eps, 3.0, 2.0) - profile(r - eps, 3.0, 2.0)) / (2 * eps)
+    assert np.allclose(profile_slope(r, 3.0, 2.0), num, atol=1e-7)
+
+
+def test_bulk_densities_give_the_debye_length():
+    n = bulk_densities((2.0, -1.0), 4.0, 2.0, 0.5)
+    assert 2 * n[0] - n[1] == pytest.approx(0.0, abs=1e-15)       # neutral
+    assert (4 * n[0] + n[1]) / (2.0 * 0.5) == pytest.approx(1 / 16)
+
+
+# ---------------------------------------------------------------------------- conservation
+@pytest.mark.parametrize("salt,field", [(True, "DC"), (False, "AC")])
+def test_ion_numbers_and_neutrality_are_conserved(tmp_path, salt, field):
+    """150 steps of two charged particles moving in a field: each species' number in the
+    fluid and the total charge stay at their initial values to 1e-10."""
+    m = model_of(make_input(tmp_path, salt=salt, field=field, charge=-30.0))
+    if field == "AC":
+        m.el = m.el.__class__(**{**m.el.__dict__, "frequency": 0.05})
+    n0 = m.ion_numbers()
+    Z = -30.0 * 2
+    assert abs(m.total_charge()) < 1e-10 * abs(Z)
+    for _ in range(150):
+        m.advance()
+    assert np.abs(m.particles.v).max() > 1e-5             # the field moves the particles
+    assert np.allclose(m.ion_numbers(), n0, rtol=1e-10, atol=0)
+    assert abs(m.total_charge()) < 1e-10 * abs(Z)
+    assert np.all(m.ions.c > 0)
+
+
+# ---------------------------------------------------------------------------- double layer
+def debye_hueckel(r, Z, a, kappa, eps):
+    return Z / (4 * np.pi * eps * (1 + kappa * a)) * np.exp(-kappa * (r - a)) / r
+
+
+def test_double_layer_matches_debye_hueckel():
+    """Poisson-Boltzmann equilibrium of a weakly charged sphere (e Psi / kBT < 0.05) in a
+    1:1 salt, lambda_D = 3, A = 4, xi = 2 on 32^3: Psi(r) within 5 % of the linearised
+    (Debye-Hueckel) potential for a + xi/2 <= r <= a + xi/2 + 2 lambda_D.  The periodic
+    potential has zero mean (Psi_k=0 = 0), so both are measured from their value at the
+    point farthest from the particle (the corner of the box)."""
+    N, A, xi, lam, Z, eps = 32, 4.0, 2.0, 3.0, -1.0, 1.0
+    grid = Grid((N, N, N))
+    R = np.array([[N / 2 + 0.3, N / 2, N / 2]])
+    idx, phi, r = particle_profiles(R, Stencil(A, xi, 1.0), grid.shape, 1.0)
+    ions = Ions(grid, (1.0, -1.0), (1.0, 1.0), eps, 1.0, 0.05)
+    ions.set_particles(idx, phi, r, [Z], A, xi)
+    vfree = float(np.sum(1 - ions.phi))
+    n = bulk_densities((1.0, -1.0), lam, eps, 1.0)
+    ions.init_poisson_boltzmann([n[0] * vfree - Z, n[1] * vfree])
+    ions.potential()
+    psi = ions.potential_real()
+    x, y, z = grid.coordinates()
+    d = np.sqrt((x - R[0, 0]) ** 2 + (y - R[0, 1]) ** 2 + (z - R[0, 2]) ** 2)
+    sel = (d >= A + xi / 2) & (d <= A + xi / 2 + 2 * lam)
+    far = np.unravel_index(np.argmax(d), d.shape)
+    ref = debye_hueckel(d[sel], Z, A, 1 / lam, eps) - debye_hueckel(d[far], Z, A, 1 / lam, eps)
+    assert np.abs(psi).max() < 0.05
+    err = np.abs(psi[sel] - psi[far] - ref) / np.abs(ref)
+    assert err.max() < 0.05, err.max()
+
+
+# ---------------------------------------------------------------------------- restart
+def test_continuation_is_bit_identical(tmp_path):
+    one = make_input(tmp_path / "one", nsnap=4, init="Poisson_Boltzmann")
+    assert cli(tmp_path / "one", one) == 0
+    two = make_input(tmp_path / "two", nsnap=2, init="Poisson_Boltzmann")
+    assert cli(tmp_path / "two", two) == 0
+    rs = UDFManager(str(tmp_path / "two" / "restart.udf"))
+    rs.put(4, "output.Num_snap")
+    rs.write(str(tmp_path / "two" / "cont.udf"))
+    shutil.copy(state_path(str(tmp_path / "two" / "restart.udf")),
+                state_path(str(tmp_path / "two" / "cont.udf")))
+    assert cli(tmp_path / "two", "cont.udf") == 0
+    za = np.load(state_path(str(tmp_path / "one" / "restart.udf")))
+    zb = np.load(state_path(str(tmp_path / "two" / "restart.udf")))
+    for k in ("ion_c", "u_hat", "R_raw"):
+        assert np.array_equal(za[k], zb[k]), k
+    a = UDFManager(str(tmp_path / "one" / "restart.udf"))
+    b = UDFManager(str(tmp_path / "two" / "restart.udf"))
+    base = "resume.CONTINUE.Saved_Data"
+    ca = np.asarray(a.getArray(f"{base}.Concentration[]"), dtype=float)
+    assert ca.shape[:4] == (2, 16, 16, 18)
+    assert np.array_equal(ca, np.asarray(b.getArray(f"{base}.Concentration[]"), dtype=float))
+
+
+def test_continuation_from_concentration_alone(tmp_path):
+    """Without the state file the ion densities come back from Concentration (Fourier)."""
+    p = make_input(tmp_path, nsnap=1)
+    assert cli(tmp_path, p) == 0
+    m0 = np.load(state_path(str(tmp_path / "restart.udf")))["ion_c"]
+    os.remove(state_path(str(tmp_path / "restart.udf")))
+    from kapsel.io.restart import read_restart
+    m = model_of(str(tmp_path / "restart.udf"))
+    doc = UDFManager(str(tmp_path / "restart.udf"))
+    m.load_restart(read_restart(doc, str(tmp_path / "restart.udf"), "CONTINUE"))
+    assert np.allclose(m.ions.c, m0, rtol=1e-12, atol=1e-14)
+
+
+# ---------------------------------------------------------------------------- output
+SAMPLES = os.path.join(HERE, "..", "samples")
+
+
+def sample_el_input(d):
+    """The manual's sample as a salt-free Electrolyte run, 16^3, two particles of Z = -10,
+    EXTENDED output with every print switch on."""
+    os.makedirs(d, exist_ok=True)
+    for f in ("define.udf", "kapsel_unit.udf"):
+        shutil.copy(os.path.join(SAMPLES, f), os.path.join(d, f))
+    u = UDFManager(os.path.join(SAMPLES, "input.udf"))
+    u.put("Electrolyte", "constitutive_eq.type")
+    for k, v in (("DX", 1.0), ("RHO", 1.0), ("ETA", 1.0), ("kBT", 1.0), ("alpha_v", 1.0),
+                 ("alpha_o", 1.0), ("Dielectric_cst", 1.0), ("INIT_profile", "Poisson_Boltzmann"),
+                 ("Add_salt.type", "saltfree"), ("Add_salt.saltfree.Valency_counterion", 1.0),
+                 ("Add_salt.saltfree.Onsager_coeff_counterion", 1.0),
+                 ("Electric_field.type", "OFF")):
+        u.put(v, f"{EL}.{k}")
+    for k in ("NPX", "NPY", "NPZ"):
+        u.put(4, f"mesh.{k}")
+    u.put(2, "object_type.spherical_particle.Particle_spec[0].Particle_number")
+    u.put(-10.0, "object_type.spherical_particle.Particle_spec[0].Surface_charge")
+    u.put(3.0, "A")
+    u.put(2, "output.GTS")
+    u.put(2, "output.Num_snap")
+    u.put("ON", "output.AVS")
+    u.put("EXTENDED", "output.ON.FileType")
+    for k in ("Vel", "Phi", "Charge", "Pressure", "Tau"):
+        u.put("YES", f"output.ON.EXTENDED.Print_field.{k}")
+    u.put("NO", "output.ON.EXTENDED.Print_field.Crop")
+    path = os.path.join(d, "input.udf")
+    u.write(path)
+    return path
+
+
+def test_extended_output_holds_the_charge_fields(tmp_path):
+    """Charge YES: surface_charge, solute_charge, e_potential in every frame; Pressure and
+    Tau forced off (FORMAT-OUTPUT.md §3.1).  surface_charge is the charge density itself:
+    DX^3 sum = sum Z (the original writes it times 4 pi a^2), and the frame is neutral."""
+    import h5py
+    p = sample_el_input(tmp_path)
+    assert cli(tmp_path, p) == 0
+    with h5py.File(tmp_path / "output" / "data.h5") as f:
+        fr = f["trajectory_data/frame_2/field"]
+        assert sorted(fr) == sorted(["u_x", "u_y", "u_z", "phi", "surface_charge",
+                                     "solute_charge", "e_potential"])
+        surf = fr["surface_charge"][...].astype(float)
+        ionic = fr["solute_charge"][...].astype(float)
+        assert surf.sum() == pytest.approx(-20.0, rel=1e-5)
+        assert abs((surf + ionic).sum()) < 1e-4
+        assert abs(fr["e_potential"][...].astype(float).mean()) < 1e-5
+    conf = (tmp_path / "output" / "data.conf").read_text()
+    assert " surface_charge" in conf and " e_potential" in conf and "tau_xx" not in conf
+
+
+def test_legacy_avs_of_electrolyte_holds_the_charge_fields(tmp_path):
+    """FORMAT-OUTPUT.md §2.4: EL writes u_x u_y u_z phi surface_charge rho e_potential."""
+    p = sample_el_input(tmp_path)
+    u = UDFManager(p)
+    u.put("BINARY", "output.ON.FileType")
+    u.write(p)
+    assert cli(tmp_path, p) == 0
+    fld = (tmp_path / "output" / "data.fld").read_text()
+    assert "veclen=7" in fld and "label = ux uy uz phi surface_charge rho e_potential" in fld
+    raw = np.fromfile(tmp_path / "output" / "avs" / "data_4.dat", dtype=np.float32)
+    assert raw.size == 7 * 16 ** 3
+    surf = raw[4 * 16 ** 3:5 * 16 ** 3].astype(float)
+    assert surf.sum() == pytest.approx(-20.0, rel=1e-5)
+
+
+def test_free_energy_table_on_stderr(tmp_path, capsys, monkeypatch):
+    """FORMAT-OUTPUT.md §1.5: a header and a row per snapshot; with salt two ion columns;
+    the ions' charge (col 5) neutralises the particles and their numbers do not change."""
+    p = make_input(tmp_path, nsnap=2)
+    monkeypatch.chdir(tmp_path)
+    assert main([f"-I{p}", "-Ooutput.udf", "-Ddefine.udf", "-Rrestart.udf", "--seed", "1"]) == 0
+    err = capsys.readouterr().err.splitlines()
+    heads = [i for i, ln in enumerate(err) if ln.startswith("#1:time 2:total")]
+    assert len(heads) == 3
+    assert err[heads[0]].endswith("6:total_positive_ion 7:total_negative_ion ")
+    rows = [err[i + 1].split() for i in heads]
+    assert [r[0] for r in rows] == ["0", "2", "4"]
+    for r in rows:
+        assert len(r) == 7
+        assert float(r[4]) == pytest.approx(40.0, rel=1e-10)      # two particles of Z = -20
+        assert float(r[5]) == pytest.approx(float(rows[0][5]), rel=1e-12)
+        assert float(r[6]) == pytest.approx(float(rows[0][6]), rel=1e-12)
+
+
+@pytest.mark.slow
+def test_nernst_planck_relaxes_to_the_poisson_boltzmann_double_layer():
+    """From the uniform start, ion diffusion and migration alone (fluid at rest, as the
+    original's Set_steadystate_ion_density) reach the Poisson-Boltzmann equilibrium at the
+    same ion numbers: Psi within 2 % (of its maximum) everywhere after t = 71 (1000 steps),
+    Z = -5, A = 4, lambda_D = 3, 32^3.  About 30 s on the shared machine (load 6)."""
+    N, A, xi, lam, Z, eps = 32, 4.0, 2.0, 3.0, -5.0, 1.0
+    grid = Grid((N, N, N))
+    R = np.array([[N / 2 + 0.3, N / 2, N / 2]])
+    idx, phi, r = particle_profiles(R, Stencil(A, xi, 1.0), grid.shape, 1.0)
+    dt = electrolyte_dt(1.0, 1.0, 1.0, 1.0, 1.0, 1.0, grid.shape)
+
+    def make():
+        ions = Ions(grid, (1.0, -1.0), (1.0, 1.0), eps, 1.0, dt)
+        ions.set_particles(idx, phi, r, [Z], A, xi)
+        return ions
+    ref = make()
+    vfree = float(np.sum(1 - ref.phi))
+    n = bulk_densities((1.0, -1.0), lam, eps, 1.0)
+    counts = [n[0] * vfree - Z, n[1] * vfree]
+    ref.init_poisson_boltzmann(counts)
+    ref.potential()
+    pb = ref.potential_real().copy()
+    ions = make()
+    ions.init_uniform(counts)
+    ions.potential()
+    start = np.abs(ions.potential_real() - pb).max() / np.abs(pb).max()
+    for _ in range(1000):
+        ions.potential()
+        ions.step(None)
+        ions.rescale()
+    ions.potential()
+    err = np.abs(ions.potential_real() - pb).max() / np.abs(pb).max()
+    assert start > 0.2 and err < 0.02, (start, err)
+    assert np.allclose(ions.fluid_counts(), counts, rtol=1e-10)
+
+
+def test_an_unstable_manual_time_step_is_named(tmp_path, capsys):
+    """A manual dt far past the ion limit: the run stops (exit 1) naming the ion densities
+    and the limit, not a traceback."""
+    p = make_input(tmp_path, nsnap=10, gts=10)
+    u = UDFManager(p)
+    u.put("manual", "time_increment.type")
+    u.put(2.0, "time_increment.manual.delta_t")
+    u.write(p)
+    assert cli(tmp_path, p) == 1
+    err = capsys.readouterr().err
+    assert "Traceback" not in err
+    assert "ion densities are not finite or negative" in err and "1 / (kBT L_max" in err, err
+
+
+
+def test_check_banner_names_ions_lengths_and_the_dt_limit(tmp_path, capsys, monkeypatch):
+    p = make_input(tmp_path)
+    monkeypatch.chdir(tmp_path)
+    assert main(["--check", f"-I{p}", "-Ooutput.udf", "-Ddefine.udf", "-Rrestart.udf"]) == 0
+    out = capsys.readouterr()
+    text = out.out + out.err
+    assert "ions: salt z = 1, -1, Debye length 3, Bjerrum length 0.0795775" in text
+    assert "kBT = 1, Onsager 1" in text
