@@ -96,6 +96,10 @@ class PhaseField:
     na: float = 0.0
     nb: float = 0.0
     chi: float = 0.0
+    z: float = 0.0                 # gradient penalty in the solids: (alpha/2 + z phi)|grad psi|^2
+    w_wall: float = 0.0            # wetting of the walls' faces
+    psi_0_p: float = 0.0           # psi preferred inside the particles (Landau)
+    psi_0_wall: object = 0.0       # psi preferred inside the walls: a number or (N1, N2) map
 
 
 @dataclass(frozen=True)
@@ -136,6 +140,18 @@ class Interactions:
 
 
 @dataclass(frozen=True)
+class Wall:
+    """switch.wall FLAT (PHYSICS-EXTRA.md §2): axis 0/1/2, DH solid points, the wall's LJ law
+    (AUTO: the particles' EPSILON and LJ_powers with truncation ON)."""
+    axis: int
+    DH: int
+    powers: str
+    EPSILON: float
+    truncate: str
+    LJ_Params: str = "AUTO"
+
+
+@dataclass(frozen=True)
 class Switches:
     ROTATION: bool
     init_distribution: str
@@ -147,6 +163,7 @@ class Switches:
     pin_rot: tuple = ()
     free_rigid: tuple = ()         # ((spec_id, (vx,vy,vz), (ox,oy,oz)), ...) of bools
     OBL_INT: str = "linear"
+    wall: Wall | None = None
 
 
 @dataclass(frozen=True)
@@ -342,10 +359,11 @@ def from_document(doc: udf.UDFManager, input_path: str = "") -> RunConfig:
                       initial_fluctuation=r.non_negative(f"{pp}.initial_fluctuation"),
                       d=r.finite(f"{pp}.d"), w=r.finite(f"{pp}.w"),
                       alpha=r.non_negative(f"{pp}.alpha"), kappa=r.positive(f"{pp}.kappa"))
-        for extra in ("k", "z"):  # walls and fluid-interface penalties of newer define.udf
+        for extra in ("k", "psi_dry"):  # k: never read by the original; psi_dry: dry walls
             if r.has(f"{pp}.{extra}") and r.get(f"{pp}.{extra}") != 0:
                 r.fail(f"{pp}.{extra}", r.get(f"{pp}.{extra}"),
                        "is not supported by kapsel-py (set it to 0)")
+        common.update(_surface_terms(r, pp, eq_type, mesh))
         if pot == "Landau":
             phase = PhaseField(ch, tol, it, pot, a=r.finite(f"{pp}.a"), b=r.finite(f"{pp}.b"),
                                **common)
@@ -472,8 +490,8 @@ def from_document(doc: udf.UDFManager, input_path: str = "") -> RunConfig:
                        f"must be a Rigid_spec index, 0..{len(species) - 1}")
             rows.append((sid, tuple(x == "YES" for x in vel), tuple(x == "YES" for x in om)))
         free_rigid = tuple(rows)
-    for opt, off in (("switch.wall.type", "NONE"), ("switch.quincke.type", "OFF"),
-                     ("switch.multipole.type", "OFF")):
+    wall = _wall(r, eq_type, mesh, A, inter)
+    for opt, off in (("switch.quincke.type", "OFF"), ("switch.multipole.type", "OFF")):
         if r.has(opt) and r.get(opt) != off:
             r.fail(opt, r.get(opt), f"is not supported by kapsel-py; set it to {off}")
     fix = tuple(r.get(f"switch.FIX_CELL.{ax}") == "ON" for ax in "xyz")
@@ -481,7 +499,7 @@ def from_document(doc: udf.UDFManager, input_path: str = "") -> RunConfig:
                         random_walk_iterations=rw, user_particles=user,
                         init_orientation=r.get("switch.INIT_orientation"), fix_cell=fix,
                         pin=pin, pin_rot=pin_rot, free_rigid=free_rigid,
-                        OBL_INT=r.get("switch.ns_solver.OBL_INT"))
+                        OBL_INT=r.get("switch.ns_solver.OBL_INT"), wall=wall)
 
     # ---- time, output, resume --------------------------------------------------------
     kind = r.get("time_increment.type")
@@ -502,6 +520,66 @@ def from_document(doc: udf.UDFManager, input_path: str = "") -> RunConfig:
     return RunConfig(type=eq_type, mesh=mesh, fluid=fluid, particles=particles,
                      interactions=inter, switches=switches, time=time, output=output,
                      resume=resume, phase=phase, shear=shear, input_path=input_path)
+
+
+def _surface_terms(r: _Reader, pp: str, eq_type: str, mesh: Mesh) -> dict:
+    """The Cahn-Hilliard items of newer define.udf files (PHYSICS-EXTRA.md §1.3), each 0 when
+    absent: z, w_wall, psi_0_p, psi_0_wall (uniform, or user_specify: one value per node of
+    the wall plane, the same through the wall)."""
+    out = {}
+    for name in ("z", "w_wall", "psi_0_p"):
+        if r.has(f"{pp}.{name}"):
+            out[name] = r.finite(f"{pp}.{name}")
+    if out.get("z", 0.0) != 0 and eq_type != "Navier_Stokes_Cahn_Hilliard_FDM":
+        r.fail(f"{pp}.z", out["z"], f"is supported for Navier_Stokes_Cahn_Hilliard_FDM only, "
+                                    f"not {eq_type} (set it to 0)")
+    w = f"{pp}.psi_0_wall"
+    if r.has(f"{w}.type"):
+        kind = r.get(f"{w}.type")
+        if kind == "uniform":
+            out["psi_0_wall"] = r.finite(f"{w}.uniform.psi_0_wall")
+        elif kind == "user_specify":
+            rows = r.get(f"{w}.user_specify.psi_0_wall[]")
+            try:
+                grid = np.array([[v[0] if isinstance(v, (list, tuple)) else v for v in row]
+                                 for row in rows], dtype=float)
+            except (TypeError, ValueError):
+                grid = np.zeros((0, 0))
+            if grid.ndim != 2 or not np.isfinite(grid).all():
+                r.fail(f"{w}.user_specify.psi_0_wall[]", "...",
+                       "must be a table of numbers psi_0_wall[i][j]")
+            out["psi_0_wall"] = grid
+    return out
+
+
+WALL_TYPES = ("Navier_Stokes", "Navier_Stokes_FDM", "Navier_Stokes_Cahn_Hilliard_FDM")
+
+
+def _wall(r: _Reader, eq_type: str, mesh: Mesh, A: float, inter: Interactions):
+    """switch.wall (optional, NONE if absent): FLAT walls for the types the original allows
+    them in, with XI < DH DX < L - 2 A (solid thicker than the interface, room for a
+    particle between the walls)."""
+    if not r.has("switch.wall.type") or r.get("switch.wall.type") == "NONE":
+        return None
+    if eq_type not in WALL_TYPES:
+        r.fail("switch.wall.type", r.get("switch.wall.type"),
+               f"FLAT walls are available for {', '.join(WALL_TYPES)} only (as in the "
+               f"original), not {eq_type}; set it to NONE")
+    f = "switch.wall.FLAT"
+    axis = {"X": 0, "Y": 1, "Z": 2}[r.get(f"{f}.axis")]
+    DH = r.get(f"{f}.DH")
+    L = mesh.box[axis]
+    xi = r.get("A_XI")
+    if not xi < DH * mesh.DX < L - 2 * A:
+        r.fail(f"{f}.DH", DH, f"the solid thickness DH DX = {DH * mesh.DX:g} must exceed the "
+                              f"interface XI = {xi:g} and leave a gap wider than a particle "
+                              f"(DH DX < L - 2A = {L - 2 * A:g})")
+    kind = r.get(f"{f}.LJ_Params") if r.has(f"{f}.LJ_Params") else "AUTO"
+    if kind == "MANUAL":
+        m = f"{f}.MANUAL"
+        return Wall(axis, DH, r.get(f"{m}.powers"), r.non_negative(f"{m}.EPSILON"),
+                    r.get(f"{m}.truncate"), "MANUAL")
+    return Wall(axis, DH, inter.LJ_powers, inter.EPSILON, "ON", "AUTO")
 
 
 def _field_output(r: _Reader, mesh: Mesh) -> FieldOutput:

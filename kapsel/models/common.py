@@ -56,6 +56,8 @@ def make_particles(cfg: RunConfig, rng: np.random.Generator) -> ParticleState:
         if obj == "rigid":
             from ..particles.rigid import build_bodies
             p.constraints = build_bodies(cfg, p, rng)
+            if cfg.switches.wall is not None:
+                _check_between_walls(cfg, p.R, radius)
             return p
         if obj == "chain":
             from ..particles import chains
@@ -67,6 +69,8 @@ def make_particles(cfg: RunConfig, rng: np.random.Generator) -> ParticleState:
                 chains.check_bonds(R, box, A, per_chain)
                 p.v[:] = user[:n, 3:6]
                 p.omega[:] = user[:n, 10:13]
+        elif kind in ("uniform_random", "random_walk") and cfg.switches.wall is not None:
+            R = _between_walls(cfg, kind, n, radius, rng)
         elif kind == "uniform_random":
             R = placement.uniform_random(n, radius, box, rng)
         elif kind == "random_walk":
@@ -83,6 +87,8 @@ def make_particles(cfg: RunConfig, rng: np.random.Generator) -> ParticleState:
         raise ConfigError(str(e), path="switch.INIT_distribution.type", value=kind) from None
     p.R[:] = np.mod(R, box)
     p.R_raw[:] = R
+    if cfg.switches.wall is not None:
+        _check_between_walls(cfg, p.R, radius)
     okind = cfg.switches.init_orientation
     if okind == "user_specify" and kind != "user_specify":
         okind = "space_align"  # table 7: user_specify orientations need user_specify positions
@@ -96,16 +102,62 @@ def make_particles(cfg: RunConfig, rng: np.random.Generator) -> ParticleState:
     return p
 
 
-def make_forces(cfg: RunConfig, particles: ParticleState, strain=None):
+def _gap(cfg):
+    """(axis, lowest and highest centre coordinate) of a particle clear of the walls' force
+    range (kapsel.particles.walls: centre further than A_R_cutoff sigma - a from a face)."""
+    from ..particles.forces import interaction_range
+    w, A = cfg.switches.wall, cfg.particles.A
+    lo = 0.5 * w.DH * cfg.mesh.DX
+    hi = cfg.mesh.box[w.axis] - lo
+    clear = max(interaction_range(w.powers, w.truncate) * 2 * A - A, A) if w.truncate != "NONE" \
+        else A
+    return w.axis, lo + clear, hi - clear
+
+
+def _between_walls(cfg, kind, n, radius, rng):
+    """uniform_random / random_walk in the slab between the walls (their sub-box along the
+    wall axis; the overlap test across its periodic edge only rejects more)."""
+    from ..particles import placement
+    axis, lo, hi = _gap(cfg)
+    sub = cfg.mesh.box.copy()
+    sub[axis] = hi - lo
+    if sub[axis] <= 0:
+        raise ValueError(f"no room between the walls for a particle of radius "
+                         f"{cfg.particles.A:g}")
+    if kind == "uniform_random":
+        R = placement.uniform_random(n, radius, sub, rng)
+    else:
+        R = placement.random_walk(n, radius, sub, cfg.switches.random_walk_iterations, rng)
+    R[:, axis] += lo
+    return R
+
+
+def _check_between_walls(cfg, R, radius):
+    """Refuse particles placed in (or against) a wall's solid."""
+    axis, _, _ = _gap(cfg)
+    lo = 0.5 * cfg.switches.wall.DH * cfg.mesh.DX
+    x = R[:, axis]
+    bad = np.flatnonzero((x - lo < radius) | (cfg.mesh.box[axis] - lo - x < radius))
+    if bad.size:
+        raise ConfigError(f"particle {bad[0]} at {R[bad[0]].tolist()} overlaps a wall (the "
+                          f"fluid lies between {lo:g} and {cfg.mesh.box[axis] - lo:g} along "
+                          f"{'XYZ'[axis]})", path="switch.INIT_distribution.type",
+                          value=cfg.switches.init_distribution)
+
+
+def make_forces(cfg: RunConfig, particles: ParticleState, strain=None, wall=None):
     """``forces(p) -> (F, T, min_ratio)``: pair interactions (skipped for LJ_truncate NONE;
     not between beads of one rigid body), FENE bonds of chains (kapsel.particles.chains)
     and net gravity; None when a scene has none of them.  ``strain()``: the Lees-Edwards frame strain of the
-    sheared types (pairs by the Lees-Edwards minimum image)."""
+    sheared types (pairs by the Lees-Edwards minimum image).  ``wall``: a
+    kapsel.particles.walls.FlatWall whose particle-wall forces are added per bead."""
     inter = cfg.interactions
     pairs = inter.LJ_truncate != "NONE" and particles.n > 1 and inter.EPSILON > 0
     gravity = inter.G != 0 and particles.n > 0
     chain = cfg.particles.object_type == "chain" and particles.n > 1
-    if not (pairs or gravity or chain):
+    if wall is not None and (wall.truncate == "NONE" or particles.n == 0):
+        wall = None
+    if not (pairs or gravity or chain or wall is not None):
         return None
     from ..particles import forces as pf
     box = cfg.mesh.box
@@ -130,6 +182,10 @@ def make_forces(cfg: RunConfig, particles: ParticleState, strain=None):
             F, ratio_min = zeros.copy(), np.inf
         if g is not None:
             F = F + g
+        if wall is not None:
+            Fw, _, ratio_w = wall.forces(p.R, p.radius)
+            F = F + Fw
+            ratio_min = min(ratio_min, ratio_w)
         if bonds is not None:
             Fb, stretch = chains.fene_forces(p.R, box, p.radius, *bonds, inter.EPSILON)
             if stretch >= chains.BOND_BREAK:

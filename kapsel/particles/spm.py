@@ -19,6 +19,11 @@ One ``step()``:
    the k = 0 mean of du), MAC ``u += du; project(u)`` (the projection keeps the mean);
 5. R, q by Crank-Nicolson (§5.2), new profiles.
 
+``wall`` (kapsel.particles.walls.FlatWall): the solid walls join step 4 with zero
+velocity: du -= phi_w u*, with phi_w limited to 1 - phi where particles overlap the wall's
+interface (PHYSICS-EXTRA.md §2.3), so the velocity in the solid stays 0; done also without
+particles.  The walls absorb momentum, so P below is then not conserved.
+
 Steps 3 and 5 are those of free particles (motion.update_velocities / update_positions) or,
 when ``particles.constraints`` is set, its own (motion.Pinned: pinned particles;
 rigid.RigidBodies: beads moving as rigid bodies).
@@ -76,7 +81,7 @@ class SPM:
     """
 
     def __init__(self, fluid, particles, A, xi, rho, dx, dt, rotation=True, forces=None,
-                 noise=None, mass="grid", center=True, u=None, impose=True):
+                 noise=None, mass="grid", center=True, u=None, impose=True, wall=None):
         self.fluid = fluid
         self.p = particles
         self.rho = float(rho)
@@ -102,7 +107,9 @@ class SPM:
         else:
             raise TypeError("fluid must be a SpectralNS or a MACSolver")
         self.size = int(np.prod(self.shape))
-        self._du = np.zeros((3,) + self.shape) if particles.n else None   # last increment
+        self.wall = wall
+        self._du = (np.zeros((3,) + self.shape) if particles.n or wall is not None
+                    else None)                                           # last increment
         self.box = np.array(self.shape, dtype=float) * self.dx
         # oblique fluid (kapsel.fluid.oblique, Lees-Edwards): profiles on the sheared grid,
         # velocities relative to the imposed shear flow, Lees-Edwards images
@@ -204,6 +211,8 @@ class SPM:
         """Advance fluid and particles by dt (steps 1-5 of the module docstring)."""
         self._fluid_step()
         p = self.p
+        if self.wall is not None and self.mode == "spectral" and not p.n:
+            self.fluid.velocity(out=self.u)
         if p.n and self.oblique:
             self._profiles()                  # the oblique grid moved with the frame
         if p.n:
@@ -224,6 +233,8 @@ class SPM:
             du = rigidity_increment(u, self.idx, self.phi_i, self.r, v, p.omega, self.size,
                                     out=self._du, shear=shear,
                                     moment=self.moment if self.oblique else None)
+            if self.wall is not None:
+                self._wall_increment(du)
             self._add_solenoidal(du)
             if self.oblique:
                 R0, raw0 = p.R.copy(), p.R_raw.copy()
@@ -232,7 +243,19 @@ class SPM:
                 p.R[:] = R0 + (p.R_raw - raw0)
                 self.fluid.wrap_particles(p)
             self._profiles()
+        elif self.wall is not None:
+            self._du.fill(0.0)
+            self._wall_increment(self._du)
+            self._add_solenoidal(self._du)
         self.step_index += 1
+
+    def _wall_increment(self, du):
+        """du -= phi_w u* (the walls at rest), phi_w limited to 1 - phi of the particles."""
+        pw = self.wall.phi
+        if self.p.n:
+            pw = np.minimum(pw, np.maximum(1.0 - self.phi(), 0.0))
+        for c in range(3):
+            du[c] -= pw * self.u[c]
 
     def run(self, nsteps):
         for _ in range(int(nsteps)):
