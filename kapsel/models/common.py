@@ -10,7 +10,7 @@ import sys
 
 import numpy as np
 
-from ..config import ConfigError, RunConfig
+from ..config import SHEAR_TYPES, ConfigError, RunConfig
 from ..particles.state import ParticleState
 
 
@@ -173,11 +173,18 @@ def make_forces(cfg: RunConfig, particles: ParticleState, strain=None, wall=None
         bonds = chains.chain_bonds([s.beads for s in cfg.particles.species
                                     for _ in range(s.number)])
 
+    lj_dia = None
+    if getattr(cfg, "type", "") in SHEAR_TYPES:       # LJ_dia of the sheared types
+        lj_dia = pf.sheared_lj_dia(inter.LJ_powers, cfg.particles.A, cfg.particles.A_XI)
+        if lj_dia == 2.0 * cfg.particles.A:
+            lj_dia = None
+
     def forces(p):
         if pairs:
             F, _, ratio_min = pf.pair_forces(p.R, box, p.radius, inter.LJ_powers, inter.EPSILON,
                                              inter.LJ_truncate, group=group,
-                                             strain=strain() if strain is not None else 0.0)
+                                             strain=strain() if strain is not None else 0.0,
+                                             sigma=lj_dia)
         else:
             F, ratio_min = zeros.copy(), np.inf
         if g is not None:
