@@ -296,3 +296,12 @@ def test_a_sphere_driven_towards_a_wall_slows_as_brenner_predicts():
     for h in (3.0, 4.0):
         assert lam[2.0] / lam[h] == pytest.approx(brenner(2.0) / brenner(h), rel=0.10)
     assert lam[2.0] > lam[3.0] > lam[4.0] > 1.0
+
+
+def test_rigid_bodies_are_placed_between_the_walls():
+    from kapsel.particles.rigid import place_bodies, rod_shape
+    rng = np.random.default_rng(7)
+    off = [rod_shape(3, 2.0) for _ in range(20)]
+    R = place_bodies(off, 2.0, [32.0, 32.0, 16.0], rng, slab=(2, 4.5, 11.5))
+    z = (R[:, None, :] + np.array(off))[..., 2]
+    assert np.all((z >= 4.5) & (z <= 11.5))

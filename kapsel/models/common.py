@@ -103,15 +103,8 @@ def make_particles(cfg: RunConfig, rng: np.random.Generator) -> ParticleState:
 
 
 def _gap(cfg):
-    """(axis, lowest and highest centre coordinate) of a particle clear of the walls' force
-    range (kapsel.particles.walls: centre further than A_R_cutoff sigma - a from a face)."""
-    from ..particles.forces import interaction_range
-    w, A = cfg.switches.wall, cfg.particles.A
-    lo = 0.5 * w.DH * cfg.mesh.DX
-    hi = cfg.mesh.box[w.axis] - lo
-    clear = max(interaction_range(w.powers, w.truncate) * 2 * A - A, A) if w.truncate != "NONE" \
-        else A
-    return w.axis, lo + clear, hi - clear
+    from ..particles.walls import clear_slab
+    return clear_slab(cfg)
 
 
 def _between_walls(cfg, kind, n, radius, rng):

@@ -123,6 +123,22 @@ class FlatWall:
         return self.forces(R, radius)[1]
 
 
+def clear_slab(cfg):
+    """(axis, lowest, highest) centre coordinate of a particle clear of the walls' force
+    range (centre further than A_R_cutoff sigma - a from a face, and at least a), or None
+    without walls."""
+    w = getattr(cfg.switches, "wall", None)
+    if w is None:
+        return None
+    A = cfg.particles.A
+    lo = 0.5 * w.DH * cfg.mesh.DX
+    hi = cfg.mesh.box[w.axis] - lo
+    clear = A
+    if w.truncate != "NONE":
+        clear = max(pf.interaction_range(w.powers, w.truncate) * 2 * A - A, A)
+    return w.axis, lo + clear, hi - clear
+
+
 def make_wall(cfg):
     """The FlatWall of a configuration (``cfg.switches.wall``), or None."""
     w = getattr(cfg.switches, "wall", None)
