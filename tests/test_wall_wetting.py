@@ -224,3 +224,25 @@ def test_ex13_pickering_emulsion_runs(tmp_path):
     assert u.totalRecord() == 3
     u.jump(2)
     assert len(u.get("Particles[]")) == 195
+
+
+def test_psi_0_wall_map_patterns_the_wall(tmp_path):
+    """user_specify psi_0_wall[i][j] over the wall plane (Z wall: i = x, j = y); a larger
+    table's first entries are used, as the original reads only those; a smaller one is
+    refused."""
+    shape = (4, 6, 16)
+    wall = FlatWall(2, 6, shape, 1.0, 2.0)
+    table = np.where(np.add.outer(np.arange(8), np.arange(8)) % 2 == 0, 0.8, -0.8)
+    ch = CahnHilliard(shape, 1.0, params("implicit_scheme", z=0.0, w_wall=0.0, d=3.0,
+                                         psi_0_wall=table), 0.05, xi=2.0, wall=wall,
+                      preconditioner="fft")
+    psi = np.zeros(shape)
+    for _ in range(400):
+        ch.step(psi)
+    assert np.all(np.sign(psi[:, :, 0]) == np.sign(table[:4, :6]))
+    with pytest.raises(ValueError, match="wall plane has 4 x 6"):
+        CahnHilliard(shape, 1.0, params(psi_0_wall=table[:3]), 0.05, xi=2.0, wall=wall)
+    # the input's table reaches the configuration
+    path = _copy(tmp_path, "ex14", "input.udf", [('     "uniform",\n', '     "user_specify",\n')])
+    grid = config.load(path).phase.psi_0_wall
+    assert grid.shape == (64, 64) and grid[0, 12] == -1.0 and grid[0, 13] == 1.0

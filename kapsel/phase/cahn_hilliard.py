@@ -306,11 +306,13 @@ class CahnHilliard:
             psi0 = np.asarray(getattr(p, "psi_0_wall", 0.0), dtype=float)
             if psi0.ndim == 2:
                 plane = [n for a, n in enumerate(self.shape) if a != wall.axis]
-                if list(psi0.shape) != plane:
+                if psi0.shape[0] < plane[0] or psi0.shape[1] < plane[1]:
                     raise ValueError(f"psi_0_wall user_specify has {psi0.shape[0]} x "
                                      f"{psi0.shape[1]} values; the wall plane has "
                                      f"{plane[0]} x {plane[1]} nodes")
-                psi0 = np.expand_dims(psi0, wall.axis)
+                # [i][j] of the in-plane nodes; a larger table's extra rows and columns are
+                # not used (the original reads only the entries it needs)
+                psi0 = np.expand_dims(psi0[:plane[0], :plane[1]], wall.axis)
             static -= pen * neutral_value(p, psi0, self.psi_bar)
             self._wall_pen = pen
         self._wall_static = static
