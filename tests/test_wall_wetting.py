@@ -137,8 +137,8 @@ def test_an_interface_meets_the_wall_at_the_predicted_contact_angle(w_wall):
     psi_0_wall = 0), a vertical strip of the A phase between the walls: the interfaces bend
     until they meet the faces at Young's angle of the wetting free energy
     (``wetting_angle``: 122.2 and 71.9 degrees; measured 120.4 and 70.9 from a circle fitted to
-    the psi = 0 line, at the face plane).  BDF2, dt = 0.1, 3000 steps: 15-25 s each on a
-    loaded 2-core machine.  (The same at 64 x 2 x 32, w_wall = 0.314: 104.2 predicted,
+    the psi = 0 line, at the face plane).  BDF2, dt = 0.1, 3000 steps: 6-25 s each on a
+    2-core machine, idle to loaded.  (The same at 64 x 2 x 32, w_wall = 0.314: 104.2 predicted,
     102.8 measured after 5000 steps.)"""
     shape = (32, 2, 16)
     wall = FlatWall(2, 4, shape, 1.0, 2.0)
@@ -149,7 +149,7 @@ def test_an_interface_meets_the_wall_at_the_predicted_contact_angle(w_wall):
     x = np.arange(shape[0])
     psi = np.where((x >= 8) & (x < 24), 1.0, -1.0)[:, None, None] * (1.0 - wall.phi)
     total = psi.sum()
-    assert _contact_angle(psi, wall) == pytest.approx(90.0, abs=1.0)
+    assert np.all(psi[7, 0, 4:12] < 0) and np.all(psi[8, 0, 4:12] > 0)   # vertical: 90 deg
     for _ in range(3000):
         ch.step(psi)
     assert abs(psi.sum() - total) / psi.size < 1e-10

@@ -277,8 +277,8 @@ def test_a_sphere_driven_towards_a_wall_slows_as_brenner_predicts():
     lambda = F / (6 pi ETA A U) after 1500 steps: 1.946 (h/a = 2), 1.498 (3), 1.346 (4);
     ratios 1.299 and 1.446 against Brenner's 1.355 and 1.540 (-4 %, -6 %); the absolute
     values lie below Brenner's 2.126, 1.569, 1.380 (not explained here: the box and the SPM's
-    diffuse surface both change them; the ratios cancel most of it).  About 3.5 min per height (11 min in all) on a
-    loaded 2-core machine."""
+    diffuse surface both change them; the ratios cancel most of it).  Run time 258 s (the
+    three heights; 2-core machine shared with other jobs)."""
     N, A, dt, Fz = 64, 4.0, 1.0 / math.pi ** 2, -0.075
     wall = FlatWall(2, 4, (N, N, N), 1.0, 2.0)
     lam = {}
