@@ -140,6 +140,10 @@ class PhaseField:
     na: float = 0.0
     nb: float = 0.0
     chi: float = 0.0
+    z: float = 0.0                 # gradient penalty in the solids: (alpha/2 + z phi)|grad psi|^2
+    w_wall: float = 0.0            # wetting of the walls' faces
+    psi_0_p: float = 0.0           # psi preferred inside the particles (Landau)
+    psi_0_wall: object = 0.0       # psi preferred inside the walls: a number or (N1, N2) map
 
 
 @dataclass(frozen=True)
@@ -181,6 +185,18 @@ class Interactions:
 
 
 @dataclass(frozen=True)
+class Wall:
+    """switch.wall FLAT (PHYSICS-EXTRA.md §2): axis 0/1/2, DH solid points, the wall's LJ law
+    (AUTO: the particles' EPSILON and LJ_powers with truncation ON)."""
+    axis: int
+    DH: int
+    powers: str
+    EPSILON: float
+    truncate: str
+    LJ_Params: str = "AUTO"
+
+
+@dataclass(frozen=True)
 class Switches:
     ROTATION: bool
     init_distribution: str
@@ -196,6 +212,7 @@ class Switches:
     dipoles: object = None         # kapsel.particles.dipoles.Dipoles (switch.multipole ON)
     SLIP_tol: float = 1e-3         # squirmer slip iteration (kapsel.particles.janus)
     SLIP_iter: int = 4
+    wall: Wall | None = None
 
 
 @dataclass(frozen=True)
@@ -449,7 +466,7 @@ def from_document(doc: udf.UDFManager, input_path: str = "") -> RunConfig:
     phase = None
     if eq_type in PHASE_TYPES:
         with r.block():
-            phase = _phase_field(r, base)
+            phase = _phase_field(r, base, eq_type, mesh)
 
     # ---- particles (A, A_XI and the positions are in units of DX: radius = A DX) -------
     obj = None
@@ -502,9 +519,6 @@ def from_document(doc: udf.UDFManager, input_path: str = "") -> RunConfig:
     inter = None
     with r.block():
         lj = r.get("LJ_powers")
-        if lj == "electro_osmotic_flow":
-            r.unsupported_feature("the electro-osmotic flow potential", "LJ_powers", lj,
-                                  "set 12:6, 24:12, 36:18 or macro_vdw")
         inter = Interactions(EPSILON=r.non_negative("EPSILON"), LJ_powers=lj,
                              LJ_truncate=r.get("switch.LJ_truncate"), G=r.finite("gravity.G"),
                              G_direction=r.get("gravity.G_direction"))
@@ -521,7 +535,7 @@ def from_document(doc: udf.UDFManager, input_path: str = "") -> RunConfig:
     switches = None
     if obj is not None:
         with r.block():
-            switches = _switches(r, obj, species, mesh, particles)
+            switches = _switches(r, obj, species, mesh, particles, eq_type, inter)
 
     # ---- time, output, resume --------------------------------------------------------
     time = None
@@ -612,7 +626,7 @@ def _check_charges(r: _Reader, el: Electrolyte, species: list, obj: str) -> None
                                                          "must have one sign")
 
 
-def _phase_field(r: _Reader, base: str) -> PhaseField:
+def _phase_field(r: _Reader, base: str, eq_type: str = "", mesh=None) -> PhaseField:
     cp = f"{base}.CH_solver"
     ch = r.get(f"{cp}.type")
     tol, it = 1e-9, 1000
@@ -631,12 +645,12 @@ def _phase_field(r: _Reader, base: str) -> PhaseField:
                   initial_fluctuation=r.non_negative(f"{pp}.initial_fluctuation"),
                   d=r.finite(f"{pp}.d"), w=r.finite(f"{pp}.w"),
                   alpha=r.non_negative(f"{pp}.alpha"), kappa=r.positive(f"{pp}.kappa"))
-    # the wetting terms the original reads when the define declares them (PHYSICS-EXTRA
+    # the surface terms the original reads when the define declares them (PHYSICS-EXTRA
     # §1.3); `k` of the shipped define.udf is never read by the original, nor here
-    for extra in ("z", "w_wall"):
-        if r.has(f"{pp}.{extra}") and r.get(f"{pp}.{extra}") != 0:
-            r.unsupported_feature(f"the {pot} wetting term {extra}", f"{pp}.{extra}",
-                                  r.get(f"{pp}.{extra}"), "set it to 0")
+    if r.has(f"{pp}.psi_dry") and r.get(f"{pp}.psi_dry") != 0:
+        r.unsupported_feature("dry walls", f"{pp}.psi_dry", r.get(f"{pp}.psi_dry"),
+                              "set it to 0")
+    common.update(_surface_terms(r, pp, eq_type, mesh))
     if pot == "Landau":
         return PhaseField(ch, tol, it, pot, a=r.finite(f"{pp}.a"), b=r.finite(f"{pp}.b"),
                           **common)
@@ -714,7 +728,8 @@ def _dims(box) -> str:
     return " x ".join(f"{float(x):g}" for x in box)
 
 
-def _switches(r: _Reader, obj: str, species: list, mesh, particles) -> Switches:
+def _switches(r: _Reader, obj: str, species: list, mesh, particles, eq_type: str = "",
+              inter=None) -> Switches:
     doc = r.doc
     count = sum(s.particles for s in species)
     box = mesh.box if mesh is not None else None
@@ -772,10 +787,7 @@ def _switches(r: _Reader, obj: str, species: list, mesh, particles) -> Switches:
                 continue
             rows.append((sid, tuple(x == "YES" for x in vel), tuple(x == "YES" for x in om)))
         free_rigid = tuple(rows)
-    for opt, off, what in (("switch.wall.type", "NONE", "flat walls"),):
-        v = r.optional(opt, off)
-        if v != off:
-            r.unsupported_feature(what, opt, v, f"set it to {off}")
+    wall = _wall(r, eq_type, mesh, particles, inter)
     quincke, dipoles = _electric(r, obj, species, mesh)
     fix = tuple(r.get(f"switch.FIX_CELL.{ax}") == "ON" for ax in "xyz")
     obl = r.optional("switch.ns_solver.OBL_INT", "linear")
@@ -784,7 +796,7 @@ def _switches(r: _Reader, obj: str, species: list, mesh, particles) -> Switches:
                     random_walk_iterations=rw, user_particles=user,
                     init_orientation=r.get("switch.INIT_orientation"), fix_cell=fix,
                     pin=pin, pin_rot=pin_rot, free_rigid=free_rigid, OBL_INT=obl,
-                    quincke=quincke, dipoles=dipoles, **slip)
+                    quincke=quincke, dipoles=dipoles, wall=wall, **slip)
 
 
 def _slip_switches(r: _Reader, species) -> dict:
@@ -808,6 +820,66 @@ def _slip_switches(r: _Reader, species) -> dict:
         elif squirm:
             r.fail(path, None, "squirmers need it (the slip iteration); add it to switch")
     return out
+
+
+def _surface_terms(r: _Reader, pp: str, eq_type: str, mesh: Mesh) -> dict:
+    """The Cahn-Hilliard items of newer define.udf files (PHYSICS-EXTRA.md §1.3), each 0 when
+    absent: z, w_wall, psi_0_p, psi_0_wall (uniform, or user_specify: one value per node of
+    the wall plane, the same through the wall)."""
+    out = {}
+    for name in ("z", "w_wall", "psi_0_p"):
+        if r.has(f"{pp}.{name}"):
+            out[name] = r.finite(f"{pp}.{name}")
+    if out.get("z", 0.0) != 0 and eq_type != "Navier_Stokes_Cahn_Hilliard_FDM":
+        r.fail(f"{pp}.z", out["z"], f"is supported for Navier_Stokes_Cahn_Hilliard_FDM only, "
+                                    f"not {eq_type} (set it to 0)")
+    w = f"{pp}.psi_0_wall"
+    if r.has(f"{w}.type"):
+        kind = r.get(f"{w}.type")
+        if kind == "uniform":
+            out["psi_0_wall"] = r.finite(f"{w}.uniform.psi_0_wall")
+        elif kind == "user_specify":
+            rows = r.get(f"{w}.user_specify.psi_0_wall[]")
+            try:
+                grid = np.array([[v[0] if isinstance(v, (list, tuple)) else v for v in row]
+                                 for row in rows], dtype=float)
+            except (TypeError, ValueError):
+                grid = np.zeros((0, 0))
+            if grid.ndim != 2 or not np.isfinite(grid).all():
+                r.fail(f"{w}.user_specify.psi_0_wall[]", "...",
+                       "must be a table of numbers psi_0_wall[i][j]")
+            out["psi_0_wall"] = grid
+    return out
+
+
+WALL_TYPES = ("Navier_Stokes", "Navier_Stokes_FDM", "Navier_Stokes_Cahn_Hilliard_FDM")
+
+
+def _wall(r: _Reader, eq_type: str, mesh: Mesh, particles, inter: Interactions):
+    """switch.wall (optional, NONE if absent): FLAT walls for the types the original allows
+    them in, with XI < DH DX < L - 2 A (solid thicker than the interface, room for a
+    particle between the walls)."""
+    if not r.has("switch.wall.type") or r.get("switch.wall.type") == "NONE":
+        return None
+    if eq_type not in WALL_TYPES:
+        r.fail("switch.wall.type", r.get("switch.wall.type"),
+               f"FLAT walls are available for {', '.join(WALL_TYPES)} only (as in the "
+               f"original), not {eq_type}; set it to NONE")
+    f = "switch.wall.FLAT"
+    axis = {"X": 0, "Y": 1, "Z": 2}[r.get(f"{f}.axis")]
+    DH = r.get(f"{f}.DH")
+    L = mesh.box[axis]
+    A, xi = particles.A, particles.A_XI          # A DX, A_XI DX
+    if not xi < DH * mesh.DX < L - 2 * A:
+        r.fail(f"{f}.DH", DH, f"the solid thickness DH DX = {DH * mesh.DX:g} must exceed the "
+                              f"interface XI = {xi:g} and leave a gap wider than a particle "
+                              f"(DH DX < L - 2A = {L - 2 * A:g})")
+    kind = r.get(f"{f}.LJ_Params") if r.has(f"{f}.LJ_Params") else "AUTO"
+    if kind == "MANUAL":
+        m = f"{f}.MANUAL"
+        return Wall(axis, DH, r.get(f"{m}.powers"), r.non_negative(f"{m}.EPSILON"),
+                    r.get(f"{m}.truncate"), "MANUAL")
+    return Wall(axis, DH, inter.LJ_powers, inter.EPSILON, "ON", "AUTO")
 
 
 def _field_output(r: _Reader, mesh: Mesh, eq_type: str = "") -> FieldOutput:

@@ -30,9 +30,9 @@ UNSUPPORTED = {
     "ex09/squirm_single_a+2.udf": [],
     "ex10/input_rigid_free1.udf": [],
     "ex11/fdm_4096p_shear_1e-2.udf": [],
-    "ex12/a2_N65_Rer025_dipole_mirror.udf": ["electro-osmotic flow", "flat walls"],
-    "ex13/pickering_emulsion.udf": ["Landau wetting term z"],
-    "ex14/input.udf": ["flat walls"],
+    "ex12/a2_N65_Rer025_dipole_mirror.udf": [],
+    "ex13/pickering_emulsion.udf": [],
+    "ex14/input.udf": [],
     "sample/input.udf": [],
 }
 

@@ -10,7 +10,7 @@ import sys
 
 import numpy as np
 
-from ..config import ConfigError, RunConfig
+from ..config import SHEAR_TYPES, ConfigError, RunConfig
 from ..particles.state import ParticleState
 
 
@@ -62,6 +62,8 @@ def make_particles(cfg: RunConfig, rng: np.random.Generator) -> ParticleState:
         if obj == "rigid":
             from ..particles.rigid import build_bodies
             p.constraints = build_bodies(cfg, p, rng)
+            if cfg.switches.wall is not None:
+                _check_between_walls(cfg, p.R, radius)
             return p
         if obj == "chain":
             from ..particles import chains
@@ -73,6 +75,8 @@ def make_particles(cfg: RunConfig, rng: np.random.Generator) -> ParticleState:
                 chains.check_bonds(R, box, A, per_chain)
                 p.v[:] = user[:n, 3:6]
                 p.omega[:] = user[:n, 10:13]
+        elif kind in ("uniform_random", "random_walk") and cfg.switches.wall is not None:
+            R = _between_walls(cfg, kind, n, radius, rng)
         elif kind == "uniform_random":
             R = placement.uniform_random(n, radius, box, rng)
         elif kind == "random_walk":
@@ -89,6 +93,8 @@ def make_particles(cfg: RunConfig, rng: np.random.Generator) -> ParticleState:
         raise ConfigError(str(e), path="switch.INIT_distribution.type", value=kind) from None
     p.R[:] = np.mod(R, box)
     p.R_raw[:] = R
+    if cfg.switches.wall is not None:
+        _check_between_walls(cfg, p.R, radius)
     okind = cfg.switches.init_orientation
     if okind == "user_specify" and kind != "user_specify":
         okind = "space_align"  # table 7: user_specify orientations need user_specify positions
@@ -110,12 +116,50 @@ def make_particles(cfg: RunConfig, rng: np.random.Generator) -> ParticleState:
     return p
 
 
-def make_forces(cfg: RunConfig, particles: ParticleState, strain=None):
+def _gap(cfg):
+    from ..particles.walls import clear_slab
+    return clear_slab(cfg)
+
+
+def _between_walls(cfg, kind, n, radius, rng):
+    """uniform_random / random_walk in the slab between the walls (their sub-box along the
+    wall axis; the overlap test across its periodic edge only rejects more)."""
+    from ..particles import placement
+    axis, lo, hi = _gap(cfg)
+    sub = cfg.mesh.box.copy()
+    sub[axis] = hi - lo
+    if sub[axis] <= 0:
+        raise ValueError(f"no room between the walls for a particle of radius "
+                         f"{cfg.particles.A:g}")
+    if kind == "uniform_random":
+        R = placement.uniform_random(n, radius, sub, rng)
+    else:
+        R = placement.random_walk(n, radius, sub, cfg.switches.random_walk_iterations, rng)
+    R[:, axis] += lo
+    return R
+
+
+def _check_between_walls(cfg, R, radius):
+    """Refuse particles placed in (or against) a wall's solid."""
+    axis, _, _ = _gap(cfg)
+    lo = 0.5 * cfg.switches.wall.DH * cfg.mesh.DX
+    x = R[:, axis]
+    bad = np.flatnonzero((x - lo < radius) | (cfg.mesh.box[axis] - lo - x < radius))
+    if bad.size:
+        raise ConfigError(f"particle {bad[0]} at {R[bad[0]].tolist()} overlaps a wall (the "
+                          f"fluid lies between {lo:g} and {cfg.mesh.box[axis] - lo:g} along "
+                          f"{'XYZ'[axis]})", path="switch.INIT_distribution.type",
+                          value=cfg.switches.init_distribution)
+
+
+def make_forces(cfg: RunConfig, particles: ParticleState, strain=None, wall=None):
     """``forces(p) -> (F, T, min_ratio)``: pair interactions (skipped for LJ_truncate NONE;
     not between beads of one rigid body), FENE bonds of chains (kapsel.particles.chains),
     net gravity, and the dipole forces and torques and Quincke constraint torque
-    (kapsel.particles.dipoles); None when a scene has none of them.  ``strain()``: the Lees-Edwards frame strain of the
-    sheared types (pairs by the Lees-Edwards minimum image)."""
+    (kapsel.particles.dipoles); None when a scene has none of them.  ``strain()``: the
+    Lees-Edwards frame strain of the sheared types (pairs by the Lees-Edwards minimum
+    image).  ``wall``: a kapsel.particles.walls.FlatWall whose particle-wall forces are
+    added per bead."""
     inter = cfg.interactions
     pairs = inter.LJ_truncate != "NONE" and particles.n > 1 and inter.EPSILON > 0
     gravity = inter.G != 0 and particles.n > 0
@@ -125,7 +169,9 @@ def make_forces(cfg: RunConfig, particles: ParticleState, strain=None):
     if particles.n and (sw.quincke is not None or sw.dipoles is not None):
         from ..particles.dipoles import make_electric
         electric = make_electric(sw.dipoles, sw.quincke, cfg.mesh.box, particles.n)
-    if not (pairs or gravity or chain or electric):
+    if wall is not None and (wall.truncate == "NONE" or particles.n == 0):
+        wall = None
+    if not (pairs or gravity or chain or electric or wall is not None):
         return None
     from ..particles import forces as pf
     box = cfg.mesh.box
@@ -142,17 +188,26 @@ def make_forces(cfg: RunConfig, particles: ParticleState, strain=None):
                                     for _ in range(s.number)])
 
     virial = np.zeros((3, 3))       # sum over pairs of f_a dr_b of the last call
+    lj_dia = None
+    if getattr(cfg, "type", "") in SHEAR_TYPES:       # LJ_dia of the sheared types
+        lj_dia = pf.sheared_lj_dia(inter.LJ_powers, cfg.particles.A, cfg.particles.A_XI)
+        if lj_dia == 2.0 * cfg.particles.A:
+            lj_dia = None
 
     def forces(p):
         if pairs:
             F, _, ratio_min = pf.pair_forces(p.R, box, p.radius, inter.LJ_powers, inter.EPSILON,
                                              inter.LJ_truncate, group=group,
                                              strain=strain() if strain is not None else 0.0,
-                                             virial=virial)
+                                             virial=virial, sigma=lj_dia)
         else:
             F, ratio_min = zeros.copy(), np.inf
         if g is not None:
             F = F + g
+        if wall is not None:
+            Fw, _, ratio_w = wall.forces(p.R, p.radius)
+            F = F + Fw
+            ratio_min = min(ratio_min, ratio_w)
         if bonds is not None:
             Fb, stretch = chains.fene_forces(p.R, box, p.radius, *bonds, inter.EPSILON)
             if stretch >= chains.BOND_BREAK:

@@ -57,12 +57,15 @@ class FDMModel(Model):
             raise ConfigError(str(e), path="time_increment", value=self.dt) from None
 
         # particles (SPM on the MAC grid; the step hook adds the Model-H force)
+        from ..particles.walls import make_wall
         self.particles = make_particles(cfg, self.rng)
+        self.wall = make_wall(cfg)
         self.spm = _ModelH_SPM(self.mac, self.particles, cfg.particles.A, cfg.particles.A_XI,
                                f.RHO, dx, self.dt, rotation=cfg.switches.ROTATION,
                                forces=overlap_guard(make_forces(
-                                   cfg, self.particles, strain=self._pair_strain())),
-                               noise=make_noise(cfg, self.particles, seed))
+                                   cfg, self.particles, strain=self._pair_strain(),
+                                   wall=self.wall)),
+                               noise=make_noise(cfg, self.particles, seed), wall=self.wall)
         self.spm.fix_cell = self._fix_cell(cfg)
         self.u = self.spm.u
         self.phi = self.spm.phi() if self.particles.n else None
@@ -108,7 +111,12 @@ class FDMModel(Model):
     def _make_ch(self, dt):
         """The Cahn-Hilliard solver of the type with time step dt."""
         from ..phase import CahnHilliard
-        return CahnHilliard(self.shape, self.dx, self.cfg.phase, dt, **self.ch_kwargs)
+        try:
+            return CahnHilliard(self.shape, self.dx, self.cfg.phase, dt, wall=self.wall,
+                                **self.ch_kwargs)
+        except ValueError as e:
+            raise ConfigError(str(e), path=f"constitutive_eq.{self.cfg.type}.Potential."
+                              f"Landau.psi_0_wall.user_specify.psi_0_wall[]") from None
 
     def _after_fluid(self):
         """Hook between the fluid-particle step and the Cahn-Hilliard step."""
@@ -218,8 +226,16 @@ class FDMModel(Model):
         return ratio, what
 
     # ------------------------------------------------------------------ outputs
+    def phi_total(self):
+        """phi of the output: particles and walls, min(phi_sum, 1) (PHYSICS-EXTRA.md §2.3)."""
+        if self.wall is None:
+            return self.phi
+        if self.phi is None:
+            return np.array(self.wall.phi)
+        return np.minimum(self.phi + self.wall.phi, 1.0)
+
     def kinetic_energy(self) -> float:
-        return kinetic_energy(self.rho, self.dx, self.u, self.phi, self.particles)
+        return kinetic_energy(self.rho, self.dx, self.u, self.phi_total(), self.particles)
 
     def record_items(self) -> dict:
         return {"PSI": self.psi} if self.psi is not None else {}
@@ -277,8 +293,8 @@ class FDMModel(Model):
         inside the particles too, so it is the total order parameter) and flux with a phase
         field (kapsel.snapshot)."""
         src = {"u": lambda: self.u, "pressure": self._pressure, "tau": self._tau}
-        if self.particles.n:
-            src["phi"] = lambda: self.phi
+        if self.particles.n or self.wall is not None:
+            src["phi"] = self.phi_total
         if self.psi is not None:
             src.update(psi=lambda: self.psi, psi_all=lambda: self.psi, flux=self._flux)
         return src
@@ -287,7 +303,7 @@ class FDMModel(Model):
         """The fluid step's pressure plus the part that balances the particles' force of
         the step (the projection of their rigidity increment), at the cell centres."""
         p = self.mac.pressure.copy()
-        if self.particles.n and self.step_index > 0:
+        if (self.particles.n or self.wall is not None) and self.step_index > 0:
             p += self.mac.projection_pressure(self.spm.last_increment())
         return p
 

@@ -4,6 +4,8 @@ kapsel.fluid.spectral.SpectralNS).  Offers u, phi, tau and the pressure to the f
 (output.AVS); the per-snapshot HDF5 files are the FDM types' only, as in the original."""
 from __future__ import annotations
 
+import numpy as np
+
 from ..config import ConfigError, RunConfig
 from ..simulation import register
 from .common import (Model, kinetic_energy, make_forces, make_noise, make_particles,
@@ -19,18 +21,27 @@ class SpectralModel(Model):
         f, seed = cfg.fluid, self.seed
         self.grid = Grid(cfg.mesh.shape, cfg.mesh.DX, threads=self.threads)
         self.fluid = SpectralNS(self.grid, f.RHO, f.ETA, self.dt, fix_cell=cfg.switches.fix_cell)
+        from ..particles.walls import make_wall
         self.particles = make_particles(cfg, self.rng)
+        self.wall = make_wall(cfg)
         self.spm = SPM(self.fluid, self.particles, cfg.particles.A, cfg.particles.A_XI, f.RHO,
                        cfg.mesh.DX, self.dt, rotation=cfg.switches.ROTATION,
-                       forces=overlap_guard(make_forces(cfg, self.particles)),
-                       noise=make_noise(cfg, self.particles, seed))
+                       forces=overlap_guard(make_forces(cfg, self.particles, wall=self.wall)),
+                       noise=make_noise(cfg, self.particles, seed), wall=self.wall)
 
     def advance(self):
         self.spm.step()
         self.tick()
 
+    def phi_total(self):
+        """phi of the output: particles and walls, min(phi_sum, 1) (PHYSICS-EXTRA.md §2.3)."""
+        phi = self.spm.phi()
+        if self.wall is not None:
+            phi = np.minimum(phi + self.wall.phi, 1.0)
+        return phi
+
     def kinetic_energy(self) -> float:
-        phi = self.spm.phi() if self.particles.n else None
+        phi = self.phi_total() if self.particles.n or self.wall is not None else None
         return kinetic_energy(self.cfg.fluid.RHO, self.cfg.mesh.DX, self.spm.velocity(), phi,
                               self.particles)
 
@@ -102,8 +113,8 @@ class SpectralModel(Model):
         src = {"u": u,
                "tau": lambda: viscous_stress_spectral(u(), dx, f.ETA),
                "pressure": lambda: spectral_pressure(u(), self.spm.last_increment(), f.RHO, self.dt, dx)}
-        if self.particles.n:
-            src["phi"] = self.spm.phi
+        if self.particles.n or self.wall is not None:
+            src["phi"] = self.phi_total
         return src
 
 

@@ -36,18 +36,35 @@ r = n sigma) and V(r_c) = -H/36 is 4.4 % of the well depth H / (16 (n-1)); the
 energy is not shifted (jump of H/36 at r_c, forces consistent inside).  With 'ON'
 only the repulsive part is kept: cut at the minimum r = sigma, shifted by
 +H / (16 (n-1)) so that V(sigma) = 0 (C1 at the cut).
+
+LJ_powers 'electro_osmotic_flow' (PHYSICS-EXTRA.md §5; a plain pair force, not the
+Electrolyte solver): with lambda = 3 sigma, for r >= EOF_CORE sigma (EOF_CORE = 1.01)
+    -dV/dr = -EPSILON exp(-r/lambda) (r/lambda + 2) / r^2          (attractive, range 3 sigma)
+    V(r)   = -EPSILON [2 exp(-r/lambda) / r - E1(r/lambda) / lambda]  (E1: exponential integral)
+and for r < EOF_CORE sigma the 36:18 LJ force, its energy shifted to meet V at EOF_CORE sigma
+(the force jumps there, as in the original).  Cutoff: 'ON' at r = sigma (only the repulsive
+core acts; V shifted to 0 there), 'OFF' at LJ_CUTOFF_OFF sigma (force cut, V not shifted).
+
+Sheared types (PHYSICS-EXTRA.md §5): the LJ diameter is LJ_dia = min((2a + XI) / c, 2a), c =
+2^(1/n) for the 2n:n laws and 1 for macro_vdw and electro_osmotic_flow (``sheared_lj_dia``),
+so the potential minimum c LJ_dia lies no further out than a surface gap of XI; pair_forces
+takes it as ``sigma``.  The original's shear-rate-dependent cap on g(r) (Srate_depend_LJ_cap)
+is DBL_MAX and no input changes it, so there is no cap here either.
 """
 from __future__ import annotations
 
 import numpy as np
+from scipy.special import exp1
 
 from .cells import pairs_within
 
-__all__ = ["LJ_POWERS", "MACRO_VDW_N", "LJ_CUTOFF_OFF", "DEEP_OVERLAP_RATIO", "interaction_range",
+__all__ = ["LJ_POWERS", "MACRO_VDW_N", "EOF", "EOF_CORE", "sheared_lj_dia", "LJ_CUTOFF_OFF", "DEEP_OVERLAP_RATIO", "interaction_range",
            "pair_potential", "pair_force_magnitude", "pair_dVdr", "pair_forces", "gravity_force"]
 
 LJ_POWERS = {"12:6": 6, "24:12": 12, "36:18": 18}
 MACRO_VDW_N = 1.1
+EOF = "electro_osmotic_flow"
+EOF_CORE = 1.01
 LJ_CUTOFF_OFF = 2.5
 DEEP_OVERLAP_RATIO = 0.5  # suggested stop threshold for min r / sigma
 
@@ -65,8 +82,9 @@ def _truncate_key(truncate) -> str:
 
 def _check_powers(powers) -> str:
     p = _norm_key(powers)
-    if p not in LJ_POWERS and p != "macro_vdw":
-        raise ValueError(f"LJ_powers must be one of 12:6, 24:12, 36:18, macro_vdw; got {powers!r}")
+    if p not in LJ_POWERS and p not in ("macro_vdw", EOF):
+        raise ValueError(f"LJ_powers must be one of 12:6, 24:12, 36:18, macro_vdw, {EOF}; "
+                         f"got {powers!r}")
     return p
 
 
@@ -77,13 +95,43 @@ def interaction_range(kind, truncate) -> float:
         return 0.0
     if t == "OFF":
         return LJ_CUTOFF_OFF
-    if p == "macro_vdw":
+    if p in ("macro_vdw", EOF):
         return 1.0
     return 2.0 ** (1.0 / LJ_POWERS[p])
 
 
+def sheared_lj_dia(kind, a, xi) -> float:
+    """LJ_dia of the sheared types (module docstring): min((2a + XI) / c, 2a)."""
+    p = _check_powers(kind)
+    c = 2.0 ** (1.0 / LJ_POWERS[p]) if p in LJ_POWERS else 1.0
+    return min((2.0 * a + xi) / c, 2.0 * a)
+
+
+def _eof_outer(r, sigma, epsilon):
+    """(V, -dV/dr) of the electro_osmotic_flow tail."""
+    lam = 3.0 * sigma
+    e = np.exp(-r / lam)
+    V = -epsilon * (2.0 * e / r - exp1(r / lam) / lam)
+    return V, -epsilon * e * (r / lam + 2.0) / (r * r)
+
+
+def _eof_core_offset(sigma, epsilon):
+    """C with V_core = 4 EPSILON (s^2 - s) + C meeting the tail at EOF_CORE sigma."""
+    rc = EOF_CORE * sigma
+    s = EOF_CORE ** -18.0
+    return _eof_outer(rc, sigma, epsilon)[0] - 4.0 * epsilon * (s * s - s)
+
+
 def _raw(r, sigma, p, epsilon):
     """Untruncated (V, -dV/dr)."""
+    if p == EOF:
+        core = r < EOF_CORE * sigma
+        ro = np.where(core, 2.0 * sigma, r)
+        Vo, Fo = _eof_outer(ro, sigma, epsilon)
+        s = (sigma / r) ** 18
+        Vc = 4.0 * epsilon * (s * s - s) + _eof_core_offset(sigma, epsilon)
+        Fc = 72.0 * epsilon * (2.0 * s * s - s) / r
+        return np.where(core, Vc, Vo), np.where(core, Fc, Fo)
     if p == "macro_vdw":
         n = MACRO_VDW_N
         x = r / sigma
@@ -102,9 +150,11 @@ def _raw(r, sigma, p, epsilon):
     return V, F
 
 
-def _shift(p, epsilon, t):
+def _shift(p, epsilon, t, sigma=None):
     if t != "ON":
         return 0.0
+    if p == EOF:                     # cut at sigma, where the core's 36:18 LJ part is 0
+        return -_eof_core_offset(sigma, epsilon)
     if p == "macro_vdw":
         return epsilon / (16.0 * (MACRO_VDW_N - 1.0))
     return epsilon  # V(r_min) = -EPSILON for every 2n:n LJ
@@ -121,7 +171,8 @@ def _within_cutoff(r, sigma, kind, epsilon, truncate):
     inside = r < interaction_range(p, t) * sigma
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         V, F = _raw(r, sigma, p, epsilon)
-    return (np.where(inside, V + _shift(p, epsilon, t), 0.0), np.where(inside, F, 0.0)), r
+    return (np.where(inside, V + _shift(p, epsilon, t, sigma), 0.0),
+            np.where(inside, F, 0.0)), r
 
 
 def pair_potential(r, sigma, kind="12:6", epsilon=1.0, truncate="ON"):
@@ -142,7 +193,7 @@ def pair_dVdr(r, sigma, kind="12:6", epsilon=1.0, truncate="ON"):
 
 
 def pair_forces(R, box, radius, kind="12:6", epsilon=1.0, truncate="ON", group=None,
-                strain=0.0, virial=None):
+                strain=0.0, virial=None, sigma=None):
     """Pair forces F_i^other (eq 9) -> (F (N, 3), U_total, min_ratio).
 
     kind is LJ_powers ('12:6', '24:12', '36:18', 'macro_vdw'), epsilon is EPSILON
@@ -158,6 +209,8 @@ def pair_forces(R, box, radius, kind="12:6", epsilon=1.0, truncate="ON", group=N
     the pairs are found in the oblique coordinates x - g y, where the images are periodic
     (valid while the cutoff (1 + |g|) stays below half the box).
     ``virial``: a (3, 3) array set to sum over pairs of f_a dr_b (f the force on j), or None.
+    ``sigma``: one LJ diameter for every pair instead of a_i + a_j (the sheared types'
+    LJ_dia, ``sheared_lj_dia``).
     """
     if virial is not None:
         virial[...] = 0.0
@@ -169,7 +222,7 @@ def pair_forces(R, box, radius, kind="12:6", epsilon=1.0, truncate="ON", group=N
         return F, 0.0, np.inf
     radius = np.broadcast_to(np.asarray(radius, dtype=float), (n,))
     rc = interaction_range(p, t)
-    rcut = rc * 2.0 * float(radius.max())
+    rcut = rc * (2.0 * float(radius.max()) if sigma is None else float(sigma))
     if strain:
         L = np.asarray(box, dtype=float)
         Ro = R.copy()
@@ -183,7 +236,7 @@ def pair_forces(R, box, radius, kind="12:6", epsilon=1.0, truncate="ON", group=N
     if len(i) == 0:
         return F, 0.0, np.inf
     r = np.sqrt(np.einsum("ij,ij->i", dr, dr))
-    sigma = radius[i] + radius[j]
+    sigma = radius[i] + radius[j] if sigma is None else np.full(len(i), float(sigma))
     keep = r < rc * sigma
     if group is not None:
         group = np.asarray(group)
@@ -194,7 +247,7 @@ def pair_forces(R, box, radius, kind="12:6", epsilon=1.0, truncate="ON", group=N
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         V, fmag = _raw(r, sigma, p, epsilon)
         f = (fmag / r)[:, None] * dr
-    U = float(np.sum(V + _shift(p, epsilon, t)))
+    U = float(np.sum(V + _shift(p, epsilon, t, sigma)))
     if virial is not None:
         virial[...] = f.T @ dr
     for k in range(3):

@@ -75,11 +75,13 @@ def rod_shape(beads, a) -> np.ndarray:
                      np.zeros(beads), np.zeros(beads)], axis=1)
 
 
-def place_bodies(offsets, radius, box, rng, candidates=64, attempts=200) -> np.ndarray:
+def place_bodies(offsets, radius, box, rng, candidates=64, attempts=200,
+                 slab=None) -> np.ndarray:
     """Random centres (B, 3) for bodies whose space-frame bead offsets are ``offsets``
     (list of (n_g, 3)) such that no two beads of different bodies are closer than 2 A
     (minimum image).  Each body tries ``candidates`` centres at once, ``attempts`` times;
-    ValueError if the box is too crowded."""
+    ValueError if the box is too crowded.  ``slab`` (axis, lo, hi): every bead centre must lie
+    between lo and hi along axis (walls, kapsel.particles.walls.clear_slab)."""
     L = np.asarray(box, dtype=float).reshape(3)
     limit = 2.0 * float(radius) * (1.0 - 1e-9)
     placed = np.zeros((0, 3))
@@ -93,6 +95,9 @@ def place_bodies(offsets, radius, box, rng, candidates=64, attempts=200) -> np.n
                 ok = np.flatnonzero((d >= limit).all(axis=(1, 2)))
             else:
                 ok = np.arange(candidates)
+            if slab is not None:
+                x = np.mod(beads[ok, :, slab[0]], L[slab[0]])
+                ok = ok[((x >= slab[1]) & (x <= slab[2])).all(axis=1)]
             if len(ok):
                 centres[g] = c[ok[0]]
                 placed = np.concatenate([placed, np.mod(beads[ok[0]], L)])
@@ -341,7 +346,8 @@ def build_bodies(cfg, p, rng) -> RigidBodies:
         shape = np.concatenate([rod_shape(int(k), A) for k in beads])
         offsets = quat.rotate(q[body], shape)
         starts = np.concatenate([[0], np.cumsum(beads)[:-1]])
-        R = place_bodies(np.split(offsets, starts[1:]), A, box, rng)
+        from .walls import clear_slab
+        R = place_bodies(np.split(offsets, starts[1:]), A, box, rng, slab=clear_slab(cfg))
         bodies = RigidBodies(body, shape, p.mass, p.inertia, body_species, R, q, box=box,
                              **per_body)
     bodies.place_beads(p)

@@ -23,6 +23,11 @@ With self-propelled particles (``particles.janus``, kapsel.particles.janus) step
 tumblers' self force and, with squirmers, iterates the slip flow to self-consistency and adds
 it to u before step 4.
 
+``wall`` (kapsel.particles.walls.FlatWall): the solid walls join step 4 with zero
+velocity: du -= phi_w u*, with phi_w limited to 1 - phi where particles overlap the wall's
+interface (PHYSICS-EXTRA.md §2.3), so the velocity in the solid stays 0; done also without
+particles.  The walls absorb momentum, so P below is then not conserved.
+
 Steps 3 and 5 are those of free particles (motion.update_velocities / update_positions) or,
 when ``particles.constraints`` is set, its own (motion.Pinned: pinned particles;
 rigid.RigidBodies: beads moving as rigid bodies).
@@ -81,7 +86,7 @@ class SPM:
     """
 
     def __init__(self, fluid, particles, A, xi, rho, dx, dt, rotation=True, forces=None,
-                 noise=None, mass="grid", center=True, u=None, impose=True):
+                 noise=None, mass="grid", center=True, u=None, impose=True, wall=None):
         self.fluid = fluid
         self.p = particles
         self.rho = float(rho)
@@ -107,14 +112,17 @@ class SPM:
         else:
             raise TypeError("fluid must be a SpectralNS or a MACSolver")
         self.size = int(np.prod(self.shape))
+        self.wall = wall
         # kept 0 between steps: a step scatters du onto its stencil points and clears them
+        # (with walls du is dense: cleared whole at the start of the next step instead)
         self._du = None
-        if particles.n:     # spectral: FFT-aligned, transformed in place
+        if particles.n or wall is not None:   # spectral: FFT-aligned, transformed in place
             self._du = (fluid.grid.empty_real() if self.mode == "spectral"
                         else np.empty((3,) + self.shape))
             self._du[...] = 0.0
         self._us = None         # u* at the stencil points, sampled once a step
         self._du_points = None  # du at the stencil points of the last step (last_increment)
+        self._du_stepped = False
         self.box = np.array(self.shape, dtype=float) * self.dx
         # oblique fluid (kapsel.fluid.oblique, Lees-Edwards): profiles on the sheared grid,
         # velocities relative to the imposed shear flow, Lees-Edwards images
@@ -220,6 +228,8 @@ class SPM:
         """Advance fluid and particles by dt (steps 1-5 of the module docstring)."""
         self._fluid_step()
         p = self.p
+        if self.wall is not None and self.mode == "spectral" and not p.n:
+            self.fluid.velocity(out=self.u)
         if p.n and self.oblique:
             self._profiles()                  # the oblique grid moved with the frame
         if p.n:
@@ -243,17 +253,23 @@ class SPM:
                 self.motion.update_velocities(p, F_H, T_H, F_o, T_o, self.dt, self.rotation,
                                               dP, dL, mass=self.mass, inertia=self.inertia)
             v, shear = self._relative_velocity()
+            if self.wall is not None:
+                self._du.fill(0.0)            # dense after a wall step
             du = rigidity_increment(u, self.idx, self.phi_i, self.r, v, p.omega, self.size,
                                     out=self._du, shear=shear,
                                     moment=self.moment if self.oblique else None,
                                     sampled=us, zeroed=True)
+            if self.wall is not None:
+                self._wall_increment(du)
             self._add_solenoidal(du)
-            flat = self.idx.reshape(-1)
-            if self._du_points is None or self._du_points.shape[1] != flat.size:
-                self._du_points = np.empty((3, flat.size))
-            for c in range(3):                # kept for last_increment (diagnostics)
-                np.take(du[c].reshape(-1), flat, out=self._du_points[c])
-            clear_points(du, self.idx)        # du is all 0 again for the next step
+            self._du_stepped = True
+            if self.wall is None:
+                flat = self.idx.reshape(-1)
+                if self._du_points is None or self._du_points.shape[1] != flat.size:
+                    self._du_points = np.empty((3, flat.size))
+                for c in range(3):            # kept for last_increment (diagnostics)
+                    np.take(du[c].reshape(-1), flat, out=self._du_points[c])
+                clear_points(du, self.idx)    # du is all 0 again for the next step
             if self.oblique:
                 R0, raw0 = p.R.copy(), p.R_raw.copy()
             self.motion.update_positions(p, self.dt, self.box, self.rotation)
@@ -261,7 +277,20 @@ class SPM:
                 p.R[:] = R0 + (p.R_raw - raw0)
                 self.fluid.wrap_particles(p)
             self._profiles()
+        elif self.wall is not None:
+            self._du.fill(0.0)
+            self._wall_increment(self._du)
+            self._add_solenoidal(self._du)
+            self._du_stepped = True
         self.step_index += 1
+
+    def _wall_increment(self, du):
+        """du -= phi_w u* (the walls at rest), phi_w limited to 1 - phi of the particles."""
+        pw = self.wall.phi
+        if self.p.n:
+            pw = np.minimum(pw, np.maximum(1.0 - self.phi(), 0.0))
+        for c in range(3):
+            du[c] -= pw * self.u[c]
 
     def run(self, nsteps):
         for _ in range(int(nsteps)):
@@ -272,6 +301,9 @@ class SPM:
         """The rigidity increment du (eq 6, before projection) of the last step as a full
         (3, NX, NY, NZ) field, zero before the first step (the particles' body force
         f_p = RHO du / dt of kapsel.fluid.diagnostics)."""
+        if self.wall is not None:             # dense, kept until the next step
+            return (np.array(self._du[:, :self.shape[0], :self.shape[1], :self.shape[2]])
+                    if self._du_stepped else np.zeros((3,) + self.shape))
         du = np.zeros((3,) + self.shape)
         if self._du_points is not None and self.p.n:
             flat = self.idx.reshape(-1)

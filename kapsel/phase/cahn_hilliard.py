@@ -17,6 +17,38 @@ Decisions on eq 17 (documented in the report)
   composition sqrt(NB)/(sqrt(NA)+sqrt(NB)) for Flory-Huggins (see potentials.py).  It does not
   depend on composition_ratio (override with ``psi_bar=``).
 
+Surface terms of the newer define.udf (PHYSICS-EXTRA.md §1.3, §2.5), all 0 by default
+-----------------------------------------------------------------------------------------
+F gains ``z phi_s |grad psi|^2`` (phi_s = min(phi + phi_wall, 1), the solids),
+``w_wall xi |grad phi_wall|^2 psi`` (wetting of the walls' faces) and
+``d (psi - psi_n,wall)^2 phi_wall`` (the wall's interior), so
+
+    mu = f'(psi) - div((alpha + 2 z phi_s) grad psi) + w xi |grad phi|^2
+         + w_wall xi |grad phi_wall|^2 + 2 d (psi - psi_n) phi + 2 d (psi - psi_n,wall) phi_wall
+
+with the neutral values of the original (Landau) psi_n = [a psi_0^3 - (b - 2 d) psi_0] / (2 d)
+for psi_0 = psi_0_p (particles) and psi_0_wall (walls), which make f'(psi_0) + 2 d (psi_0 -
+psi_n) = 0: psi relaxes to psi_0 inside the solids.  (Flory-Huggins: psi_bar for both.)
+Differences from the original, on purpose: it writes -(alpha + 2 z phi) lap psi - 2 z
+grad phi_p . grad psi, with the walls in the first phi and not in the second, which is the
+variational derivative of no free energy; here the z term is the exact derivative
+-div(2 z phi_s grad psi) (face-centred: the derivative of the forward-difference |grad psi|^2
+with phi_s averaged on each face).  The original holds psi only in the half of the wall
+solid next to lo (its phi'_wall) and leaves the other half free, so an interface can run
+through the solid at the upper face; here the whole solid is held at psi_0_wall.  psi_dry
+(dry walls) is refused.
+
+Wetting angle: Young's law, cos theta_A = (gamma_BW - gamma_AW) / gamma_AB for the angle in
+the A (psi > 0) phase, with gamma_XW the excess free energy per unit area of the bulk phase
+X = A (+psi_eq) or B (-psi_eq), psi_eq = sqrt(b/a), against a wall face, and gamma_AB that
+of the A-B interface (continuum Landau value (4/3) sqrt(alpha a / 2) psi_eq^3).  For a weak
+field the wall term adds H psi_s per unit face area, H = w_wall xi integral |d phi_wall/dn|^2
+dn, psi_s the composition where |grad phi_wall| is large; psi_s is not psi_eq but about half
+of it, since psi falls to psi_0_wall inside the solid across the same interface: the
+estimate -2 H psi_eq / gamma_AB would give 120 degrees where the free energy gives 103
+degrees.  ``wetting_angle`` therefore evaluates the three tensions exactly on the mesh, from
+one-dimensional profiles relaxed to their free-energy minimum (F of this module).
+
 Discretisation (periodic grid, nodes, spacing DX)
 -------------------------------------------------
 * lap: 7-point Laplacian, symbol -K^2 with K^2 = sum (2/DX)^2 sin^2(k DX/2) (max 12/DX^2).
@@ -46,7 +78,7 @@ from ..fluid import operators as ops
 from ..linalg import SolverDidNotConverge, UnstableTimeStep, solve_correction  # noqa: F401
 
 __all__ = ["CahnHilliard", "chemical_potential", "free_energy", "capillary_force",
-           "discrete_k2", "SolverDidNotConverge", "UnstableTimeStep"]
+           "discrete_k2", "div_coef_grad", "neutral_value", "wetting_angle", "SolverDidNotConverge", "UnstableTimeStep"]
 
 
 # --------------------------------------------------------------------------- FD helpers
@@ -139,6 +171,65 @@ def free_energy(psi, phi, params, *, dx=1.0, xi=1.0, psi_bar=None, kBT=1.0, pote
     return float(dens.sum()) * dx ** 3
 
 
+def div_coef_grad(c, f, dx):
+    """div(c grad f) with face-centred differences: c averaged on the faces (the exact
+    derivative of sum c_face (f_{i+1} - f_i)^2 / 2, up to the sign)."""
+    out = np.zeros_like(f)
+    for ax in range(3):
+        df = np.roll(f, -1, axis=ax) - f
+        df *= 0.5 * (c + np.roll(c, -1, axis=ax))
+        out += df
+        out -= np.roll(df, 1, axis=ax)
+    out *= 1.0 / (dx * dx)
+    return out
+
+
+def neutral_value(params, psi0, psi_bar):
+    """psi_n with f'(psi0) + 2 d (psi0 - psi_n) = 0 (Landau; the original's formula), or
+    psi_bar (Flory-Huggins, or d = 0)."""
+    if params.potential != "Landau" or params.d == 0:
+        return psi_bar if np.ndim(psi0) == 0 else np.full(np.shape(psi0), psi_bar)
+    psi0 = np.asarray(psi0, dtype=float)
+    out = (params.a * psi0 ** 3 - (params.b - 2.0 * params.d) * psi0) / (2.0 * params.d)
+    return float(out) if out.ndim == 0 else out
+
+
+def _relaxed_energy(ch, psi, phi=None, iterations=20000, tol=1e-13):
+    """F at a local minimum reached from psi by the non-conserved gradient flow
+    psi <- psi - tau mu (tau below the flow's stability limit)."""
+    tau = 0.5 / (12.0 * (ch.alpha + 2.0 * abs(ch.z)) / ch.dx ** 2 + 3.0 * abs(ch.params.b)
+                 + 2.0 * abs(ch.params.d) + 3.0 * abs(ch.params.a))
+    for _ in range(iterations):
+        mu = ch.chemical_potential(psi, phi)
+        psi -= tau * mu
+        if np.abs(mu).max() < tol:
+            break
+    return ch.free_energy(psi, phi)
+
+
+def wetting_angle(params, wall, xi):
+    """Young's contact angle (degrees, in the A phase psi > 0) of the walls' wetting free
+    energy for the Landau potential: cos theta = (gamma_BW - gamma_AW) / gamma_AB, each
+    surface tension the excess free energy per unit area of a relaxed one-dimensional
+    profile on the same mesh and wall (module docstring)."""
+    n = wall.shape[wall.axis]
+    shape = (1, 1, n)
+    w1 = type(wall)(2, wall.DH, shape, wall.dx, wall.xi)
+    psi_eq = math.sqrt(params.b / params.a)
+    F = {}
+    for phase, sign in (("A", 1.0), ("B", -1.0)):
+        ch = CahnHilliard(shape, wall.dx, params, 1.0, xi=xi, wall=w1)
+        F[phase] = _relaxed_energy(ch, np.full(shape, sign * psi_eq))
+    ch = CahnHilliard(shape, wall.dx, params, 1.0, xi=xi)
+    r = np.arange(n)
+    strip = np.where((r >= n // 4) & (r < 3 * n // 4), psi_eq, -psi_eq).reshape(shape)
+    flat = ch.free_energy(np.full(shape, psi_eq))
+    gamma_ab = (_relaxed_energy(ch, strip.astype(float)) - flat) / 2.0
+    area = wall.dx ** 2                              # one mesh column, two faces
+    cos_t = (F["B"] - F["A"]) / (2.0 * area) / gamma_ab
+    return math.degrees(math.acos(max(-1.0, min(1.0, cos_t))))
+
+
 def capillary_force(psi, mu, rho, dx=1.0, out=None, grad=None):
     """-(psi/rho) grad mu (eq 15) at the nodes, central differences; (3, NX, NY, NZ).
     ``grad(f, out)``: another gradient (the oblique frame's)."""
@@ -165,7 +256,7 @@ class CahnHilliard:
     """
 
     def __init__(self, shape, dx, params, dt, threads=1, *, xi=1.0, psi_bar=None, kBT=1.0,
-                 preconditioner=None):
+                 preconditioner=None, wall=None):
         self.shape = tuple(int(n) for n in shape)
         if len(self.shape) != 3 or min(self.shape) < 1:
             raise ValueError("shape must be (NX, NY, NZ)")
@@ -185,6 +276,14 @@ class CahnHilliard:
         self.preconditioner = preconditioner
         self.potential = make_potential(params, kBT)
         self.psi_bar = _psi_bar(self.potential, psi_bar)
+        psi_0_p = float(getattr(params, "psi_0_p", 0.0))
+        if psi_bar is None and psi_0_p != 0.0:
+            self.psi_bar = neutral_value(params, psi_0_p, self.psi_bar)
+        self.z = float(getattr(params, "z", 0.0))
+        self.wall = wall
+        self._wall_pen = self._wall_static = None
+        if wall is not None:
+            self._set_wall(wall)
         self.psi_old = None          # psi^{n-1} (restart PSI_OLD); None before the first step
         self.iterations = 0
         self.residual = 0.0
@@ -192,6 +291,50 @@ class CahnHilliard:
         self._a = np.empty(self.shape)
         self._b = np.empty(self.shape)
         self._c = np.empty(self.shape)
+
+    def _set_wall(self, wall):
+        """Static wall fields: 2 d phi_wall and w_wall xi |grad phi_wall|^2 - 2 d phi_wall
+        psi_n,wall (module docstring)."""
+        p = self.params
+        static = np.zeros(self.shape)
+        w_wall = float(getattr(p, "w_wall", 0.0))
+        if w_wall != 0.0:
+            static += (w_wall * self.xi) * wall.grad_phi_sq()
+        if p.d != 0.0:
+            pen = (2.0 * p.d) * np.asarray(wall.phi)
+            psi0 = np.asarray(getattr(p, "psi_0_wall", 0.0), dtype=float)
+            if psi0.ndim == 2:
+                plane = [n for a, n in enumerate(self.shape) if a != wall.axis]
+                if psi0.shape[0] < plane[0] or psi0.shape[1] < plane[1]:
+                    raise ValueError(f"psi_0_wall user_specify has {psi0.shape[0]} x "
+                                     f"{psi0.shape[1]} values; the wall plane has "
+                                     f"{plane[0]} x {plane[1]} nodes")
+                # [i][j] of the in-plane nodes; a larger table's extra rows and columns are
+                # not used (the original reads only the entries it needs)
+                psi0 = np.expand_dims(psi0[:plane[0], :plane[1]], wall.axis)
+            static -= pen * neutral_value(p, psi0, self.psi_bar)
+            self._wall_pen = pen
+        self._wall_static = static
+
+    def _solids(self, phi):
+        """phi_s = min(phi + phi_wall, 1), or None."""
+        if self.wall is None:
+            return phi
+        if phi is None:
+            return np.asarray(self.wall.phi)
+        return np.minimum(phi + self.wall.phi, 1.0)
+
+    def _surface_mu(self, psi, phi, out):
+        """Adds the z and wall terms of mu (module docstring) to out."""
+        if self.z != 0.0:
+            s = self._solids(phi)
+            if s is not None:
+                out -= (2.0 * self.z) * div_coef_grad(s, psi, self.dx)
+        if self.wall is not None:
+            out += self._wall_static
+            if self._wall_pen is not None:
+                out += self._wall_pen * psi
+        return out
 
     # ------------------------------------------------------------------ fields
     def initial_field(self, rng):
@@ -206,14 +349,29 @@ class CahnHilliard:
         return psi
 
     def chemical_potential(self, psi, phi=None, out=None):
-        """mu of eq 17 (see ``chemical_potential``)."""
-        return chemical_potential(psi, phi, self.params, out=out, dx=self.dx, xi=self.xi,
-                                  psi_bar=self.psi_bar, potential=self.potential,
-                                  lap=self._lap, grad_sq=self._grad_sq)
+        """mu of eq 17 (see ``chemical_potential``) with the surface terms."""
+        out = chemical_potential(psi, phi, self.params, out=out, dx=self.dx, xi=self.xi,
+                                 psi_bar=self.psi_bar, potential=self.potential,
+                                 lap=self._lap, grad_sq=self._grad_sq)
+        return self._surface_mu(psi, phi, out)
 
     def free_energy(self, psi, phi=None):
-        return free_energy(psi, phi, self.params, dx=self.dx, xi=self.xi,
-                           psi_bar=self.psi_bar, potential=self.potential)
+        """Discrete F whose exact gradient / DX^3 is ``chemical_potential``."""
+        F = free_energy(psi, phi, self.params, dx=self.dx, xi=self.xi,
+                        psi_bar=self.psi_bar, potential=self.potential)
+        dens = np.zeros(self.shape)
+        if self.z != 0.0:
+            s = self._solids(phi)
+            if s is not None:
+                for ax in range(3):
+                    df = np.roll(psi, -1, axis=ax) - psi
+                    dens += (0.5 * (s + np.roll(s, -1, axis=ax))) * df * df
+                dens *= self.z / self.dx ** 2
+        if self.wall is not None:
+            dens += self._wall_static * psi
+            if self._wall_pen is not None:
+                dens += 0.5 * self._wall_pen * psi * psi
+        return F + float(dens.sum()) * self.dx ** 3
 
     def capillary_force(self, psi, mu, rho, out=None):
         """-(psi/rho) grad mu for the Navier-Stokes equation (eq 15), (3, NX, NY, NZ)."""
@@ -278,7 +436,7 @@ class CahnHilliard:
     # ------------------------------------------------------------------ stability
     def growth_rate(self, k2, fpp):
         """omega(K) = -kappa K^2 (f'' + alpha K^2) of the linearised equation."""
-        return -self.kappa * k2 * (fpp + self.alpha * k2)
+        return -self.kappa * k2 * (fpp + (self.alpha + 2.0 * max(self.z, 0.0)) * k2)
 
     def _fpp_max(self, psi, phi):
         if psi is None:
@@ -289,8 +447,8 @@ class CahnHilliard:
             fpp = float(np.max(self.potential.d2f(pts)))
         else:
             fpp = float(np.max(self.potential.d2f(psi)))
-        if phi is not None and self.params.d > 0:
-            fpp += 2.0 * self.params.d * float(np.max(phi))
+        if (phi is not None or self.wall is not None) and self.params.d > 0:
+            fpp += 2.0 * self.params.d * float(np.max(self._solids(phi)))
         return fpp
 
     def stable_dt(self, psi=None, phi=None):
@@ -412,9 +570,11 @@ class CahnHilliard:
     def _step_implicit(self, psi, u, phi):
         pot, p, dt = self.potential, self.params, self.dt
         n = psi.size
-        dphi = None
+        dphi = dphi_p = None
         if phi is not None and p.d != 0.0:
-            dphi = (2.0 * p.d) * phi
+            dphi = dphi_p = (2.0 * p.d) * phi
+        if self._wall_pen is not None:
+            dphi = self._wall_pen if dphi is None else dphi + self._wall_pen
         # explicit part g of mu (AB2 extrapolated f', known wetting and psi_bar fields)
         if self.psi_old is None:           # first step: implicit Euler
             c0 = 1.0
@@ -431,8 +591,14 @@ class CahnHilliard:
         if phi is not None:
             if p.w != 0.0:
                 g += (p.w * self.xi) * self._grad_sq(phi)
-            if dphi is not None:
-                g -= dphi * self.psi_bar
+            if dphi_p is not None:
+                g -= dphi_p * self.psi_bar
+        if self.wall is not None:
+            g += self._wall_static
+        if self.z != 0.0:               # explicit, extrapolated like f' (linear in psi)
+            s = self._solids(phi)
+            if s is not None:
+                g -= (2.0 * self.z) * div_coef_grad(s, guess, self.dx)
         rhs += (dt * self.kappa) * self._lap(g, np.empty(self.shape))
         # mean of the solution is exact (column sums of A are c0); solve for the rest
         m = float(np.sum(rhs)) / (c0 * n)
