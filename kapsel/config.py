@@ -509,7 +509,8 @@ def from_document(doc: udf.UDFManager, input_path: str = "") -> RunConfig:
             sp = "object_type.spherical_particle.Particle_spec"
             for i, s_ in enumerate(species):
                 prop = r.optional(f"{sp}[{i}].janus_propulsion", "OFF")
-                if prop != "OFF" and s_.particles:
+                # TUMBLER / SQUIRMER: refused for every type but NS / SNS by janus.check_types
+                if prop == "OBSTACLE" and s_.particles:
                     r.report(f"{sp}[{i}].janus_propulsion", prop, "self-propelled particles "
                                                                   "are not allowed with "
                                                                   "Electrolyte (as in the "

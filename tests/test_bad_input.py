@@ -196,13 +196,13 @@ CORPUS = {
                               "several_problems.udf:21:3: A = 0.0",
                               "several_problems.udf:56:9: output.GTS = 0"]),
     "unsupported_together.udf": ("TUMBLER janus particles in an Electrolyte run with "
-                                 "uncharged particles: the unsupported feature first, then "
-                                 "the other problems (janus particles are not allowed with "
-                                 "Electrolyte, as in the original)",
-                                 ["unsupported_together.udf:11:35:", "not supported by kapsel-py",
-                                  "janus_propulsion = 'TUMBLER' at 11:", "set it to OFF",
-                                  "unsupported_together.udf:11:24:", "Surface_charge = 0.0",
-                                  "not allowed with Electrolyte"]),
+                                 "uncharged particles: every problem at once, one line each "
+                                 "(self-propelled particles need Navier_Stokes or "
+                                 "Shear_Navier_Stokes, as in the original)",
+                                 ["unsupported_together.udf:11:24:", "Surface_charge = 0.0",
+                                  "unsupported_together.udf:11:35:",
+                                  "janus_propulsion = 'TUMBLER'",
+                                  "need constitutive_eq Navier_Stokes or Shear_Navier_Stokes"]),
     # --- resume
     "continue_without_saved_data.udf": ("resume CONTINUE_FDM_PHASE_SEPARATION in a fresh "
                                         "input (no saved data)",
@@ -230,7 +230,7 @@ CORPUS = {
 }
 
 # files with several independent problems: one line each (all others: one line)
-LINES = {"several_problems.udf": 3, "unsupported_together.udf": 3}
+LINES = {"several_problems.udf": 3, "unsupported_together.udf": 2}
 
 FLAGS = ["-Ooutput.udf", "-Ddefine.udf", "-Rrestart.udf"]
 

@@ -87,6 +87,28 @@ def test_mirror_image_is_the_reflection_in_the_electrode_plane(h):
     assert np.linalg.norm(F[0] - Fbug) > 0.2 * np.linalg.norm(F0)
 
 
+def test_mirror_images_do_not_wrap_onto_the_particles_in_a_slab_box():
+    """ex12's slab (64 x 64 x 32, electrode plane z_w = 2.5): the image of a dipole at
+    z = 18.7 lies at 2 z_w - z = -13.7, which the box's own z period would put 0.4 below the
+    particle (a force of 5e4 blew ex12 up at its first step).  The Ewald cell is doubled
+    along z (kapsel.particles.dipoles.ewald_box): the force stays that of an image at the
+    mirror distance 2 (z - z_w) = 32.4, not of a dipole 0.4 away."""
+    box = np.array([64.0, 64.0, 32.0])
+    zw = 2.5
+    qk = dp.Quincke((0.0, 0.0, 1.0), (1.0, 0.0, 0.0), 50.0)
+    d = dp.Dipoles("QUINCKE", 6.0, pz_factor=3.0, mirror_z=zw, tol=1e-8)
+    q = from_axis_angle([0.0, 0.0, 1.0], 0.4)[None]
+    R = np.array([[32.0, 32.0, 18.7]])
+    F, _ = dp.dipole_forces(R, q, box, d, qk)
+    mu = dp.moments(q, d, qk)[0]
+    img = mu.copy()
+    img[:2] *= -1
+    _, Fnear, _ = ew.bare_dipole_pair(np.array([0.0, 0.0, 0.4]), mu, img)
+    _, Fmirror, _ = ew.bare_dipole_pair(np.array([0.0, 0.0, 2 * (18.7 - zw)]), mu, img)
+    assert np.linalg.norm(F[0]) < 1e-3 * np.linalg.norm(Fnear)
+    assert np.linalg.norm(F[0]) < 50 * np.linalg.norm(Fmirror)     # periodic copies add some
+
+
 def test_images_receive_no_force_and_real_pairs_see_each_other_and_all_images():
     box = np.array([20.0, 20.0, 30.0])
     qk = dp.Quincke((0.0, 0.0, 1.0), (1.0, 0.0, 0.0), 1.0)
@@ -96,7 +118,9 @@ def test_images_receive_no_force_and_real_pairs_see_each_other_and_all_images():
     F, T = dp.dipole_forces(R, q, box, d, qk)
     X, mu = dp.sources(R, q, d, qk)
     assert X.shape == (6, 3) and np.allclose(X[3:, 2], 4.0 - R[:, 2])
-    _, F2, E2 = ew.dipolar_ewald(X, mu, box, ew.choose_parameters(box, 6, 1e-12))
+    cell = dp.ewald_box(box, d)                  # doubled along z with images
+    assert cell[2] == 2 * box[2]
+    _, F2, E2 = ew.dipolar_ewald(X, mu, cell, ew.choose_parameters(cell, 6, 1e-12))
     np.testing.assert_allclose(F, F2[:3], atol=1e-8 * np.abs(F2).max())
     np.testing.assert_allclose(T, np.cross(mu[:3], E2[:3]), atol=1e-8 * np.abs(T).max())
 

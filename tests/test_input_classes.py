@@ -80,19 +80,24 @@ def test_a_stale_select_in_the_chosen_branch_is_refused_at_its_value(tmp_path):
 # ---- 4. all at once, before anything is written ---------------------------------------
 def test_every_problem_and_every_unsupported_feature_at_once(tmp_path, capsys,
                                                              monkeypatch):
-    text = make_corpus.tiny_sample()
-    path = sample_copy(tmp_path,
-                       (make_corpus.SPEC, make_corpus.SPEC.replace('"OFF"', '"SQUIRMER"')),
-                       ("A:4.00000000000000", "A:-1.0"), ("output:{1,1,", "output:{1,0,"),
-                       text=text)
+    """ex06/s001 (chains under Lees-Edwards shear, which kapsel-py does not have) with two
+    bad values: the unsupported feature and both problems in one go, each at its value."""
+    src = os.path.join(REAL, "ex06")
+    for f in os.listdir(src):
+        shutil.copy(os.path.join(src, f), tmp_path / f)
+    text = open(os.path.join(src, "s001_t010_free.udf")).read()
+    for old, new in (("A:2.00000000000000", "A:-1.0"), ("output:{800,300,", "output:{800,0,")):
+        assert old in text
+        text = text.replace(old, new, 1)
+    (tmp_path / "input.udf").write_text(text)
     monkeypatch.chdir(tmp_path)
     before = sorted(os.listdir(tmp_path))
-    assert cli.main([f"-I{path}", "-Ooutput.udf", "-Ddefine.udf", "-Rrestart.udf"]) == 2
+    assert cli.main(["-Iinput.udf", "-Ooutput.udf", "-Ddefine.udf", "-Rrestart.udf"]) == 2
     lines = capsys.readouterr().err.strip().splitlines()
     assert len(lines) == 3, lines
-    assert "not supported" in lines[0] and "'SQUIRMER'" in lines[0]
+    assert "not supported" in lines[0] and "chain objects under shear" in lines[0]
     assert "input.udf:21:3: A = -1.0" in lines[1]
-    assert "input.udf:56:11: output.Num_snap = 0" in lines[2]
+    assert "input.udf:49:13: output.Num_snap = 0" in lines[2]
     assert sorted(os.listdir(tmp_path)) == before
 
 

@@ -164,11 +164,12 @@ def make_forces(cfg: RunConfig, particles: ParticleState, strain=None, wall=None
     pairs = inter.LJ_truncate != "NONE" and particles.n > 1 and inter.EPSILON > 0
     gravity = inter.G != 0 and particles.n > 0
     chain = cfg.particles.object_type == "chain" and particles.n > 1
-    sw = cfg.switches
+    sw = getattr(cfg, "switches", None)
+    quincke, dipoles = getattr(sw, "quincke", None), getattr(sw, "dipoles", None)
     electric = None
-    if particles.n and (sw.quincke is not None or sw.dipoles is not None):
+    if particles.n and (quincke is not None or dipoles is not None):
         from ..particles.dipoles import make_electric
-        electric = make_electric(sw.dipoles, sw.quincke, cfg.mesh.box, particles.n)
+        electric = make_electric(dipoles, quincke, cfg.mesh.box, particles.n)
     if wall is not None and (wall.truncate == "NONE" or particles.n == 0):
         wall = None
     if not (pairs or gravity or chain or electric or wall is not None):
@@ -273,6 +274,8 @@ def overlap_guard(forces, limit: float = 0.5):
 class Model:
     """What every model shares: the configuration, the clock (dt, time, step_index) and the
     seeded random stream.  Subclasses implement ``advance`` by calling ``tick`` once a step."""
+
+    wall = None     # kapsel.particles.walls.FlatWall of the types that take switch.wall
 
     def __init__(self, cfg: RunConfig, args):
         self.cfg = cfg

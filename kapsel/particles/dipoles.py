@@ -109,10 +109,22 @@ def sources(R, q, dip: Dipoles, quincke: Quincke | None = None):
     return np.concatenate([R, Ri]), np.concatenate([mu, mui])
 
 
+def ewald_box(box, dip: Dipoles):
+    """The periodic cell of the Ewald sum: the box, doubled along z with mirror images (the
+    images of a slab above the electrode plane lie below it, z' = 2 z_w - z: in the box's own
+    period along z they would land on the real particles, e.g. z = 18.7 -> -13.7 = 18.3 mod
+    32; in a cell of height 2 Lz they keep their distance 2 (z - z_w))."""
+    box = np.array(box, dtype=float)
+    if dip.mirror_z is not None:
+        box[2] *= 2.0
+    return box
+
+
 def dipole_forces(R, q, box, dip: Dipoles, quincke: Quincke | None = None,
                   params: ewald.EwaldParameters | None = None):
     """(F, T) on the N real dipoles (N, 3 each): Ewald forces and mu x E."""
     n = len(R)
+    box = ewald_box(box, dip)
     X, mu = sources(R, q, dip, quincke)
     if params is None:
         params = ewald.choose_parameters(box, len(X), dip.tol)
@@ -129,8 +141,8 @@ def make_electric(dip: Dipoles | None, quincke: Quincke | None, box, n: int):
     box = np.asarray(box, dtype=float)
     params = None
     if dip is not None:
-        params = ewald.choose_parameters(box, 2 * n if dip.mirror_z is not None else n,
-                                         dip.tol)
+        params = ewald.choose_parameters(ewald_box(box, dip),
+                                         2 * n if dip.mirror_z is not None else n, dip.tol)
 
     def electric(p):
         F = np.zeros((p.n, 3))
