@@ -22,7 +22,7 @@ define pip_install
 endef
 
 $(VENV)/.installed-plot: pyproject.toml
-	$(call pip_install,plot,kapsel-py and numpy scipy pyfftw h5py lark orjson (the run) + matplotlib (the picture))
+	$(call pip_install,plot,kapsel-py and numpy scipy pyfftw h5py lark orjson numba (the run) + matplotlib (the picture))
 
 $(VENV)/.installed-test: pyproject.toml
 	$(call pip_install,test,kapsel-py + test tools: pytest hypothesis vtk ovito matplotlib)

@@ -791,6 +791,8 @@ def _switches(r: _Reader, obj: str, species: list, mesh, particles, eq_type: str
     wall = _wall(r, eq_type, mesh, particles, inter)
     quincke, dipoles = _electric(r, obj, species, mesh)
     fix = tuple(r.get(f"switch.FIX_CELL.{ax}") == "ON" for ax in "xyz")
+    if eq_type in SHEAR_TYPES:      # the original forces FIX_CELL.y ON for all four
+        fix = (fix[0], True, fix[2])
     obl = r.optional("switch.ns_solver.OBL_INT", "linear")
     slip = _slip_switches(r, species)
     return Switches(ROTATION=r.get("switch.ROTATION") == "ON", init_distribution=dist,

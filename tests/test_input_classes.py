@@ -235,3 +235,21 @@ def test_files_are_created_with_the_users_umask(tmp_path):
     assert "output.udf" in written and "restart.udf" in written
     for f in written:
         assert stat.S_IMODE(os.stat(tmp_path / f).st_mode) == 0o664, f
+
+
+def test_sheared_types_force_fix_cell_y_on():
+    """The original forces switch.FIX_CELL.y ON for all four sheared types (PHYSICS-EXTRA
+    §1.2): ex11 (Shear_NS_LE_CH_FDM) with FIX_CELL all OFF keeps y ON; an unsheared input
+    keeps what it says."""
+    import udf
+    path = os.path.join(REAL, "ex11", "fdm_4096p_shear_1e-2.udf")
+    doc = udf.UDFManager(path)
+    for ax in "xyz":
+        doc.put("OFF", f"switch.FIX_CELL.{ax}")
+    assert config.from_document(doc, path).switches.fix_cell == (False, True, False)
+    path = os.path.join(REAL, "ex06", "s000_t010_free.udf")
+    doc = udf.UDFManager(path)
+    for ax in "xyz":
+        doc.put("OFF", f"switch.FIX_CELL.{ax}")
+    if doc.get("constitutive_eq.type") not in config.SHEAR_TYPES:
+        assert config.from_document(doc, path).switches.fix_cell == (False, False, False)
