@@ -485,11 +485,6 @@ def from_document(doc: udf.UDFManager, input_path: str = "") -> RunConfig:
     particles = None
     if A is not None and A_XI is not None and obj is not None:
         particles = Particles(obj, tuple(species), A * scale, A_XI * scale)
-    if eq_type in SHEAR_TYPES and obj != "spherical_particle" and sum(
-            s.particles for s in species):
-        r.unsupported_feature(f"{obj} objects under shear (Lees-Edwards images of chains and "
-                              f"rigid bodies)", "object_type.type", obj,
-                              "sheared types take spherical_particle")
     count = sum(s.particles for s in species)
     if mesh is not None:
         with r.block():     # before anything else about the mesh: a typo may ask for TBs
