@@ -177,8 +177,18 @@ class RigidBodies:
         is wrapped by the same rule on its own, its image count n_k (-1, 0, 1: across which
         y boundary from its centre of mass) kept in ``image``, and its velocity is
         V_g + Omega_g x r_k - n_k gamma_dot Ly e_x: the velocity of the body at the bead's
-        image, continuous relative to the imposed flow."""
+        image, continuous relative to the imposed flow.  Sets the images of the beads where
+        they are and their velocities (positions unchanged)."""
         self.lees_edwards = fluid
+        self._set_images()
+
+    def _set_images(self, r=None, p=None):
+        """n_k of the beads from the centres and offsets; bead velocities when ``p``."""
+        r = self.offsets() if r is None else r
+        Ly = float(self.lees_edwards.frame_box[1])
+        self.image = np.floor((self.state.R[self.body, 1] + r[:, 1]) / Ly)
+        if p is not None:
+            self.set_bead_velocities(p, r)
 
     def _le_rate_jump(self) -> float:
         fl = self.lees_edwards
@@ -300,12 +310,23 @@ class RigidBodies:
         s.q_old[:] = quat.normalise(p.q_old[first])
         s.omega[:] = p.omega[first]
         s.omega_old[:] = p.omega_old[first]
+        if self.lees_edwards is not None:     # centre from the first bead, through the images
+            from ..fluid.oblique import lees_edwards_wrap
+            fl = self.lees_edwards
+            X = p.R[first] - self.offsets()[first]
+            lees_edwards_wrap(X, np.zeros_like(X), fl.frame_box, fl.image_offset, 0.0)
+            s.R[:] = X
+            self._set_images()                # the beads' velocities are at their own images
         for k in ("v", "v_old"):
-            getattr(s, k)[:] = _sum(b, m[:, None] * getattr(p, k), nb) / self.masses[:, None]
+            v = getattr(p, k).copy()
+            if self.lees_edwards is not None:
+                v[:, 0] += self.image * self._le_rate_jump()
+            getattr(s, k)[:] = _sum(b, m[:, None] * v, nb) / self.masses[:, None]
         est = p.R_raw - self.offsets()                 # each bead's idea of its centre
         est = est[first][b] + minimum_image(est - est[first][b], self.box)
         s.R_raw[:] = _sum(b, m[:, None] * est, nb) / self.masses[:, None]
-        s.R[:] = np.mod(s.R_raw, self.box)
+        if self.lees_edwards is None:
+            s.R[:] = np.mod(s.R_raw, self.box)
         r = self.offsets()
         s.f_hydro[:] = _sum(b, p.f_hydro, nb)
         s.f_r[:] = _sum(b, p.f_r, nb)

@@ -140,7 +140,7 @@ class SPM:
         self._own_images = self.oblique and hasattr(self.motion, "use_lees_edwards")
         if self._own_images:
             self.motion.use_lees_edwards(fluid)
-            self.motion.place_beads(particles)
+            self.motion.set_bead_velocities(particles)
         self.janus = getattr(particles, "janus", None)      # janus.Janus: self-propulsion
         if self.janus is not None and len(self.janus.squirmers) and (
                 self.mode != "spectral" or self.oblique):
