@@ -1084,11 +1084,16 @@ def _electric(r: _Reader, obj: str, species, mesh: Mesh):
                                    "object_type rigid with Beads_number 1 (as the original)")
         quincke = Quincke(AXES[r.get(f"{q}.ON.e_dir")], AXES[r.get(f"{q}.ON.w_dir")],
                           float(r.finite(f"{q}.ON.torque_amp")))
+    eq = r.get("constitutive_eq.type")
+    if quincke is not None and ("Lees_Edwards" in eq or eq == "Shear_NS_LE_CH_FDM"):
+        # the original's force routine under Lees-Edwards (Force_OBL) has no Quincke torque
+        bad(f"{q}.type", "ON", f"the Quincke constraint torque is not evaluated by the "
+                               f"original under Lees-Edwards images ({eq}): not supported")
+        quincke = None
     m = "switch.multipole"
     if not (r.has(f"{m}.type") and r.get(f"{m}.type") == "ON"):
         return quincke, None
     d = f"{m}.ON.Dipole"
-    eq = r.get("constitutive_eq.type")
     if "Lees_Edwards" in eq or eq == "Shear_NS_LE_CH_FDM":
         bad(f"{m}.type", "ON", f"dipole interactions are summed in a periodic box (Ewald); "
                                f"{eq} shears it with Lees-Edwards images: not supported")

@@ -421,3 +421,4 @@ def test_chains_and_rigid_bodies_run_in_the_sheared_types(tmp_path, eq, obj):
     R = np.array(out.get("Particles[].R"), dtype=float)
     assert R.shape == (6 if obj == "chain" else 4, 3)
     assert np.all(np.isfinite(R)) and np.all((R >= 0) & (R < 16))
+
