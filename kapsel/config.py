@@ -867,8 +867,11 @@ def _wall(r: _Reader, eq_type: str, mesh: Mesh, particles, inter: Interactions):
     axis = {"X": 0, "Y": 1, "Z": 2}[r.get(f"{f}.axis")]
     DH = r.get(f"{f}.DH")
     L = mesh.box[axis]
-    A, xi = particles.A, particles.A_XI          # A DX, A_XI DX
-    if not xi < DH * mesh.DX < L - 2 * A:
+    if particles is None:      # A or A_XI invalid (reported already): nothing to check
+        A = xi = None
+    else:
+        A, xi = particles.A, particles.A_XI          # A DX, A_XI DX
+    if A is not None and not xi < DH * mesh.DX < L - 2 * A:
         r.fail(f"{f}.DH", DH, f"the solid thickness DH DX = {DH * mesh.DX:g} must exceed the "
                               f"interface XI = {xi:g} and leave a gap wider than a particle "
                               f"(DH DX < L - 2A = {L - 2 * A:g})")
@@ -1087,8 +1090,11 @@ def _electric(r: _Reader, obj: str, species, mesh: Mesh):
     eq = r.get("constitutive_eq.type")
     if quincke is not None and ("Lees_Edwards" in eq or eq == "Shear_NS_LE_CH_FDM"):
         # the original's force routine under Lees-Edwards (Force_OBL) has no Quincke torque
-        bad(f"{q}.type", "ON", f"the Quincke constraint torque is not evaluated by the "
-                               f"original under Lees-Edwards images ({eq}): not supported")
+        what = "Quincke rollers under Lees-Edwards shear (the original has no Quincke torque there)"
+        if hasattr(r, "unsupported_feature"):
+            r.unsupported_feature(what, f"{q}.type", "ON", "set it to OFF")
+        else:
+            bad(f"{q}.type", "ON", f"{what}: not supported")
         quincke = None
     m = "switch.multipole"
     if not (r.has(f"{m}.type") and r.get(f"{m}.type") == "ON"):

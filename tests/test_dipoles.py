@@ -326,5 +326,5 @@ def test_quincke_rollers_under_lees_edwards_are_refused(tmp_path):
     switch.quincke ON is refused, and named, in the Lees-Edwards types."""
     path = _nowall(tmp_path, switch__multipole__type="OFF",
                    constitutive_eq__type="Shear_Navier_Stokes_Lees_Edwards")
-    with pytest.raises(config.ConfigError, match="Quincke constraint torque is not evaluated"):
+    with pytest.raises(config.ConfigError, match="Quincke rollers under Lees-Edwards shear"):
         config.load(path)
