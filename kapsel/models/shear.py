@@ -4,7 +4,8 @@
 on the oblique-frame solver kapsel.fluid.oblique.ObliqueSpectralNS: the fluid holds the
 deviation from U = gamma_dot(t) (y - Ly/2) e_x, particles see Lees-Edwards images (profiles on
 the sheared grid, positions and x velocities shifted across the y boundary, R_raw unwrapped,
-pair forces by the Lees-Edwards minimum image).
+pair forces and chain bonds by the Lees-Edwards minimum image; rigid bodies wrap their
+centres and each bead through the images, kapsel.particles.rigid.RigidBodies.use_lees_edwards).
 
 Shear stress (each record, and the text log ``shear_stress.dat`` next to output.udf):
 
