@@ -485,11 +485,6 @@ def from_document(doc: udf.UDFManager, input_path: str = "") -> RunConfig:
     particles = None
     if A is not None and A_XI is not None and obj is not None:
         particles = Particles(obj, tuple(species), A * scale, A_XI * scale)
-    if eq_type in SHEAR_TYPES and obj != "spherical_particle" and sum(
-            s.particles for s in species):
-        r.unsupported_feature(f"{obj} objects under shear (Lees-Edwards images of chains and "
-                              f"rigid bodies)", "object_type.type", obj,
-                              "sheared types take spherical_particle")
     count = sum(s.particles for s in species)
     if mesh is not None:
         with r.block():     # before anything else about the mesh: a typo may ask for TBs
@@ -872,8 +867,11 @@ def _wall(r: _Reader, eq_type: str, mesh: Mesh, particles, inter: Interactions):
     axis = {"X": 0, "Y": 1, "Z": 2}[r.get(f"{f}.axis")]
     DH = r.get(f"{f}.DH")
     L = mesh.box[axis]
-    A, xi = particles.A, particles.A_XI          # A DX, A_XI DX
-    if not xi < DH * mesh.DX < L - 2 * A:
+    if particles is None:      # A or A_XI invalid (reported already): nothing to check
+        A = xi = None
+    else:
+        A, xi = particles.A, particles.A_XI          # A DX, A_XI DX
+    if A is not None and not xi < DH * mesh.DX < L - 2 * A:
         r.fail(f"{f}.DH", DH, f"the solid thickness DH DX = {DH * mesh.DX:g} must exceed the "
                               f"interface XI = {xi:g} and leave a gap wider than a particle "
                               f"(DH DX < L - 2A = {L - 2 * A:g})")
@@ -1089,11 +1087,19 @@ def _electric(r: _Reader, obj: str, species, mesh: Mesh):
                                    "object_type rigid with Beads_number 1 (as the original)")
         quincke = Quincke(AXES[r.get(f"{q}.ON.e_dir")], AXES[r.get(f"{q}.ON.w_dir")],
                           float(r.finite(f"{q}.ON.torque_amp")))
+    eq = r.get("constitutive_eq.type")
+    if quincke is not None and ("Lees_Edwards" in eq or eq == "Shear_NS_LE_CH_FDM"):
+        # the original's force routine under Lees-Edwards (Force_OBL) has no Quincke torque
+        what = "Quincke rollers under Lees-Edwards shear (the original has no Quincke torque there)"
+        if hasattr(r, "unsupported_feature"):
+            r.unsupported_feature(what, f"{q}.type", "ON", "set it to OFF")
+        else:
+            bad(f"{q}.type", "ON", f"{what}: not supported")
+        quincke = None
     m = "switch.multipole"
     if not (r.has(f"{m}.type") and r.get(f"{m}.type") == "ON"):
         return quincke, None
     d = f"{m}.ON.Dipole"
-    eq = r.get("constitutive_eq.type")
     if "Lees_Edwards" in eq or eq == "Shear_NS_LE_CH_FDM":
         bad(f"{m}.type", "ON", f"dipole interactions are summed in a periodic box (Ewald); "
                                f"{eq} shears it with Lees-Edwards images: not supported")

@@ -319,3 +319,12 @@ def test_check_names_the_constraint_and_the_dipoles(tmp_path):
     assert "Quincke constraint: field along Z, body axis X, K = 50" in r.stdout
     assert "dipoles 6 (QUINCKE, Pz_factor 3, no mirror images); Ewald to 1.1e-07 (tin-foil" \
         in r.stdout
+
+
+def test_quincke_rollers_under_lees_edwards_are_refused(tmp_path):
+    """The original's Lees-Edwards force routine has no Quincke torque (PHYSICS-EXTRA.md §7):
+    switch.quincke ON is refused, and named, in the Lees-Edwards types."""
+    path = _nowall(tmp_path, switch__multipole__type="OFF",
+                   constitutive_eq__type="Shear_Navier_Stokes_Lees_Edwards")
+    with pytest.raises(config.ConfigError, match="Quincke rollers under Lees-Edwards shear"):
+        config.load(path)

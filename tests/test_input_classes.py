@@ -80,24 +80,28 @@ def test_a_stale_select_in_the_chosen_branch_is_refused_at_its_value(tmp_path):
 # ---- 4. all at once, before anything is written ---------------------------------------
 def test_every_problem_and_every_unsupported_feature_at_once(tmp_path, capsys,
                                                              monkeypatch):
-    """ex06/s001 (chains under Lees-Edwards shear, which kapsel-py does not have) with two
-    bad values: the unsupported feature and both problems in one go, each at its value."""
-    src = os.path.join(REAL, "ex06")
+    """ex14 (walls and wetting) made to ask for dry walls (psi_dry != 0, which kapsel-py does
+    not have) with two bad values: the unsupported feature and both problems in one go,
+    each at its value."""
+    from udf import UDFManager
+    src = os.path.join(REAL, "ex14")
     for f in os.listdir(src):
         shutil.copy(os.path.join(src, f), tmp_path / f)
-    text = open(os.path.join(src, "s001_t010_free.udf")).read()
-    for old, new in (("A:2.00000000000000", "A:-1.0"), ("output:{800,300,", "output:{800,0,")):
-        assert old in text
-        text = text.replace(old, new, 1)
-    (tmp_path / "input.udf").write_text(text)
+    u = UDFManager(os.path.join(src, "input.udf"))
+    u.put(0.5, "constitutive_eq.Navier_Stokes_Cahn_Hilliard_FDM.Potential.Landau.psi_dry")
+    u.put(-1.0, "A")
+    u.put(0, "output.Num_snap")
+    u.write(str(tmp_path / "input.udf"))
+    text = open(tmp_path / "input.udf").read().splitlines()
+    line_a = [k for k, t in enumerate(text, 1) if t.startswith("A:")][-1]   # the data part
     monkeypatch.chdir(tmp_path)
     before = sorted(os.listdir(tmp_path))
     assert cli.main(["-Iinput.udf", "-Ooutput.udf", "-Ddefine.udf", "-Rrestart.udf"]) == 2
     lines = capsys.readouterr().err.strip().splitlines()
     assert len(lines) == 3, lines
-    assert "not supported" in lines[0] and "chain objects under shear" in lines[0]
-    assert "input.udf:21:3: A = -1.0" in lines[1]
-    assert "input.udf:49:13: output.Num_snap = 0" in lines[2]
+    assert "not supported" in lines[0] and "dry walls" in lines[0]
+    assert f"input.udf:{line_a}:3: A = -1.0" in lines[1]
+    assert "output.Num_snap = 0" in lines[2] and "input.udf:" in lines[2]
     assert sorted(os.listdir(tmp_path)) == before
 
 

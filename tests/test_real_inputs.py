@@ -26,7 +26,7 @@ UNSUPPORTED = {
     "ex01/colloid_1.udf": [],
     "ex02/gravity.udf": [],
     "ex06/s000_t010_free.udf": [],
-    "ex06/s001_t010_free.udf": ["chain objects under shear"],
+    "ex06/s001_t010_free.udf": [],
     "ex09/squirm_single_a+2.udf": [],
     "ex10/input_rigid_free1.udf": [],
     "ex11/fdm_4096p_shear_1e-2.udf": [],

@@ -383,18 +383,42 @@ def test_einstein_viscosity_dilute_suspension():
     assert np.mean(values) == pytest.approx(2.5, rel=0.15), values
 
 
-@pytest.mark.parametrize("eq", ["Shear_Navier_Stokes_Lees_Edwards",
-                                "Shear_Navier_Stokes_Lees_Edwards_FDM"])
-def test_chains_under_lees_edwards_are_refused(tmp_path, capsys, eq):
+def bodies_input(d, eq, obj, **kw):
+    """A sheared input with 2 chains of 3 beads or 2 free rigid bodies of 2 beads (A = 2)."""
     from udf import UDFManager
-    inp = make_input(tmp_path, particles=0, eq=eq)
+    if eq.endswith("FDM"):
+        from test_shear_fdm import fdm_input
+        inp = fdm_input(d, particles=0, eq=eq, **kw)
+    else:
+        inp = make_input(d, particles=0, eq=eq, **kw)
     u = UDFManager(inp)
-    u.put("chain", "object_type.type")
-    u.put(3, "object_type.chain.Chain_spec[0].Beads_number")
-    u.put(2, "object_type.chain.Chain_spec[0].Chain_number")
-    u.put("NONE", "object_type.chain.Chain_spec[0].janus_axis")
+    u.put(2.0, "A")
+    u.put(obj, "object_type.type")
+    if obj == "chain":
+        u.put([[3, 2, 1.0, 0.0, "NONE"]], "object_type.chain.Chain_spec[]")
+    else:
+        u.put([[2, 2, 1.0, 0.0, "free", [0.0, 0.0, 0.0], [0.0, 0.0, 0.0]]],
+              "object_type.rigid.Rigid_spec[]")
+    u.put("ON", "switch.LJ_truncate")
     u.write(inp)
-    assert cli(tmp_path, inp) == 2
-    err = capsys.readouterr().err
-    assert "object_type.type = 'chain'" in err and "not supported by kapsel-py" in err
-    assert "sheared types take spherical_particle" in err
+    return inp
+
+
+SHEARED = ["Shear_Navier_Stokes", "Shear_Navier_Stokes_Lees_Edwards",
+           "Shear_Navier_Stokes_Lees_Edwards_FDM", "Shear_NS_LE_CH_FDM"]
+
+
+@pytest.mark.parametrize("obj", ["chain", "rigid"])
+@pytest.mark.parametrize("eq", SHEARED)
+def test_chains_and_rigid_bodies_run_in_the_sheared_types(tmp_path, eq, obj):
+    """PHYSICS-EXTRA.md §7: chains and rigid bodies run in all four sheared types (Lees-Edwards
+    images for the last three): a few steps end to end, positions in the box, finite."""
+    from udf import UDFManager
+    inp = bodies_input(tmp_path, eq, obj, rate=0.05, gts=5, nsnap=2)
+    assert cli(tmp_path, inp) == 0
+    out = UDFManager(str(tmp_path / "output.udf"))
+    out.jump(len(out.records) - 1)
+    R = np.array(out.get("Particles[].R"), dtype=float)
+    assert R.shape == (6 if obj == "chain" else 4, 3)
+    assert np.all(np.isfinite(R)) and np.all((R >= 0) & (R < 16))
+

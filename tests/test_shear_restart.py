@@ -16,11 +16,18 @@ CASES = [("Shear_Navier_Stokes", {}),
          ("Shear_Navier_Stokes_Lees_Edwards_FDM", {"ns": "explicit_scheme"}),
          ("Shear_Navier_Stokes_Lees_Edwards_FDM", {"ns": "implicit_scheme"}),
          ("Shear_NS_LE_CH_FDM", {"ns": "implicit_scheme", "ch": "implicit_scheme"}),
-         ("Shear_NS_LE_CH_FDM", {"ns": "explicit_scheme", "ch": "explicit_scheme"})]
+         ("Shear_NS_LE_CH_FDM", {"ns": "explicit_scheme", "ch": "explicit_scheme"}),
+         ("Shear_Navier_Stokes_Lees_Edwards", {"obj": "rigid"}),
+         ("Shear_Navier_Stokes_Lees_Edwards", {"obj": "chain"}),
+         ("Shear_Navier_Stokes_Lees_Edwards_FDM", {"ns": "implicit_scheme", "obj": "rigid"})]
 
 
-def inp(d, eq, nsnap, **kw):
-    common = dict(particles=2, gts=5, nsnap=nsnap, rate=0.6, kind="AC", freq=0.02)
+def inp(d, eq, nsnap, obj=None, **kw):
+    common = dict(gts=5, nsnap=nsnap, rate=0.6, kind="AC", freq=0.02)
+    if obj is not None:                 # chains or rigid bodies (Lees-Edwards images)
+        from test_shear_le import bodies_input
+        return bodies_input(d, eq, obj, **common, **kw)
+    common["particles"] = 2
     if eq.endswith("FDM"):
         return fdm_input(d, eq=eq, **common, **kw)
     return make_input(d, eq=eq, **common)

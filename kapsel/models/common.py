@@ -210,7 +210,8 @@ def make_forces(cfg: RunConfig, particles: ParticleState, strain=None, wall=None
             F = F + Fw
             ratio_min = min(ratio_min, ratio_w)
         if bonds is not None:
-            Fb, stretch = chains.fene_forces(p.R, box, p.radius, *bonds, inter.EPSILON)
+            Fb, stretch = chains.fene_forces(p.R, box, p.radius, *bonds, inter.EPSILON,
+                                             strain=strain() if strain is not None else 0.0)
             if stretch >= chains.BOND_BREAK:
                 raise FloatingPointError(f"a chain bond stretched to {stretch:.3f} of the FENE "
                                          f"maximum R0 = {chains.FENE_R0} (2 A)")

@@ -4,7 +4,8 @@
 on the oblique-frame solver kapsel.fluid.oblique.ObliqueSpectralNS: the fluid holds the
 deviation from U = gamma_dot(t) (y - Ly/2) e_x, particles see Lees-Edwards images (profiles on
 the sheared grid, positions and x velocities shifted across the y boundary, R_raw unwrapped,
-pair forces by the Lees-Edwards minimum image).
+pair forces and chain bonds by the Lees-Edwards minimum image; rigid bodies wrap their
+centres and each bead through the images, kapsel.particles.rigid.RigidBodies.use_lees_edwards).
 
 Shear stress (each record, and the text log ``shear_stress.dat`` next to output.udf):
 
@@ -46,20 +47,17 @@ def check_interpolation(cfg: RunConfig) -> str:
     return m
 
 
-def check_spheres(cfg: RunConfig) -> None:
-    """Chains and rigid bodies would need Lees-Edwards bond vectors and body images."""
-    if cfg.particles.object_type != "spherical_particle" and cfg.particles.count:
-        raise ConfigError(f"{cfg.type} supports spherical particles only in kapsel-py (chains "
-                          f"and rigid bodies under Lees-Edwards images are not implemented)",
-                          path="object_type.type", value=cfg.particles.object_type)
-
-
 def start_with_flow(cfg: RunConfig, particles, fluid) -> bool:
     """Particles placed by the program (not user_specify) start moving with the imposed flow
     at their centre, so that the start injects no momentum; user_specify velocities are
     taken as given (laboratory frame)."""
     if not particles.n or cfg.switches.init_distribution == "user_specify":
         return False
+    bodies = getattr(particles, "constraints", None)
+    if hasattr(bodies, "place_beads"):    # rigid bodies: their centres move with the flow
+        bodies.state.v[:] += fluid.background(bodies.state.R)
+        bodies.place_beads(particles)
+        return True
     particles.v[:] += fluid.background(particles.R)
     from ..particles.motion import Pinned
     if isinstance(particles.constraints, Pinned):     # pinned and OBSTACLE spheres stay put
@@ -137,7 +135,6 @@ class ShearLEModel(SpectralModel):
         Model.__init__(self, cfg, args)
         f, seed = cfg.fluid, self.seed
         self.interpolation = check_interpolation(cfg)
-        check_spheres(cfg)
         self.grid = Grid(cfg.mesh.shape, cfg.mesh.DX, threads=self.threads)
         self.fluid = ObliqueSpectralNS(self.grid, f.RHO, f.ETA, self.dt, shear_flow(cfg),
                                        fix_cell=cfg.switches.fix_cell)
@@ -439,7 +436,6 @@ class ShearFDMModel(FDMModel):
 
     def __init__(self, cfg: RunConfig, args):
         self.interpolation = check_interpolation(cfg)
-        check_spheres(cfg)
         super().__init__(cfg, args)
         if start_with_flow(cfg, self.particles, self.mac):
             self.u[...] = 0.0

@@ -27,7 +27,7 @@ import numpy as np
 
 from .cells import minimum_image
 
-__all__ = ["FENE_K", "FENE_R0", "BOND_BREAK", "chain_bonds", "fene_forces", "fene_energy",
+__all__ = ["FENE_K", "FENE_R0", "BOND_BREAK", "chain_bonds", "bond_vectors", "fene_forces", "fene_energy",
            "random_walk_chains", "bond_lengths", "check_bonds"]
 
 FENE_K = 30.0      # K sigma^2 / EPSILON
@@ -43,20 +43,32 @@ def chain_bonds(beads_per_chain) -> tuple:
     return i, i + 1
 
 
-def bond_lengths(R, box, i, j) -> np.ndarray:
-    """Minimum-image lengths of the bonds (i, j)."""
+def bond_vectors(R, box, i, j, strain=0.0) -> np.ndarray:
+    """Minimum-image bond vectors R_j - R_i; with ``strain`` g the Lees-Edwards minimum
+    image (the image across y = Ly displaced by g Ly along x, PHYSICS-EXTRA.md §7), so a
+    bond straddling the y boundary keeps its length."""
     R = np.asarray(R, dtype=float)
-    return np.linalg.norm(minimum_image(R[j] - R[i], np.asarray(box, dtype=float)), axis=1)
+    box = np.asarray(box, dtype=float)
+    if not strain:
+        return minimum_image(R[j] - R[i], box)
+    from ..fluid.oblique import lees_edwards_displacement
+    return lees_edwards_displacement(R[j] - R[i], box, strain * box[1])
 
 
-def fene_forces(R, box, radius, i, j, epsilon) -> tuple:
-    """FENE bond forces (N, 3) and the largest r / R0 over the bonds (0 without bonds)."""
+def bond_lengths(R, box, i, j, strain=0.0) -> np.ndarray:
+    """Minimum-image lengths of the bonds (i, j) (``strain``: Lees-Edwards images)."""
+    return np.linalg.norm(bond_vectors(R, box, i, j, strain), axis=1)
+
+
+def fene_forces(R, box, radius, i, j, epsilon, strain=0.0) -> tuple:
+    """FENE bond forces (N, 3) and the largest r / R0 over the bonds (0 without bonds);
+    ``strain`` g: bonds by the Lees-Edwards minimum image (``bond_vectors``)."""
     R = np.asarray(R, dtype=float)
     F = np.zeros_like(R)
     if len(i) == 0:
         return F, 0.0
     radius = np.broadcast_to(np.asarray(radius, dtype=float), (len(R),))
-    dr = minimum_image(R[j] - R[i], np.asarray(box, dtype=float))
+    dr = bond_vectors(R, box, i, j, strain)
     r2 = np.einsum("bk,bk->b", dr, dr)
     sigma = radius[i] + radius[j]
     R0 = FENE_R0 * sigma

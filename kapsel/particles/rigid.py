@@ -147,6 +147,8 @@ class RigidBodies:
         s.v[:] = np.where(self.free_v, 0.0, self.v_fixed)
         s.omega[:] = np.where(self.free_o, 0.0, self.o_fixed)
         self.state = s
+        self.lees_edwards = None          # the oblique fluid under Lees-Edwards images
+        self.image = np.zeros(len(self.body))
 
     @classmethod
     def from_beads(cls, X, body, bead_mass, bead_inertia, species, free_v, free_o, v_fixed,
@@ -166,6 +168,32 @@ class RigidBodies:
         return cls(body, X - R[body], m, bead_inertia, species, R, quat.identity(nb),
                    free_v, free_o, v_fixed, o_fixed, L)
 
+    # ------------------------------------------------------------------ Lees-Edwards
+    def use_lees_edwards(self, fluid):
+        """Lees-Edwards images (PHYSICS-EXTRA.md §7) of the oblique ``fluid`` (its
+        frame_box, image_offset, shear_rate_now): the centre of mass is wrapped by the
+        Lees-Edwards rule, its x velocity (and the stored old one) shifted by the boundary
+        velocity jump gamma_dot Ly at a crossing of the y boundary; each bead x_k = R_g + r_k
+        is wrapped by the same rule on its own, its image count n_k (-1, 0, 1: across which
+        y boundary from its centre of mass) kept in ``image``, and its velocity is
+        V_g + Omega_g x r_k - n_k gamma_dot Ly e_x: the velocity of the body at the bead's
+        image, continuous relative to the imposed flow.  Sets the images of the beads where
+        they are and their velocities (positions unchanged)."""
+        self.lees_edwards = fluid
+        self._set_images()
+
+    def _set_images(self, r=None, p=None):
+        """n_k of the beads from the centres and offsets; bead velocities when ``p``."""
+        r = self.offsets() if r is None else r
+        Ly = float(self.lees_edwards.frame_box[1])
+        self.image = np.floor((self.state.R[self.body, 1] + r[:, 1]) / Ly)
+        if p is not None:
+            self.set_bead_velocities(p, r)
+
+    def _le_rate_jump(self) -> float:
+        fl = self.lees_edwards
+        return fl.shear_rate_now * float(fl.frame_box[1])
+
     # ------------------------------------------------------------------ beads
     def offsets(self) -> np.ndarray:
         """Space-frame r_k = R(q_g) r_k^B (N, 3)."""
@@ -175,6 +203,8 @@ class RigidBodies:
         r = self.offsets() if r is None else r
         s = self.state
         p.v[:] = s.v[self.body] + np.cross(s.omega[self.body], r)
+        if self.lees_edwards is not None:
+            p.v[:, 0] -= self.image * self._le_rate_jump()
         p.omega[:] = s.omega[self.body]
 
     def place_beads(self, p):
@@ -182,7 +212,15 @@ class RigidBodies:
         r = self.offsets()
         s = self.state
         p.R_raw[:] = s.R_raw[self.body] + r
-        p.R[:] = np.mod(s.R[self.body] + r, self.box)
+        if self.lees_edwards is not None:
+            X = s.R[self.body] + r
+            Ly = float(self.lees_edwards.frame_box[1])
+            self.image = np.floor(X[:, 1] / Ly)
+            X[:, 0] -= self.image * self.lees_edwards.image_offset
+            X[:, 1] -= self.image * Ly
+            p.R[:] = np.mod(X, self.box)
+        else:
+            p.R[:] = np.mod(s.R[self.body] + r, self.box)
         p.R[p.R >= self.box] = 0.0
         p.q_old[:] = p.q
         p.q[:] = s.q[self.body]
@@ -231,8 +269,15 @@ class RigidBodies:
         s = self.state
         dR = 0.5 * dt * (s.v_old + s.v)
         s.R_raw += dR
-        s.R[:] = np.mod(s.R + dR, self.box)
-        s.R[s.R >= self.box] = 0.0
+        if self.lees_edwards is not None:
+            from ..fluid.oblique import lees_edwards_wrap
+            fl = self.lees_edwards
+            s.R += dR
+            lees_edwards_wrap(s.R, s.v, fl.frame_box, fl.image_offset, fl.shear_rate_now,
+                              s.v_old)
+        else:
+            s.R[:] = np.mod(s.R + dR, self.box)
+            s.R[s.R >= self.box] = 0.0
         s.q_old[...] = s.q
         s.q[...] = quat.integrate(s.q, 0.5 * (s.omega_old + s.omega), dt)
         self.place_beads(p)
@@ -265,12 +310,23 @@ class RigidBodies:
         s.q_old[:] = quat.normalise(p.q_old[first])
         s.omega[:] = p.omega[first]
         s.omega_old[:] = p.omega_old[first]
+        if self.lees_edwards is not None:     # centre from the first bead, through the images
+            from ..fluid.oblique import lees_edwards_wrap
+            fl = self.lees_edwards
+            X = p.R[first] - self.offsets()[first]
+            lees_edwards_wrap(X, np.zeros_like(X), fl.frame_box, fl.image_offset, 0.0)
+            s.R[:] = X
+            self._set_images()                # the beads' velocities are at their own images
         for k in ("v", "v_old"):
-            getattr(s, k)[:] = _sum(b, m[:, None] * getattr(p, k), nb) / self.masses[:, None]
+            v = getattr(p, k).copy()
+            if self.lees_edwards is not None:
+                v[:, 0] += self.image * self._le_rate_jump()
+            getattr(s, k)[:] = _sum(b, m[:, None] * v, nb) / self.masses[:, None]
         est = p.R_raw - self.offsets()                 # each bead's idea of its centre
         est = est[first][b] + minimum_image(est - est[first][b], self.box)
         s.R_raw[:] = _sum(b, m[:, None] * est, nb) / self.masses[:, None]
-        s.R[:] = np.mod(s.R_raw, self.box)
+        if self.lees_edwards is None:
+            s.R[:] = np.mod(s.R_raw, self.box)
         r = self.offsets()
         s.f_hydro[:] = _sum(b, p.f_hydro, nb)
         s.f_r[:] = _sum(b, p.f_r, nb)

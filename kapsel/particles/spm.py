@@ -136,6 +136,11 @@ class SPM:
         self.excess_inertia = particles.inertia - 0.4 * self.rho * vol * a ** 2
         self.step_index = 0
         self.motion = getattr(particles, "constraints", None) or _free_motion
+        # rigid bodies wrap their centres and beads through the Lees-Edwards images themselves
+        self._own_images = self.oblique and hasattr(self.motion, "use_lees_edwards")
+        if self._own_images:
+            self.motion.use_lees_edwards(fluid)
+            self.motion.set_bead_velocities(particles)
         self.janus = getattr(particles, "janus", None)      # janus.Janus: self-propulsion
         if self.janus is not None and len(self.janus.squirmers) and (
                 self.mode != "spectral" or self.oblique):
@@ -270,10 +275,11 @@ class SPM:
                 for c in range(3):            # kept for last_increment (diagnostics)
                     np.take(du[c].reshape(-1), flat, out=self._du_points[c])
                 clear_points(du, self.idx)    # du is all 0 again for the next step
-            if self.oblique:
+            le = self.oblique and not self._own_images
+            if le:
                 R0, raw0 = p.R.copy(), p.R_raw.copy()
             self.motion.update_positions(p, self.dt, self.box, self.rotation)
-            if self.oblique:       # Lees-Edwards images instead of the periodic wrap
+            if le:                 # Lees-Edwards images instead of the periodic wrap
                 p.R[:] = R0 + (p.R_raw - raw0)
                 self.fluid.wrap_particles(p)
             self._profiles()
