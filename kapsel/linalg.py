@@ -15,14 +15,14 @@ class FourierDiagonal:
 
     def __init__(self, shape, m, threads=1):
         import pyfftw
-        from .grid import Grid
+        from .grid import auto_planner
         self.shape = tuple(int(n) for n in shape)
         size = int(np.prod(self.shape))
         cshape = self.shape[:2] + (self.shape[2] // 2 + 1,)
         self.m = np.ascontiguousarray(np.broadcast_to(m, cshape) / size)   # c2r's 1/N folded in
         self._r = pyfftw.empty_aligned(self.shape, dtype="float64")
         self._c = pyfftw.empty_aligned(cshape, dtype="complex128")
-        flags = ("FFTW_MEASURE" if size > Grid.MEASURE_ABOVE else "FFTW_ESTIMATE",)
+        flags = (auto_planner(size, threads),)
         self._fwd = pyfftw.FFTW(self._r, self._c, axes=(0, 1, 2), direction="FFTW_FORWARD",
                                 flags=flags, threads=threads)
         self._bwd = pyfftw.FFTW(self._c, self._r, axes=(0, 1, 2), direction="FFTW_BACKWARD",

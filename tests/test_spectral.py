@@ -311,3 +311,15 @@ def test_compiled_step_bit_identical_to_numpy_passes(scheme):
     finally:
         compiled.disable()
     assert np.array_equal(out[0], out[1])
+
+
+def test_auto_planner_measures_threaded_plans():
+    """FFTW_ESTIMATE's threaded plans were 2x slower than one thread at 64^3 (so --threads 2
+    was slower than 1): with threads the 'auto' planner measures, with one thread it keeps
+    the deterministic ESTIMATE up to 64^3 (kapsel.grid.auto_planner)."""
+    from kapsel.grid import Grid, auto_planner
+    assert auto_planner(64 ** 3, 1) == "FFTW_ESTIMATE"
+    assert auto_planner(64 ** 3, 2) == "FFTW_MEASURE"
+    assert auto_planner(128 ** 3, 1) == "FFTW_MEASURE"
+    assert Grid((16, 16, 16), threads=2).planner == "FFTW_MEASURE"
+    assert Grid((16, 16, 16), threads=1).planner == "FFTW_ESTIMATE"

@@ -58,10 +58,11 @@ from .. import compiled as _compiled
 __all__ = ["MACSolver", "SolverDidNotConverge", "UnstableTimeStep"]
 
 
-def _planner(shape):
-    """FFTW_ESTIMATE up to 64^3 points, FFTW_MEASURE above (as kapsel.grid.Grid 'auto')."""
-    from ..grid import Grid
-    return "FFTW_MEASURE" if int(np.prod(shape)) > Grid.MEASURE_ABOVE else "FFTW_ESTIMATE"
+def _planner(shape, threads=1):
+    """kapsel.grid.auto_planner: FFTW_ESTIMATE for one thread up to 64^3 points, else
+    FFTW_MEASURE."""
+    from ..grid import auto_planner
+    return auto_planner(int(np.prod(shape)), threads)
 
 
 class _PoissonFFT:
@@ -77,7 +78,7 @@ class _PoissonFFT:
             self._r = pyfftw.empty_aligned(shape, dtype="float64")
             self._c = pyfftw.empty_aligned(cshape, dtype="complex128")
             self._o = pyfftw.empty_aligned(shape, dtype="float64")
-            flags = (_planner(shape),)
+            flags = (_planner(shape, self.threads),)
             self._fwd = pyfftw.FFTW(self._r, self._c, axes=(0, 1, 2), direction="FFTW_FORWARD",
                                     flags=flags, threads=self.threads)
             self._bwd = pyfftw.FFTW(self._c, self._o, axes=(0, 1, 2), direction="FFTW_BACKWARD",
