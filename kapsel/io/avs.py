@@ -142,14 +142,8 @@ class LegacyAVS:
         out = [f'time value = "step{ts}time{snap.time:g}"']
         out += [f"coord {i + 1} file = {name}.cod filetype = ascii skip = {2 * i}"
                 for i in range(3)]
-        size = 4 * int(np.prod(self.shape))
-        for n in range(1, self.veclen + 1):
-            if self.binary:
-                out.append(f"variable {n} file = avs/{name}_{ts}.dat filetype = binary "
-                           f"skip = {(n - 1) * size}")
-            else:
-                out.append(f"variable {n} file = avs/{name}_{ts}.dat filetype = ascii "
-                           f"skip = 2 offset = {n - 1} stride = {self.veclen}")
+        out += self._variables(f"avs/{name}_{ts}.dat", self.veclen,
+                               4 * int(np.prod(self.shape)))
         return "\n".join(out + ["EOT"]) + "\n"
 
     def _particle_block(self, snap) -> str:
@@ -163,14 +157,17 @@ class LegacyAVS:
             else:
                 out.append(f"coord {3 - n} file = avs/{name}p_{ts}.cod filetype = ascii "
                            f"skip = 0 offset = {n} stride =3")
-        for n in range(1, VECLEN + 1):
-            if self.binary:
-                out.append(f"variable {n} file = avs/{name}p_{ts}.dat filetype = binary "
-                           f"skip = {(n - 1) * size}")
-            else:
-                out.append(f"variable {n} file = avs/{name}p_{ts}.dat filetype = ascii "
-                           f"skip = 2 offset = {n - 1} stride = {VECLEN}")
+        out += self._variables(f"avs/{name}p_{ts}.dat", VECLEN, size)
         return "\n".join(out + ["EOT"]) + "\n"
+
+    def _variables(self, path: str, veclen: int, size: int) -> list:
+        """The .fld lines of the ``veclen`` variables of a .dat file (binary: one block of
+        ``size`` bytes each; ascii: interleaved columns after two header lines)."""
+        if self.binary:
+            return [f"variable {n} file = {path} filetype = binary skip = {(n - 1) * size}"
+                    for n in range(1, veclen + 1)]
+        return [f"variable {n} file = {path} filetype = ascii skip = 2 offset = {n - 1} "
+                f"stride = {veclen}" for n in range(1, veclen + 1)]
 
     # ------------------------------------------------------------------ data files
     def field_columns(self, snap) -> np.ndarray:

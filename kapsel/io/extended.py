@@ -329,6 +329,11 @@ class ExtendedHDF5:
         return (f'    <DataItem NumberType="{number}" Precision="{precision}" '
                 f'Dimensions="{dims}" Format="HDF">{self.name}.h5:{path}</DataItem>')
 
+    def _attribute(self, kind, name, dims, path, number="Float") -> list:
+        """An XDMF Attribute holding one HDF dataset."""
+        return [f'   <Attribute AttributeType="{kind}" Name="{name}" Center="Node">',
+                self._item(dims, path, number), '   </Attribute>']
+
     def fluid_xdmf(self) -> str:
         dims = " ".join(str(c) for c in self.dims)
 
@@ -340,8 +345,7 @@ class ExtendedHDF5:
             out += [self._item(dims, f"/system_data/field/{a}") for a in "xyz"]
             out.append('   </Geometry>')
             for name in self._scalars():
-                out += [f'   <Attribute AttributeType="Scalar" Name="{name}" Center="Node">',
-                        self._item(dims, f"{base}/{name}"), '   </Attribute>']
+                out += self._attribute("Scalar", name, dims, f"{base}/{name}")
             if "u" in self.fields:
                 out += ['   <Attribute AttributeType="Vector" Name="u" Center="Node">',
                         f'    <DataItem ItemType="Function" Dimensions="{dims} 3" '
@@ -363,14 +367,11 @@ class ExtendedHDF5:
                    '   <Geometry GeometryType="XYZ">', self._item(f"{n} 3", f"{base}/pos"),
                    '   </Geometry>']
             for name in ("id", "spec"):
-                out += [f'   <Attribute AttributeType="Scalar" Name="{name}" Center="Node">',
-                        self._item(f"{n} 1", f"/system_data/particle/{name}", "Int"),
-                        '   </Attribute>']
+                out += self._attribute("Scalar", name, f"{n} 1",
+                                       f"/system_data/particle/{name}", "Int")
             for name in PARTICLE_VECTORS:
-                out += [f'   <Attribute AttributeType="Vector" Name="{name}" Center="Node">',
-                        self._item(f"{n} 3", f"{base}/{name}"), '   </Attribute>']
-            out += ['   <Attribute AttributeType="Tensor" Name="QR" Center="Node">',
-                    self._item(f"{n} 9", f"{base}/QR"), '   </Attribute>', '  </Grid>']
+                out += self._attribute("Vector", name, f"{n} 3", f"{base}/{name}")
+            out += self._attribute("Tensor", "QR", f"{n} 9", f"{base}/QR") + ['  </Grid>']
             return out
         return self._xdmf("KAPSEL Particle Trajectory", frame)
 
@@ -386,12 +387,10 @@ class ExtendedHDF5:
                    '   <Geometry GeometryType="XYZ">',
                    self._item(f"{n} 3", "/system_data/obstacle/pos"), '   </Geometry>']
             for name in ("id", "spec"):
-                out += [f'   <Attribute AttributeType="Scalar" Name="{name}" Center="Node">',
-                        self._item(f"{n} 1", f"/system_data/obstacle/{name}", "Int"),
-                        '   </Attribute>']
+                out += self._attribute("Scalar", name, f"{n} 1",
+                                       f"/system_data/obstacle/{name}", "Int")
             for name in ("force_h", "force_r"):
-                out += [f'   <Attribute AttributeType="Vector" Name="{name}" Center="Node">',
-                        self._item(f"{n} 3", f"{base}/{name}"), '   </Attribute>']
+                out += self._attribute("Vector", name, f"{n} 3", f"{base}/{name}")
             out.append('  </Grid>')
             return out
         return self._xdmf("KAPSEL Obstacle Trajectory", frame)
