@@ -13,7 +13,8 @@ FFT plans: one scalar pyfftw.FFTW plan per direction, applied to each component 
 aligned (3, ...) buffers (``per_component``; bit-identical to one batched (3, N, N, N) plan,
 3-10 % faster per spectral step at 32^3-64^3 in A/B runs on the shared machine, and cheaper
 to plan with FFTW_MEASURE), built once per Grid (FFTW keeps its wisdom for the process, so a
-second Grid of the same shape plans at once).  A batched plan is used when a component of
+second Grid of the same shape plans at once), on first use: a grid that is never
+transformed (``kapsel-py --check``) plans nothing.  A batched plan is used when a component of
 the buffers would not be SIMD-aligned (odd sizes).  FFTW_MEASURE against
 FFTW_ESTIMATE, measured on the shared 2-core machine (3 components, forward + backward,
 1 thread, the two plans timed interleaved; bench/bench_spectral.py --planners):
@@ -33,6 +34,7 @@ across processes; pass ``planner='FFTW_ESTIMATE'`` when that matters).
 """
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
@@ -42,7 +44,37 @@ try:  # pragma: no cover - import guard
 except ImportError:  # pragma: no cover
     pyfftw = None
 
-__all__ = ["Grid"]
+__all__ = ["Grid", "LazyPlan"]
+
+
+class LazyPlan:
+    """A pyfftw.FFTW plan of ``a`` -> ``b`` made on its first use, on scratch arrays of the
+    same layout (FFTW_MEASURE overwrites the arrays it plans with) and then pointed at ``a``
+    and ``b``: an object that is built but never transforms (``kapsel-py --check``) costs
+    no planning.  ``execute()``, ``update_arrays(a, b)`` and ``__call__()`` as pyfftw's."""
+
+    def __init__(self, a, b, **kwargs):
+        self.a, self.b, self.kwargs = a, b, kwargs
+        self._plan = None
+
+    @property
+    def plan(self):
+        if self._plan is None:
+            sa = pyfftw.empty_aligned(self.a.shape, dtype=self.a.dtype)
+            sb = pyfftw.empty_aligned(self.b.shape, dtype=self.b.dtype)
+            self._plan = pyfftw.FFTW(sa, sb, **self.kwargs)
+            self._plan.update_arrays(self.a, self.b)
+            self.a = self.b = None
+        return self._plan
+
+    def execute(self):
+        self.plan.execute()
+
+    def update_arrays(self, a, b):
+        self.plan.update_arrays(a, b)
+
+    def __call__(self, *args, **kwargs):
+        return self.plan(*args, **kwargs)
 
 
 
@@ -52,6 +84,16 @@ def auto_planner(size: int, threads: int = 1) -> str:
     threaded plans are slow (measured 2026-11-29, idle 2-core VM, r2c of 64^3: 1 thread
     0.79 ms, 2 threads 1.76 ms ESTIMATE / 0.54 ms MEASURE; 128^3: 12.6 / 6.3 / 5.3 ms)."""
     return "FFTW_MEASURE" if size > Grid.MEASURE_ABOVE or threads > 1 else "FFTW_ESTIMATE"
+
+def _aligned_zeros(shape, dtype, align: int) -> np.ndarray:
+    """A zeroed array aligned to ``align`` bytes, from np.zeros (calloc: large blocks come
+    as untouched zero pages, so memory is taken only where the array is written)."""
+    dtype = np.dtype(dtype)
+    nbytes = int(np.prod(shape)) * dtype.itemsize
+    buf = np.zeros(nbytes + align, dtype=np.uint8)
+    off = (-buf.ctypes.data) % align
+    return buf[off:off + nbytes].view(dtype).reshape(shape)
+
 
 class Grid:
     """Mesh of shape (NX, NY, NZ) with spacing ``dx``, its wavenumbers and FFT plans.
@@ -97,15 +139,9 @@ class Grid:
         self.kx = k[0].reshape(-1, 1, 1)
         self.ky = k[1].reshape(1, -1, 1)
         self.kz = k[2].reshape(1, 1, -1)
-        self.k2 = self.kx ** 2 + self.ky ** 2 + self.kz ** 2
-        self.inv_k2 = np.zeros(self.cshape)
-        np.divide(1.0, self.k2, out=self.inv_k2, where=self.k2 > 0)
         # 2/3 rule: a product of modes |m| <= K does not alias back onto |m| <= K iff 3K < N
         self.trunc = tuple((n - 1) // 3 for n in self.shape)
-        masks = [np.abs(mi) <= K for mi, K in zip(m, self.trunc)]
-        self.dealias = (masks[0].reshape(-1, 1, 1) & masks[1].reshape(1, -1, 1)
-                        & masks[2].reshape(1, 1, -1))
-        self.dealias_f = self.dealias.astype(float)
+        self._modes = m
         self.k_trunc = max(2.0 * np.pi * K / (n * self.dx) for K, n in zip(self.trunc, self.shape))
         self.k_max = math.pi / self.dx
         self.volume = float(np.prod(self.box))
@@ -125,6 +161,28 @@ class Grid:
         self._ptmp = None
         self._plans()
 
+    # full-size wavenumber arrays, made on first use (a grid built for ``kapsel-py --check``
+    # never needs them)
+    @functools.cached_property
+    def k2(self):
+        return self.kx ** 2 + self.ky ** 2 + self.kz ** 2
+
+    @functools.cached_property
+    def inv_k2(self):
+        out = np.zeros(self.cshape)
+        np.divide(1.0, self.k2, out=out, where=self.k2 > 0)
+        return out
+
+    @functools.cached_property
+    def dealias(self):
+        masks = [np.abs(mi) <= K for mi, K in zip(self._modes, self.trunc)]
+        return (masks[0].reshape(-1, 1, 1) & masks[1].reshape(1, -1, 1)
+                & masks[2].reshape(1, 1, -1))
+
+    @functools.cached_property
+    def dealias_f(self):
+        return self.dealias.astype(float)
+
     # ------------------------------------------------------------------ FFT
     def _plans(self):
         vshape, vcshape = (3,) + self.shape, (3,) + self.cshape
@@ -138,10 +196,8 @@ class Grid:
         # too (the scalar plans are made for aligned arrays); else one batched plan
         a = self._align
         self.per_component = (self.size * 8) % a == 0 and (int(np.prod(self.cshape)) * 16) % a == 0
-        if self.per_component:
-            self._scalar_plans()
-        else:
-            self._batched_plans()
+        # the plans are made on first use (``_scalar_plans`` / ``_batched_plans``): a grid
+        # that never transforms (``kapsel-py --check``) costs no planning
 
     @property
     def real_buf(self):
@@ -196,6 +252,8 @@ class Grid:
             ui = self.real_buf
         oi = out if self._aligned(out, self._vcshape, np.complex128) else self.complex_buf
         if self.per_component:
+            if self._sfwd is None:
+                self._scalar_plans()
             for c in range(3):
                 self._sfwd.update_arrays(ui[c], oi[c])
                 self._sfwd.execute()
@@ -234,6 +292,8 @@ class Grid:
             ci = self.complex_buf
         oi = out if self._aligned(out, self._vshape, np.float64) else self.real_buf
         if self.per_component:
+            if self._sbwd is None:
+                self._scalar_plans()
             for c in range(3):
                 self._sbwd.update_arrays(ci[c], oi[c])
                 self._sbwd.execute()
@@ -314,6 +374,17 @@ class Grid:
         if pyfftw is None:  # pragma: no cover
             return np.empty(shape)
         return pyfftw.empty_aligned(shape, dtype="float64")
+
+    def zeros_real(self, n=3):
+        """``empty_real`` filled with zeros, its pages given by the system as they are first
+        written (calloc): nothing is touched until used."""
+        shape = self.shape if n is None else (n,) + self.shape
+        return _aligned_zeros(shape, np.float64, self._align)
+
+    def zeros_complex(self, n=3):
+        """``empty_complex`` filled with zeros, untouched until used (``zeros_real``)."""
+        shape = self.cshape if n is None else (n,) + self.cshape
+        return _aligned_zeros(shape, np.complex128, self._align)
 
     def empty_complex(self, n=3):
         """SIMD-aligned uninitialised (n, cshape) complex128 array (n=None: scalar)."""

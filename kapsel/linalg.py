@@ -15,7 +15,7 @@ class FourierDiagonal:
 
     def __init__(self, shape, m, threads=1):
         import pyfftw
-        from .grid import auto_planner
+        from .grid import LazyPlan, auto_planner
         self.shape = tuple(int(n) for n in shape)
         size = int(np.prod(self.shape))
         cshape = self.shape[:2] + (self.shape[2] // 2 + 1,)
@@ -23,9 +23,9 @@ class FourierDiagonal:
         self._r = pyfftw.empty_aligned(self.shape, dtype="float64")
         self._c = pyfftw.empty_aligned(cshape, dtype="complex128")
         flags = (auto_planner(size, threads),)
-        self._fwd = pyfftw.FFTW(self._r, self._c, axes=(0, 1, 2), direction="FFTW_FORWARD",
+        self._fwd = LazyPlan(self._r, self._c, axes=(0, 1, 2), direction="FFTW_FORWARD",
                                 flags=flags, threads=threads)
-        self._bwd = pyfftw.FFTW(self._c, self._r, axes=(0, 1, 2), direction="FFTW_BACKWARD",
+        self._bwd = LazyPlan(self._c, self._r, axes=(0, 1, 2), direction="FFTW_BACKWARD",
                                 flags=flags + ("FFTW_DESTROY_INPUT",), threads=threads)
 
     def solve(self, v):

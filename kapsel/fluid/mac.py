@@ -46,6 +46,7 @@ import scipy.fft
 import scipy.sparse as sp
 from scipy.sparse.linalg import LinearOperator
 
+from ..grid import LazyPlan
 from ..linalg import FourierDiagonal, SolverDidNotConverge, UnstableTimeStep, solve_correction
 from . import operators as op
 
@@ -79,9 +80,9 @@ class _PoissonFFT:
             self._c = pyfftw.empty_aligned(cshape, dtype="complex128")
             self._o = pyfftw.empty_aligned(shape, dtype="float64")
             flags = (_planner(shape, self.threads),)
-            self._fwd = pyfftw.FFTW(self._r, self._c, axes=(0, 1, 2), direction="FFTW_FORWARD",
+            self._fwd = LazyPlan(self._r, self._c, axes=(0, 1, 2), direction="FFTW_FORWARD",
                                     flags=flags, threads=self.threads)
-            self._bwd = pyfftw.FFTW(self._c, self._o, axes=(0, 1, 2), direction="FFTW_BACKWARD",
+            self._bwd = LazyPlan(self._c, self._o, axes=(0, 1, 2), direction="FFTW_BACKWARD",
                                     flags=flags + ("FFTW_DESTROY_INPUT",), threads=self.threads)
             self.rhs = self._r      # write the right-hand side here, then call solve()
         else:

@@ -39,6 +39,8 @@ made once (SIMD-aligned, used in place by the FFTW plans of ``Grid``).
 """
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 
 from ..grid import Grid
@@ -123,8 +125,7 @@ class SpectralNS:
             raise ValueError("fix_cell must have 3 flags")
         self.advection = bool(advection)
         g = grid
-        self.u_hat = g.empty_complex()
-        self.u_hat[...] = 0.0
+        self.u_hat = g.zeros_complex()
         # scratch (complex: truncated u_hat / N, vorticity, N^n, N^{n-1}; real: u, omega, N)
         self._uh = g.empty_complex()
         self._wh = g.empty_complex()
@@ -138,16 +139,6 @@ class SpectralNS:
         self._have_old = False
         self.step_index = 0
 
-        z = -self.nu * g.k2 * self.dt
-        self._E = np.exp(z)
-        p1, p2 = phi1(z), phi2(z)
-        mask = g.dealias_f
-        self._f1 = self.dt * p1                        # body force (not truncated)
-        self._a1 = self.dt * p1 * mask                 # ETD1 / first step
-        if scheme == "etd2":
-            self._a2 = self.dt * (p1 + p2) * mask      # ETD2 weight of N^n
-            self._b2 = self.dt * p2 * mask             # ETD2 weight of N^{n-1}
-        self._mask_n = mask / g.size                   # truncation + 1/N of the c2r
         self._ikx = 1j * g.kx
         self._iky = 1j * g.ky
         self._ikz = 1j * g.kz
@@ -156,6 +147,33 @@ class SpectralNS:
         self.force_hat = None
         if force is not None:
             self.set_force(force)
+
+    # ------------------------------------------------------------------ ETD weights
+    @functools.cached_property
+    def _weights(self) -> dict:
+        """The ETD weights of eq 8 (z = -nu k^2 dt), made on first use: a fluid built for
+        ``kapsel-py --check`` never steps.  E = e^z; f1 = dt phi1(z) for the body force (not
+        truncated); a1 = dt phi1 mask (ETD1 / first step); a2 = dt (phi1 + phi2) mask and
+        b2 = dt phi2 mask (ETD2 weights of N^n and N^{n-1}); mask_n = mask / N (truncation
+        and the 1/N of the c2r)."""
+        g = self.grid
+        z = -self.nu * g.k2 * self.dt
+        p1 = phi1(z)
+        mask = g.dealias_f
+        w = {"E": np.exp(z), "f1": self.dt * p1, "a1": self.dt * p1 * mask,
+             "mask_n": mask / g.size}
+        if self.scheme == "etd2":
+            p2 = phi2(z)
+            w["a2"] = self.dt * (p1 + p2) * mask
+            w["b2"] = self.dt * p2 * mask
+        return w
+
+    _E = property(lambda self: self._weights["E"])
+    _f1 = property(lambda self: self._weights["f1"])
+    _a1 = property(lambda self: self._weights["a1"])
+    _a2 = property(lambda self: self._weights["a2"])
+    _b2 = property(lambda self: self._weights["b2"])
+    _mask_n = property(lambda self: self._weights["mask_n"])
 
     # ------------------------------------------------------------------ state
     def set_force(self, force):

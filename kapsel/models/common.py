@@ -282,6 +282,9 @@ class Model:
         self.cfg = cfg
         self.quiet = getattr(args, "quiet", False)
         self.threads = getattr(args, "threads", 1)
+        # built for ``kapsel-py --check``: every check, but no work on the fields (no initial
+        # rigidity imposition, no FFT plans); such a model is never advanced
+        self.dry = bool(getattr(args, "check", False))
         self.dt = time_step(cfg)
         self.time = 0.0
         self.step_index = 0

@@ -77,7 +77,8 @@ class ElectrolyteModel(SpectralModel):
         self.particles = make_particles(cfg, self.rng)
         self.spm = SPM(self.fluid, self.particles, cfg.particles.A, cfg.particles.A_XI, f.RHO,
                        cfg.mesh.DX, self.dt, rotation=cfg.switches.ROTATION,
-                       forces=overlap_guard(make_forces(cfg, self.particles)), noise=None)
+                       forces=overlap_guard(make_forces(cfg, self.particles)), noise=None,
+                       impose=not self.dry)    # the profiles: ion numbers, PB start
         p = self.particles
         self.charges = np.array([cfg.particles.species[s].surface_charge for s in p.species],
                                 dtype=float)

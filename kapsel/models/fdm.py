@@ -65,10 +65,11 @@ class FDMModel(Model):
                                forces=overlap_guard(make_forces(
                                    cfg, self.particles, strain=self._pair_strain(),
                                    wall=self.wall)),
-                               noise=make_noise(cfg, self.particles, seed), wall=self.wall)
+                               noise=make_noise(cfg, self.particles, seed), wall=self.wall,
+                               dry=self.dry)
         self.spm.fix_cell = self._fix_cell(cfg)
         self.u = self.spm.u
-        self.phi = self.spm.phi() if self.particles.n else None
+        self.phi = self.spm.phi() if self.particles.n and not self.dry else None
 
         # phase field
         self.ch = None
@@ -89,7 +90,7 @@ class FDMModel(Model):
                 if self.dt > 0.9 * limit:
                     self.substeps = math.ceil(self.dt / (0.9 * limit))
                     self.ch = self._make_ch(self.dt / self.substeps)
-                    if not self.quiet:
+                    if not self.quiet and not self.dry:   # dry: phi not built
                         print(f"#explicit Cahn-Hilliard: dt = {self.dt:.4g} exceeds its "
                               f"stability limit {limit:.4g}; psi advances in {self.substeps} "
                               f"sub-steps per step", file=sys.stderr)

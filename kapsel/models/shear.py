@@ -144,7 +144,8 @@ class ShearLEModel(SpectralModel):
         forces = make_forces(cfg, self.particles, strain=lambda: fluid.frame_strain)
         self.spm = SPM(self.fluid, self.particles, cfg.particles.A, cfg.particles.A_XI, f.RHO,
                        cfg.mesh.DX, self.dt, rotation=cfg.switches.ROTATION,
-                       forces=overlap_guard(forces), noise=make_noise(cfg, self.particles, seed))
+                       forces=overlap_guard(forces), noise=make_noise(cfg, self.particles, seed),
+                       dry=self.dry)
         self.stress = ShearStress(self.grid.volume, f.RHO, cfg.mesh.DX, self.dt, f.ETA)
 
     def advance(self):
@@ -365,7 +366,7 @@ class ZigzagModel(SpectralModel):
         super().__init__(cfg, args)
         self.zigzag = ZigzagShear(self.fluid, shear_flow(cfg))
         self.zigzag.initial(self.time)
-        if self.particles.n:
+        if self.particles.n and not self.dry:
             self.spm.impose_particle_velocity()
 
     def advance(self):
@@ -437,7 +438,7 @@ class ShearFDMModel(FDMModel):
     def __init__(self, cfg: RunConfig, args):
         self.interpolation = check_interpolation(cfg)
         super().__init__(cfg, args)
-        if start_with_flow(cfg, self.particles, self.mac):
+        if start_with_flow(cfg, self.particles, self.mac) and not self.dry:
             self.u[...] = 0.0
             self.spm.impose_particle_velocity()
         self.stress = ShearStress(float(np.prod(cfg.mesh.box)), cfg.fluid.RHO, cfg.mesh.DX,

@@ -27,7 +27,8 @@ class SpectralModel(Model):
         self.spm = SPM(self.fluid, self.particles, cfg.particles.A, cfg.particles.A_XI, f.RHO,
                        cfg.mesh.DX, self.dt, rotation=cfg.switches.ROTATION,
                        forces=overlap_guard(make_forces(cfg, self.particles, wall=self.wall)),
-                       noise=make_noise(cfg, self.particles, seed), wall=self.wall)
+                       noise=make_noise(cfg, self.particles, seed), wall=self.wall,
+                       dry=self.dry)
 
     def advance(self):
         self.spm.step()

@@ -83,10 +83,12 @@ class SPM:
     noise(n, dt) -> (dP, dL) : thermal impulses over one step (eqs 13-14).
     u: initial velocity for the MAC mode (default zero); ignored for 'spectral'.
     impose: make the initial field move with the particles (eq 6) at construction.
+    dry: built only to be checked (``kapsel-py --check``), never stepped: no profiles, no
+    imposition.
     """
 
     def __init__(self, fluid, particles, A, xi, rho, dx, dt, rotation=True, forces=None,
-                 noise=None, mass="grid", center=True, u=None, impose=True, wall=None):
+                 noise=None, mass="grid", center=True, u=None, impose=True, wall=None, dry=False):
         self.fluid = fluid
         self.p = particles
         self.rho = float(rho)
@@ -117,9 +119,8 @@ class SPM:
         # (with walls du is dense: cleared whole at the start of the next step instead)
         self._du = None
         if particles.n or wall is not None:   # spectral: FFT-aligned, transformed in place
-            self._du = (fluid.grid.empty_real() if self.mode == "spectral"
-                        else np.empty((3,) + self.shape))
-            self._du[...] = 0.0
+            self._du = (fluid.grid.zeros_real() if self.mode == "spectral"
+                        else np.zeros((3,) + self.shape))
         self._us = None         # u* at the stencil points, sampled once a step
         self._du_points = None  # du at the stencil points of the last step (last_increment)
         self._du_stepped = False
@@ -145,7 +146,7 @@ class SPM:
         if self.janus is not None and len(self.janus.squirmers) and (
                 self.mode != "spectral" or self.oblique):
             raise ValueError("squirmers need the spectral (rectangular) fluid")
-        if particles.n:
+        if particles.n and not dry:
             self._profiles()
             if impose:
                 self.impose_particle_velocity()
