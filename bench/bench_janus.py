@@ -27,6 +27,9 @@ from kapsel.particles.placement import orientations, uniform_random  # noqa: E40
 from kapsel.particles.spm import SPM  # noqa: E402
 from kapsel.particles.state import ParticleState  # noqa: E402
 
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from bench_spm import time_steps  # noqa: E402  (median ms of a step after 3 warm-up steps)
+
 A, XI = 4.0, 2.0
 
 
@@ -44,17 +47,6 @@ def build(n, npart, squirm, slip_iter, seed=0):
         p.janus = Janus(p.species, [JanusSpec("Z", "SQUIRMER", slip_vel=0.01,
                                               slip_mode=-1.0)], 0.0, slip_iter)
     return SPM(fluid, p, A, XI, 1.0, 1.0, dt)
-
-
-def time_steps(spm, steps):
-    for _ in range(3):
-        spm.step()
-    ts = []
-    for _ in range(steps):
-        t0 = time.perf_counter()
-        spm.step()
-        ts.append(time.perf_counter() - t0)
-    return float(np.median(ts))
 
 
 def main():

@@ -42,6 +42,7 @@ def build(n, npart, threads, seed=0):
 
 
 def time_steps(spm, steps):
+    """Median wall time of one ``spm.step()`` over ``steps`` steps, after 3 warm-up steps."""
     for _ in range(3):
         spm.step()
     ts = []

@@ -268,18 +268,24 @@ def test_dipoles_under_lees_edwards_are_refused(tmp_path, eq):
                                "janus_propulsion": "OFF"}))
 
 
+def _run_last_record(d, name):
+    """Run the command on ``name`` in ``d`` (seed 3) and return out.udf at its last record."""
+    r = subprocess.run([sys.executable, "-m", "kapsel.cli", f"-I{name}", "-Oout.udf",
+                        "-Ddefine.udf", "-Rrestart.udf", "--seed", "3", "--quiet"],
+                       cwd=d, capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stderr
+    u = UDFManager(str(d / "out.udf"))
+    u.jump(u.totalRecord() - 1)
+    return u
+
+
 @pytest.mark.parametrize("eq", ["Navier_Stokes", "Navier_Stokes_FDM"])
 def test_the_derived_ex12_input_runs(tmp_path, eq):
     """ex12 without walls (tests/data/ex12/nowall.udf: 6 Quincke rollers with QUINCKE dipoles,
     omega_x fixed, 16^3) runs with the command; the rollers feel the constraint and dipole
     torques (torque_r) and keep their fixed omega_x."""
     _nowall(tmp_path, name="nowall.udf", constitutive_eq__type=eq)
-    r = subprocess.run([sys.executable, "-m", "kapsel.cli", "-Inowall.udf", "-Oout.udf",
-                        "-Ddefine.udf", "-Rrestart.udf", "--seed", "3", "--quiet"],
-                       cwd=tmp_path, capture_output=True, text=True, timeout=300)
-    assert r.returncode == 0, r.stderr
-    u = UDFManager(str(tmp_path / "out.udf"))
-    u.jump(u.totalRecord() - 1)
+    u = _run_last_record(tmp_path, "nowall.udf")
     q = np.array(u.getArray("Particles[].q"))
     T = np.array(u.getArray("Particles[].torque_r"))
     w = np.array(u.getArray("Particles[].omega"))
@@ -298,12 +304,7 @@ def test_fixed_dipoles_on_spheres_run(tmp_path, eq):
                    **{"object_type__spherical_particle__Particle_spec[]":
                       [[4, 1.5, 0.0, "NONE", "OFF", [0.0, 0, 0], [0.0, 0, 0], 0.0, 0.0, 0.0,
                         0.0]]})
-    r = subprocess.run([sys.executable, "-m", "kapsel.cli", "-Is.udf", "-Oout.udf",
-                        "-Ddefine.udf", "-Rrestart.udf", "--seed", "3", "--quiet"],
-                       cwd=tmp_path, capture_output=True, text=True, timeout=300)
-    assert r.returncode == 0, r.stderr
-    u = UDFManager(str(tmp_path / "out.udf"))
-    u.jump(u.totalRecord() - 1)
+    u = _run_last_record(tmp_path, "s.udf")
     T = np.array(u.getArray("Particles[].torque_r"))
     w = np.array(u.getArray("Particles[].omega"))
     assert T.shape == (4, 3) and np.all(np.linalg.norm(T, axis=1) > 0)

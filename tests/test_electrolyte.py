@@ -9,6 +9,7 @@ import pytest
 
 from kapsel import config
 from kapsel.cli import main
+from runs import run_cli
 from kapsel.fluid.ions import Ions, bulk_densities, profile_slope
 from kapsel.grid import Grid
 from kapsel.io.restart import state_path
@@ -54,13 +55,7 @@ def make_input(d, npx=4, particles=None, salt=True, field="DC", init="Uniform", 
 
 
 def cli(d, inp, *extra):
-    cwd = os.getcwd()
-    os.chdir(d)
-    try:
-        return main([f"-I{inp}", "-Ooutput.udf", "-Ddefine.udf", "-Rrestart.udf", "--seed",
-                     "3", "--quiet", *extra])
-    finally:
-        os.chdir(cwd)
+    return run_cli(d, inp, *extra, seed=3)
 
 
 def model_of(path, **kw):

@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from kapsel.cli import main
+from runs import run_cli
 from kapsel.io.restart import state_path
 from udf import UDFManager
 
@@ -41,13 +42,7 @@ def make_input(d, eq, ns="implicit_scheme", ch="implicit_scheme", particles=3, g
 
 
 def cli(d, inp, *extra):
-    cwd = os.getcwd()
-    os.chdir(d)
-    try:
-        return main([f"-I{inp}", "-Ooutput.udf", "-Ddefine.udf", "-Rrestart.udf", "--seed",
-                     "11", "--quiet", *extra])
-    finally:
-        os.chdir(cwd)
+    return run_cli(d, inp, *extra, seed=11)
 
 
 def saved_data(path):

@@ -109,10 +109,9 @@ def test_rigid_body_wraps_through_the_lees_edwards_images():
     assert np.allclose(p.R, np.mod(X, L))
 
 
-def square_in_shear(yc, steps, n=24, A=2.5, rate=0.02, dt=0.05):
-    """A free rigid square of 4 touching beads in the shear (x-y) plane, centre at
-    (n/2, yc, n/2), started moving with the flow at its centre."""
-    f = ObliqueSpectralNS(Grid((n, n, n)), 1.0, 1.0, dt, ShearFlow("DC", rate))
+def _square(f, n, A, yc):
+    """Beads and RigidBodies of a free rigid square of 4 touching beads (radius A) in the
+    shear (x-y) plane of fluid ``f``, centre at (n/2, yc, n/2), moving with the flow there."""
     shape = np.array([[A, A, 0], [-A, A, 0], [-A, -A, 0], [A, -A, 0]], float)
     p = ParticleState.spheres([0] * 4, [A] * 4, [1.0] * 4, 1.0)
     b = RigidBodies(np.zeros(4, int), shape, p.mass, p.inertia, [0], [[n / 2, yc, n / 2]],
@@ -121,6 +120,14 @@ def square_in_shear(yc, steps, n=24, A=2.5, rate=0.02, dt=0.05):
     b.state.v[:] = f.background(b.state.R)
     b.place_beads(p)
     p.constraints = b
+    return p, b
+
+
+def square_in_shear(yc, steps, n=24, A=2.5, rate=0.02, dt=0.05):
+    """A free rigid square of 4 touching beads in the shear (x-y) plane, centre at
+    (n/2, yc, n/2), started moving with the flow at its centre."""
+    f = ObliqueSpectralNS(Grid((n, n, n)), 1.0, 1.0, dt, ShearFlow("DC", rate))
+    p, b = _square(f, n, A, yc)
     spm = SPM(f, p, A, 2.0, 1.0, 1.0, dt)
     spin, images = [], []
     for _ in range(steps):
@@ -206,14 +213,7 @@ def test_rigid_square_straddling_the_boundary_rotates_in_the_fdm_shear():
     n, A, rate, dt, yc = 24, 2.5, 0.02, 0.05, 0.5
     f = ObliqueMAC((n, n, n), 1.0, 1.0, 1.0, dt, ShearFlow("DC", rate),
                    scheme="implicit_scheme")
-    shape = np.array([[A, A, 0], [-A, A, 0], [-A, -A, 0], [A, -A, 0]], float)
-    p = ParticleState.spheres([0] * 4, [A] * 4, [1.0] * 4, 1.0)
-    b = RigidBodies(np.zeros(4, int), shape, p.mass, p.inertia, [0], [[n / 2, yc, n / 2]],
-                    quat.identity(1), [[True] * 3], [[True] * 3], [[0, 0, 0]], [[0, 0, 0]],
-                    [n] * 3)
-    b.state.v[:] = f.background(b.state.R)
-    b.place_beads(p)
-    p.constraints = b
+    p, b = _square(f, n, A, yc)
     spm = SPM(f, p, A, 2.0, 1.0, 1.0, dt)
     spin = []
     for _ in range(650):
