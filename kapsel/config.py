@@ -1087,23 +1087,12 @@ def _electric(r: _Reader, obj: str, species, mesh: Mesh):
                                    "object_type rigid with Beads_number 1 (as the original)")
         quincke = Quincke(AXES[r.get(f"{q}.ON.e_dir")], AXES[r.get(f"{q}.ON.w_dir")],
                           float(r.finite(f"{q}.ON.torque_amp")))
-    eq = r.get("constitutive_eq.type")
-    if quincke is not None and ("Lees_Edwards" in eq or eq == "Shear_NS_LE_CH_FDM"):
-        # the original's force routine under Lees-Edwards (Force_OBL) has no Quincke torque
-        what = "Quincke rollers under Lees-Edwards shear (the original has no Quincke torque there)"
-        if hasattr(r, "unsupported_feature"):
-            r.unsupported_feature(what, f"{q}.type", "ON", "set it to OFF")
-        else:
-            bad(f"{q}.type", "ON", f"{what}: not supported")
-        quincke = None
+    # the Lees-Edwards types too (the original's Force_OBL omits the Quincke torque and
+    # refuses nothing: README "Dipoles"), with the dipoles summed over the sheared lattice
     m = "switch.multipole"
     if not (r.has(f"{m}.type") and r.get(f"{m}.type") == "ON"):
         return quincke, None
     d = f"{m}.ON.Dipole"
-    if "Lees_Edwards" in eq or eq == "Shear_NS_LE_CH_FDM":
-        bad(f"{m}.type", "ON", f"dipole interactions are summed in a periodic box (Ewald); "
-                               f"{eq} shears it with Lees-Edwards images: not supported")
-        return quincke, None
     if not (r.has(f"{d}.type") and r.get(f"{d}.type") == "ON"):
         bad(f"{m}.type", "ON", f"multipole interactions need {d}.type ON (dipoles are the "
                                f"only multipoles the original reads)")

@@ -162,3 +162,74 @@ def test_spherical_direct_sum_converges_to_the_vacuum_ewald_energy():
             r = np.linalg.norm(d, axis=1)
             U += 0.5 * np.sum(mu[i] @ mu[j] / r ** 3 - 3 * (d @ mu[i]) * (d @ mu[j]) / r ** 5)
     assert abs(U - U_vac) < 2e-4 * abs(U_vac)
+
+
+# ---- the Lees-Edwards (sheared) lattice ---------------------------------------------------
+def _sheared_config():
+    box = np.array([9.0, 10.0, 11.0])
+    R, mu = _random(10, box, 7)
+    return box, R, mu
+
+
+def test_sheared_lattice_independent_of_the_split():
+    """On the sheared lattice (strain 0.37: images across y = Ly shifted by 3.7 along x) the
+    converged sum does not depend on alpha: a wrong image set or reciprocal lattice would make
+    the real and reciprocal parts disagree.  Two splits (alpha x1 and x1.6) agree to 1e-9."""
+    box, R, mu = _sheared_config()
+    p = ew.choose_parameters(box, len(R), 1e-13)
+    q = ew.EwaldParameters(alpha=1.6 * p.alpha, r_cut=p.r_cut / 1.6, k_cut=1.6 * p.k_cut)
+    U1, F1, E1 = ew.dipolar_ewald(R, mu, box, p, strain=0.37)
+    U2, F2, E2 = ew.dipolar_ewald(R, mu, box, q, strain=0.37)
+    assert abs(U1 - U2) < 1e-9 * abs(U1)
+    assert _rms(F1 - F2) < 1e-9 * _rms(F1) and _rms(E1 - E2) < 1e-9 * _rms(E1)
+    U0 = ew.dipolar_ewald(R, mu, box, p)[0]
+    assert abs(U1 - U0) > 1e-3 * abs(U0)            # the shear does change the sum
+
+
+def test_sheared_lattice_periodic_in_the_strain_and_unsheared_at_zero():
+    """Strain g and g + Lx/Ly give the same lattice (the x shift g Ly taken modulo Lx); a
+    strain of a whole period equals the unsheared sum; -x mirror symmetry: strain -g on the
+    mirrored configuration gives the same energy."""
+    box, R, mu = _sheared_config()
+    p = ew.choose_parameters(box, len(R), 1e-12)
+    U0 = ew.dipolar_ewald(R, mu, box, p)[0]
+    Up = ew.dipolar_ewald(R, mu, box, p, strain=box[0] / box[1])[0]
+    assert abs(Up - U0) < 1e-10 * abs(U0)
+    Ug = ew.dipolar_ewald(R, mu, box, p, strain=0.21)[0]
+    Ug2 = ew.dipolar_ewald(R, mu, box, p, strain=0.21 + box[0] / box[1])[0]
+    assert abs(Ug - Ug2) < 1e-10 * abs(Ug)
+    Rm, mum = R * [-1, 1, 1], mu * [-1, 1, 1]          # x -> -x maps strain g to -g
+    Um = ew.dipolar_ewald(Rm, mum, box, p, strain=-0.21)[0]
+    assert abs(Um - Ug) < 1e-10 * abs(Ug)
+
+
+def test_sheared_lattice_forces_fields_and_the_bare_law():
+    """On the sheared lattice the force is -dU/dR and the field -dU/dmu (finite differences),
+    and a close pair in a large sheared box follows the bare law within 1 %."""
+    box, R, mu = _sheared_config()
+    p = ew.choose_parameters(box, len(R), 1e-12)
+    g = 0.37
+    U, F, E = ew.dipolar_ewald(R, mu, box, p, strain=g)
+    h = 1e-5
+    for i in (0, 4):
+        for c in range(3):
+            for arr, ref in ((R, F), (mu, E)):
+                plus, minus = arr.copy(), arr.copy()
+                plus[i, c] += h
+                minus[i, c] -= h
+                ap = (plus, mu) if arr is R else (R, plus)
+                am = (minus, mu) if arr is R else (R, minus)
+                d = -(ew.dipolar_ewald(*ap, box, p, strain=g)[0]
+                      - ew.dipolar_ewald(*am, box, p, strain=g)[0]) / (2 * h)
+                assert abs(ref[i, c] - d) < 1e-6 * _rms(ref)
+    big = np.array([120.0, 110.0, 130.0])
+    R2 = np.array([[40.0, 108.0, 60.0], [10.1, 1.2, 61.3]])    # close across y = Ly: 10.1 + 33
+    mu2 = np.array([[0.2, -0.4, 1.0], [0.7, 0.1, -0.5]])
+    shift = 0.3 * big[1]
+    U, F, E = ew.dipolar_ewald(R2, mu2, big, ew.choose_parameters(big, 2, 1e-10), strain=0.3)
+    r = R2[0] - (R2[1] + [shift, big[1], 0.0])             # the nearest image of particle 1
+    r[0] -= big[0] * np.round(r[0] / big[0])
+    U0, F0, E0 = ew.bare_dipole_pair(r, mu2[0], mu2[1])
+    assert abs(U - U0) < 0.01 * abs(U0)
+    assert np.linalg.norm(F[0] - F0) < 0.01 * np.linalg.norm(F0)
+    assert np.linalg.norm(E[0] - E0) < 0.01 * np.linalg.norm(E0)

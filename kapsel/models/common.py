@@ -169,7 +169,7 @@ def make_forces(cfg: RunConfig, particles: ParticleState, strain=None, wall=None
     electric = None
     if particles.n and (quincke is not None or dipoles is not None):
         from ..particles.dipoles import make_electric
-        electric = make_electric(dipoles, quincke, cfg.mesh.box, particles.n)
+        electric = make_electric(dipoles, quincke, cfg.mesh.box, particles.n, strain=strain)
     if wall is not None and (wall.truncate == "NONE" or particles.n == 0):
         wall = None
     if not (pairs or gravity or chain or electric or wall is not None):

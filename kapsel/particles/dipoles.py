@@ -121,21 +121,23 @@ def ewald_box(box, dip: Dipoles):
 
 
 def dipole_forces(R, q, box, dip: Dipoles, quincke: Quincke | None = None,
-                  params: ewald.EwaldParameters | None = None):
-    """(F, T) on the N real dipoles (N, 3 each): Ewald forces and mu x E."""
+                  params: ewald.EwaldParameters | None = None, strain: float = 0.0):
+    """(F, T) on the N real dipoles (N, 3 each): Ewald forces and mu x E (``strain``: the
+    Lees-Edwards lattice of the sheared types, kapsel.particles.ewald)."""
     n = len(R)
     box = ewald_box(box, dip)
     X, mu = sources(R, q, dip, quincke)
     if params is None:
         params = ewald.choose_parameters(box, len(X), dip.tol)
-    _, F, E = ewald.dipolar_ewald(X, mu, box, params, dip.epsilon_surface)
+    _, F, E = ewald.dipolar_ewald(X, mu, box, params, dip.epsilon_surface, strain=strain)
     return F[:n], np.cross(mu[:n], E[:n])
 
 
-def make_electric(dip: Dipoles | None, quincke: Quincke | None, box, n: int):
+def make_electric(dip: Dipoles | None, quincke: Quincke | None, box, n: int, strain=None):
     """``electric(p) -> (F, T)`` of dipoles and the Quincke constraint on the particles
     ``p`` (positions R, orientations q), or None when neither is on.  The Ewald split is
-    chosen once for the box and the number of dipoles."""
+    chosen once for the box and the number of dipoles.  ``strain()``: the Lees-Edwards
+    strain of the sheared lattice now (the Lees-Edwards types)."""
     if dip is None and quincke is None:
         return None
     box = np.asarray(box, dtype=float)
@@ -150,7 +152,8 @@ def make_electric(dip: Dipoles | None, quincke: Quincke | None, box, n: int):
         if quincke is not None:
             T += quincke_torque(p.q, quincke)
         if dip is not None and p.n:
-            Fd, Td = dipole_forces(p.R, p.q, box, dip, quincke, params)
+            Fd, Td = dipole_forces(p.R, p.q, box, dip, quincke, params,
+                                   strain=strain() if strain is not None else 0.0)
             F += Fd
             T += Td
         return F, T

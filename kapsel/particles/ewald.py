@@ -24,6 +24,12 @@ of both sums are of relative size s^3 exp(-s^2) with s = alpha r_cut = k_cut / (
 ``splitting_s(tol)``; tests/test_ewald.py measures the energy, field and force errors against
 a sum converged to 1e-15: they stay below ``tol`` (relative to |U|, the RMS field and the RMS
 force) for tol = 1e-6 ... 1e-10.
+
+Lees-Edwards (``strain`` g != 0): the periodic images form the sheared lattice a1 = (Lx, 0, 0),
+a2 = (g Ly, Ly, 0), a3 = (0, 0, Lz) (the image across y = Ly displaced by g Ly along x, as the
+pair forces of kapsel.particles.forces); the same sums run over its images and its
+reciprocal lattice b_j (a_i . b_j = 2 pi delta_ij), of the same volume V.  g = 0 takes the
+orthorhombic code unchanged.
 """
 from __future__ import annotations
 
@@ -98,6 +104,50 @@ def reciprocal_vectors(box, k_cut: float) -> np.ndarray:
     return k[k2 < k_cut ** 2]
 
 
+def lattice(box, strain: float = 0.0) -> np.ndarray:
+    """Rows a1, a2, a3 of the (Lees-Edwards) periodic lattice; the x shift g Ly of a2 is
+    taken modulo Lx into [-Lx/2, Lx/2) (the same lattice, the most compact cell)."""
+    box = np.asarray(box, dtype=float)
+    s = float(strain) * box[1]
+    s -= box[0] * np.floor(s / box[0] + 0.5)
+    return np.array([[box[0], 0.0, 0.0], [s, box[1], 0.0], [0.0, 0.0, box[2]]])
+
+
+def _sheared_reciprocal_vectors(L, k_cut: float) -> np.ndarray:
+    """k = n1 b1 + n2 b2 + n3 b3 with 0 < |k| < k_cut, one of each +-k pair (|n_j| <=
+    k_cut |a_j| / 2 pi since n_j = k . a_j / 2 pi)."""
+    B = 2 * np.pi * np.linalg.inv(L).T
+    nmax = np.floor(k_cut * np.linalg.norm(L, axis=1) / (2 * np.pi)).astype(int)
+    axes = [np.arange(-m, m + 1) for m in nmax]
+    n = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
+    half = (n[:, 0] > 0) | ((n[:, 0] == 0) & ((n[:, 1] > 0) | ((n[:, 1] == 0) & (n[:, 2] > 0))))
+    k = n[half] @ B
+    k2 = np.einsum("ij,ij->i", k, k)
+    return k[(k2 < k_cut ** 2) & (k2 > 0)]
+
+
+def _sheared_ghosts(R, L, r_cut):
+    """Positions wrapped into the cell spanned by L's rows, and their periodic copies with
+    fractional coordinates within r_cut / h_j of the cell (h_j: the cell's height across
+    face j), which holds every image within r_cut of a point of the cell:
+    (Rw, G, original index, is the unshifted copy)."""
+    inv = np.linalg.inv(L)
+    f = np.mod(R @ inv, 1.0)
+    f[f >= 1.0] = 0.0
+    Rw = f @ L
+    V = abs(np.linalg.det(L))
+    h = V / np.linalg.norm(np.cross(L[[1, 2, 0]], L[[2, 0, 1]]), axis=1)
+    m = r_cut / h
+    nmax = np.ceil(m).astype(int)
+    axes = [np.arange(-k, k + 1) for k in nmax]
+    n = np.stack(np.meshgrid(*axes, indexing="ij"), -1).reshape(-1, 3)
+    fg = (f[None, :, :] + n[:, None, :]).reshape(-1, 3)
+    idx = np.tile(np.arange(len(R)), len(n))
+    zero = np.repeat(np.all(n == 0, axis=1), len(R))
+    keep = np.all((fg > -m) & (fg < 1.0 + m), axis=1)
+    return Rw, fg[keep] @ L, idx[keep], zero[keep]
+
+
 def _ghosts(Rw, box, r_cut):
     """Periodic copies of the wrapped positions within r_cut of the box: (G, original index)."""
     nmax = np.ceil(r_cut / box).astype(int)
@@ -110,16 +160,19 @@ def _ghosts(Rw, box, r_cut):
     return G[keep], idx[keep], zero[keep]
 
 
-def _real_space(R, mu, box, alpha, r_cut, chunk_pairs=1 << 20):
+def _real_space(R, mu, box, alpha, r_cut, chunk_pairs=1 << 20, strain=0.0):
     """Sum over every periodic image within r_cut (any r_cut, also beyond half the box):
     each particle against the periodic copies around the box, found by a k-d tree, in
     chunks of particles of about ``chunk_pairs`` pairs."""
     n = len(R)
     E = np.zeros((n, 3))
     F = np.zeros((n, 3))
-    Rw = np.mod(R, box)
-    Rw[Rw >= box] = 0.0                     # -1e-17 mod L rounds to L
-    G, gi, zero = _ghosts(Rw, box, r_cut)
+    if strain:
+        Rw, G, gi, zero = _sheared_ghosts(R, lattice(box, strain), r_cut)
+    else:
+        Rw = np.mod(R, box)
+        Rw[Rw >= box] = 0.0                     # -1e-17 mod L rounds to L
+        G, gi, zero = _ghosts(Rw, box, r_cut)
     tree = cKDTree(G)
     per = 4.0 / 3.0 * np.pi * r_cut ** 3 * n / float(np.prod(box)) + 1.0
     step = max(1, int(chunk_pairs / per))
@@ -155,10 +208,11 @@ def _real_space(R, mu, box, alpha, r_cut, chunk_pairs=1 << 20):
     return U, E, F
 
 
-def _reciprocal(R, mu, box, alpha, k_cut, chunk_bytes=32 << 20):
+def _reciprocal(R, mu, box, alpha, k_cut, chunk_bytes=32 << 20, strain=0.0):
     n = len(R)
     V = float(np.prod(box))
-    K = reciprocal_vectors(box, k_cut)
+    K = (_sheared_reciprocal_vectors(lattice(box, strain), k_cut) if strain
+         else reciprocal_vectors(box, k_cut))
     E = np.zeros((n, 3))
     F = np.zeros((n, 3))
     U = 0.0
@@ -178,17 +232,19 @@ def _reciprocal(R, mu, box, alpha, k_cut, chunk_bytes=32 << 20):
     return U, E, F
 
 
-def dipolar_ewald(R, mu, box, params: EwaldParameters, epsilon_surface: float = np.inf):
+def dipolar_ewald(R, mu, box, params: EwaldParameters, epsilon_surface: float = np.inf,
+                  strain: float = 0.0):
     """(U, F, E) of point dipoles ``mu`` (N, 3) at ``R`` (N, 3) in the periodic ``box``:
     the total energy, the force on each dipole (-dU/dR) and the field at each dipole
     (-dU/dmu, the torque being mu x E).  ``epsilon_surface``: the dielectric constant around
-    the infinite periodic sphere (np.inf: tin-foil, no surface term)."""
+    the infinite periodic sphere (np.inf: tin-foil, no surface term).  ``strain``: the
+    Lees-Edwards lattice (module docstring)."""
     R = np.asarray(R, dtype=float)
     mu = np.asarray(mu, dtype=float)
     box = np.asarray(box, dtype=float)
     a = params.alpha
-    U_r, E, F = _real_space(R, mu, box, a, params.r_cut)
-    U_k, E_k, F_k = _reciprocal(R, mu, box, a, params.k_cut)
+    U_r, E, F = _real_space(R, mu, box, a, params.r_cut, strain=strain)
+    U_k, E_k, F_k = _reciprocal(R, mu, box, a, params.k_cut, strain=strain)
     E += E_k
     F += F_k
     self_c = 2 * a ** 3 / (3 * SQRT_PI)
