@@ -828,9 +828,10 @@ def _surface_terms(r: _Reader, pp: str, eq_type: str, mesh: Mesh) -> dict:
     for name in ("z", "w_wall", "psi_0_p"):
         if r.has(f"{pp}.{name}"):
             out[name] = r.finite(f"{pp}.{name}")
-    if out.get("z", 0.0) != 0 and eq_type != "Navier_Stokes_Cahn_Hilliard_FDM":
-        r.fail(f"{pp}.z", out["z"], f"is supported for Navier_Stokes_Cahn_Hilliard_FDM only, "
-                                    f"not {eq_type} (set it to 0)")
+    if out.get("z", 0.0) != 0 and eq_type not in ("Navier_Stokes_Cahn_Hilliard_FDM",
+                                                  "Shear_NS_LE_CH_FDM"):
+        r.fail(f"{pp}.z", out["z"], f"is read by the original for Navier_Stokes_Cahn_Hilliard_FDM "
+                                    f"and Shear_NS_LE_CH_FDM only, not {eq_type} (set it to 0)")
     w = f"{pp}.psi_0_wall"
     if r.has(f"{w}.type"):
         kind = r.get(f"{w}.type")

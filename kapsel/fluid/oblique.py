@@ -740,6 +740,20 @@ class ObliqueCahnHilliard:
         gr = self._grad(f, np.empty((3,) + f.shape))
         return np.einsum("i...,i...->...", gr, gr)
 
+    def _div_coef_grad(self, c, f):
+        """div(c grad f) = c lap f + grad c . grad f with the metric Laplacian and the
+        physical central gradient: the original's form of the z term, -(alpha + 2 z phi)
+        lap psi - 2 z grad phi . grad psi (PHYSICS-EXTRA.md §2.5), in the oblique frame."""
+        out = c * self._lap(f, np.empty(f.shape))
+        gc = self._grad(c, np.empty((3,) + f.shape))
+        gf = self._grad(f, np.empty((3,) + f.shape))
+        out += np.einsum("i...,i...->...", gc, gf)
+        return out
+
+    def _z_density(self, s, psi):
+        """z phi_s |grad psi|^2 with the physical gradient (the free energy record)."""
+        return self.z * s * self._grad_sq(psi)
+
     def _div_flux(self, psi, u, out, work):
         from ..phase.cahn_hilliard import _div_flux
         return _div_flux(psi, contravariant(u, self.frame()), self.dx, out, work)

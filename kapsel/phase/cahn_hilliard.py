@@ -324,12 +324,26 @@ class CahnHilliard:
             return np.asarray(self.wall.phi)
         return np.minimum(phi + self.wall.phi, 1.0)
 
+    def _div_coef_grad(self, c, f):
+        """div(c grad f) of the z term (face-centred: ``div_coef_grad``)."""
+        return div_coef_grad(c, f, self.dx)
+
+    def _z_density(self, s, psi):
+        """z phi_s |grad psi|^2 per node, the discrete density whose derivative is the z
+        term of mu (forward differences, phi_s averaged on the faces)."""
+        dens = np.zeros(self.shape)
+        for ax in range(3):
+            df = np.roll(psi, -1, axis=ax) - psi
+            dens += (0.5 * (s + np.roll(s, -1, axis=ax))) * df * df
+        dens *= self.z / self.dx ** 2
+        return dens
+
     def _surface_mu(self, psi, phi, out):
         """Adds the z and wall terms of mu (module docstring) to out."""
         if self.z != 0.0:
             s = self._solids(phi)
             if s is not None:
-                out -= (2.0 * self.z) * div_coef_grad(s, psi, self.dx)
+                out -= (2.0 * self.z) * self._div_coef_grad(s, psi)
         if self.wall is not None:
             out += self._wall_static
             if self._wall_pen is not None:
@@ -363,10 +377,7 @@ class CahnHilliard:
         if self.z != 0.0:
             s = self._solids(phi)
             if s is not None:
-                for ax in range(3):
-                    df = np.roll(psi, -1, axis=ax) - psi
-                    dens += (0.5 * (s + np.roll(s, -1, axis=ax))) * df * df
-                dens *= self.z / self.dx ** 2
+                dens += self._z_density(s, psi)
         if self.wall is not None:
             dens += self._wall_static * psi
             if self._wall_pen is not None:
@@ -598,7 +609,7 @@ class CahnHilliard:
         if self.z != 0.0:               # explicit, extrapolated like f' (linear in psi)
             s = self._solids(phi)
             if s is not None:
-                g -= (2.0 * self.z) * div_coef_grad(s, guess, self.dx)
+                g -= (2.0 * self.z) * self._div_coef_grad(s, guess)
         rhs += (dt * self.kappa) * self._lap(g, np.empty(self.shape))
         # mean of the solution is exact (column sums of A are c0); solve for the rest
         m = float(np.sum(rhs)) / (c0 * n)
