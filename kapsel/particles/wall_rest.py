@@ -78,21 +78,18 @@ class SolidRest:
                 idx = [a, 0, 0, 0]
                 idx[1 + self.axis] = s
                 f[tuple(idx)] = 1.0
-                resp = self._planes_hat(project(f))          # (3, n1, n2h, ns)
-                M[..., a * ns + j] = np.moveaxis(resp, 0, 2).reshape(
-                    self.n1, self.n2 // 2 + 1, m)
+                M[..., a * ns + j] = self._planes_hat(project(f))
         M = 0.5 * (M + np.conj(np.swapaxes(M, -1, -2)))       # Hermitian up to round-off
         self.M = M
         self.minv = np.linalg.pinv(M, rcond=self.RCOND, hermitian=True)
-        self._lam = np.empty((self.n1, self.n2 // 2 + 1, m), dtype=complex)
-
-    def _planes(self, u):
-        """u on the solid planes, (3, n1, n2, ns) (the wall axis last)."""
-        return np.moveaxis(np.take(u, self.planes, axis=1 + self.axis), 1 + self.axis, -1)
 
     def _planes_hat(self, u):
-        """Fourier transform along the walls of u on the solid planes, (3, n1, n2h, ns)."""
-        return np.fft.rfft2(self._planes(u), axes=(1, 2))
+        """Fourier transform along the walls of u on the solid planes, (n1, n2h, 3 ns),
+        component-major (index a ns + j for component a on plane j)."""
+        v = np.ascontiguousarray(np.moveaxis(np.take(u, self.planes, axis=1 + self.axis),
+                                             1 + self.axis, 1))       # (3, ns, n1, n2)
+        h = np.fft.rfft2(v).reshape(3 * self.ns, self.n1, -1)
+        return np.ascontiguousarray(h.transpose(1, 2, 0))
 
     def force(self, u, out):
         """Write -R^T lam into ``out`` (3, NX, NY, NZ), zero off the solid planes, for the
@@ -100,17 +97,14 @@ class SolidRest:
         solid.  ``out`` is fully overwritten on the planes only: keep it zero elsewhere."""
         if self.minv is None:
             return out
-        r = self._planes_hat(u)                               # (3, n1, n2h, ns)
-        n1, n2h, ns = self.n1, self.n2 // 2 + 1, self.ns
-        rv = np.moveaxis(r, 0, 2).reshape(n1, n2h, 3 * ns)
-        np.einsum("ijab,ijb->ija", self.minv, rv, out=self._lam)
+        r = self._planes_hat(u)[..., None]                    # (n1, n2h, 3 ns, 1)
+        lam = self.minv @ r
         for _ in range(self.REFINE):          # iterative refinement of the small solves
-            res = rv - np.einsum("ijab,ijb->ija", self.M, self._lam)
-            self._lam += np.einsum("ijab,ijb->ija", self.minv, res)
-        lam = np.fft.irfft2(np.moveaxis(self._lam.reshape(n1, n2h, 3, ns), 2, 0),
-                            s=(self.n1, self.n2), axes=(1, 2))   # (3, n1, n2, ns)
+            lam += self.minv @ (r - self.M @ lam)
+        lam = lam[..., 0].transpose(2, 0, 1).reshape(3, self.ns, self.n1, -1)
+        lam = np.fft.irfft2(lam, s=(self.n1, self.n2))        # (3, ns, n1, n2)
         for j, s in enumerate(self.planes):
             idx = [slice(None)] * 4
             idx[1 + self.axis] = s
-            out[tuple(idx)] = -lam[..., j]
+            out[tuple(idx)] = -lam[:, j]
         return out
