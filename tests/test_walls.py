@@ -221,11 +221,14 @@ def _wall_run_input(tmp_path, eq, n=2, steps=(5, 2)):
 @pytest.mark.parametrize("eq", ["Navier_Stokes", "Navier_Stokes_FDM"])
 def test_particles_settle_between_walls_in_a_run(tmp_path, eq):
     """ex14's walls (Z, DH 4, MANUAL 36:18, EPSILON 100) with two settling particles (G = 1):
-    placed between the walls; the fluid in the solid stays nearly at rest.  It is not
-    exactly 0 as in the Poiseuille flow: the pressure projection after the rigidity step
-    puts back a velocity of up to 7 % of max|u| (measured 0.074 after 5 steps, 0.054 after
-    30), and the net momentum in the solid is 5 % (5 steps) to 2.3 % (30 steps) of the
-    largest sum |u| of a component (the SPM's rigidity is approximate for particles too)."""
+    placed between the walls; the fluid in the solid (phi_wall = 1) stays at rest to
+    round-off.  With the original's single projection of the combined rigidity increment the
+    particles' pressure gradient reached into the solid: up to 7 % of max|u| (measured 0.072
+    after 5 steps, 0.044 after 30) and a net solid momentum of 5 % (5 steps) to 2.1 % (30
+    steps) of the largest sum |u| of a component.  The projection onto divergence-free fields
+    that vanish on the solid (kapsel.particles.wall_rest) leaves 1.4e-15 (spectral) and
+    1e-16 (FDM) of max|u| after 5 steps, a net solid momentum below 4e-17 of sum |u|; the
+    bounds below are 1e-13 (round-off of the FFTs and of the small per-mode solves)."""
     from kapsel import cli
     for f in ("define.udf", "kapsel_unit.udf"):
         shutil.copy(os.path.join(EX14, f), tmp_path / f)
@@ -242,11 +245,63 @@ def test_particles_settle_between_walls_in_a_run(tmp_path, eq):
     solid = model.wall.solid()
     u = model.velocity_field()
     assert np.abs(u).max() > 1e-6
-    assert np.abs(u[:, solid]).max() < 0.1 * np.abs(u).max()
+    assert np.abs(u[:, solid]).max() < 1e-13 * np.abs(u).max()
     net = np.abs(u[:, solid].sum(axis=1)).max()
-    assert net < 0.06 * np.abs(u).sum(axis=(1, 2, 3)).max()
+    assert net < 1e-13 * np.abs(u).sum(axis=(1, 2, 3)).max()
     phi = model.snapshot().get("phi")
     assert phi.max() == 1.0 and np.all(phi[solid] == 1.0)
+
+
+@pytest.mark.parametrize("solver,axis", [("spectral", 2), ("spectral", 0), ("mac", 1)])
+def test_the_fluid_in_the_solid_is_held_by_the_exact_constrained_projection(solver, axis):
+    """kapsel.particles.wall_rest: for a field w that vanishes on the solid, u = P(w) plus
+    the walls' holding correction is divergence-free (the solver's own divergence), zero on
+    the solid, and w - u is orthogonal to every such field (the orthogonal projection onto
+    divergence-free fields vanishing on the solid).  The plain projection P w is not zero on
+    the solid (the leak of the original)."""
+    from kapsel.particles.wall_rest import SolidRest
+    shape = [11, 9, 7]                    # odd: no Nyquist modes (whose derivative is
+    shape[axis] = 15                      # ambiguous for real fields)
+    shape = tuple(shape)
+    wall = FlatWall(axis, 4, shape, 1.0, 2.0)
+    if solver == "spectral":
+        grid = Grid(shape, 1.0)
+
+        def project(f):
+            h = np.fft.rfftn(f, axes=(1, 2, 3))
+            grid.project(h)
+            return np.fft.irfftn(h, s=shape, axes=(1, 2, 3))
+
+        def div(u):                       # i k . u_hat, per unit of max|u_hat|
+            h = np.fft.rfftn(u, axes=(1, 2, 3))
+            return grid.divergence_hat(h) * (np.abs(u).max() / np.abs(h).max())
+    else:
+        mac = MACSolver(shape, 1.0, 1.0, 1.0, 0.1)
+
+        def project(f):
+            return mac.project(f.copy())
+
+        def div(u):
+            return mac.divergence(u)
+    rest = SolidRest(wall, project)
+    solid = wall.solid()
+    assert list(rest.planes) == [0, 1, 14]
+    rng = np.random.default_rng(5)
+
+    def held(w):
+        u = project(w)
+        return u + project(rest.force(u, np.zeros_like(u)))
+
+    w, v0 = rng.normal(size=(2, 3) + shape)
+    w[:, solid] = v0[:, solid] = 0.0
+    plain = project(w)
+    assert np.abs(plain[:, solid]).max() > 0.1 * np.abs(plain).max()
+    u, v = held(w), held(v0)
+    for f in (u, v):
+        assert np.abs(f[:, solid]).max() < 1e-13 * np.abs(f).max()
+        assert np.abs(div(f)).max() < 1e-12 * np.abs(f).max()
+    assert abs(np.vdot(w - u, v)) < 1e-12 * np.linalg.norm(w) * np.linalg.norm(v)
+    assert np.abs(held(u) - u).max() < 1e-13 * np.abs(u).max()      # idempotent
 
 
 def brenner(h_over_a, terms=60):
@@ -266,36 +321,177 @@ def test_brenner_reference():
     assert brenner(10.0) == pytest.approx(1 + 9 / 80, rel=0.02)           # Lorentz, far
 
 
+def _modes(z, k, c, s):
+    """Rows n = 0..3 (d^n/dz^n) of g = exp(s k (z - c)) and f = k (z - c) g at z, the
+    solutions of (D^2 - k^2)^2 w = 0 scaled to stay <= 1 on their side."""
+    t = z - c
+    e = math.exp(s * k * t)
+    g = [e * (s * k) ** n for n in range(4)]
+    f = [k * t * e, k * (1 + s * k * t) * e, s * k * k * (2 + s * k * t) * e,
+         k ** 3 * (3 + s * k * t) * e]
+    return np.array([g, f]).T
+
+
+def _w_hat(k, z0, H):
+    """Normal velocity at the source of a unit point force normal to no-slip walls at z = 0
+    and z = H (H = inf: the wall at 0 only), ETA = 1, in the lateral Fourier mode k:
+    (D^2 - k^2)^2 w = k^2 delta(z - z0), w = w' = 0 on the walls."""
+    one = math.isinf(H)
+    nb = 4
+    n = nb + (2 if one else 4)
+
+    def below(z):
+        return np.hstack([_modes(z, k, 0.0, -1), _modes(z, k, z0, +1)])
+
+    def above(z):
+        r = _modes(z, k, z0, -1)
+        return r if one else np.hstack([r, _modes(z, k, H, +1)])
+    M, b = np.zeros((n, n)), np.zeros(n)
+    M[0, :nb], M[1, :nb] = below(0.0)[:2]
+    r = 2
+    if not one:
+        M[2, nb:], M[3, nb:] = above(H)[:2]
+        r = 4
+    Bz, Az = below(z0), above(z0)
+    M[r:r + 4, :nb], M[r:r + 4, nb:] = -Bz, Az       # w, w', w'' continuous, w''' jumps
+    b[r + 3] = k * k
+    return Bz[0] @ np.linalg.solve(M, b)[:nb]
+
+
+def wall_reflection(z0, H=math.inf):
+    """The walls' (reflected) velocity at a unit point force normal to them, ETA = 1: the
+    lateral Fourier integral of w_hat minus the free Stokeslet's 1 / (4 k) (Liron & Mochon
+    1976).  One wall: -3 / (16 pi z0) (Lorentz: lambda ~ 1 + 9 a / (8 h))."""
+    from scipy.integrate import quad
+    L = min(z0, H - z0)
+    f = lambda k: k * (_w_hat(k, z0, H) - 0.25 / k)      # noqa: E731
+    return quad(f, 0.0, 40.0 / L, limit=400)[0] / (2.0 * math.pi)
+
+
+def test_the_point_force_reflection_between_two_walls():
+    """Lorentz's one-wall value, and at mid-gap (l = H/2) the two-wall coefficient
+    lambda^-1 = 1 - 1.4516 a / l of the literature (Ganatos, Pfeffer & Weinbaum 1980), far
+    below the 2 x 9/8 of adding the two walls' effects."""
+    for z0 in (5.0, 10.0):
+        assert wall_reflection(z0) == pytest.approx(-3.0 / (16 * math.pi * z0), rel=1e-8)
+    l = 30.0
+    assert -6 * math.pi * l * wall_reflection(l, 2 * l) == pytest.approx(1.4516, abs=2e-4)
+
+
+def hasimoto_drag(a_over_L):
+    """Drag of a simple cubic array of spheres over Stokes' drag, K(a / L) (Hasimoto 1959,
+    extended by Sangani & Acrivos 1982), c the volume fraction."""
+    c = 4.0 * math.pi / 3.0 * a_over_L ** 3
+    return 1.0 / (1.0 - 1.7601 * c ** (1 / 3) + c - 1.5593 * c ** 2 + 3.9799 * c ** (8 / 3)
+                  - 3.0734 * c ** (10 / 3))
+
+
+BRENNER_DT = 1.0 / math.pi ** 2
+
+
+def wall_no_slip_offset(nsteps=8000):
+    """delta: how far the walls' hydrodynamic no-slip planes lie beyond the solid faces
+    (phi_wall = 1/2), from the steady Poiseuille flux Q = g h_eff^3 / (12 nu) between walls
+    DH = 4, XI = 2 (spectral, 4 x 4 x 32, dt = 1/pi^2 as the sphere runs; the flux at
+    t = 810, 10 viscous times h^2 / (pi^2 nu) of the gap): h_eff = h + 2 delta.  Measured
+    delta = 0.0180, 0.0466, 0.0490 after 4000, 6000, 8000 steps (dt = 0.1)."""
+    shape, g = (4, 4, 32), 1e-3
+    wall = FlatWall(2, 4, shape, 1.0, 2.0)
+    fluid = SpectralNS(Grid(shape, 1.0), 1.0, 1.0, BRENNER_DT, advection=False)
+    fluid.set_force([g, 0.0, 0.0])
+    spm = SPM(fluid, no_particles(), 4.0, 2.0, 1.0, 1.0, BRENNER_DT, wall=wall)
+    spm.run(nsteps)
+    Q = spm.velocity()[0].mean(axis=(0, 1)).sum()
+    return 0.5 * ((12.0 * Q / g) ** (1 / 3) - wall.gap)
+
+
+def sphere_velocity(N, A, Fz, nsteps, wall=None, z=None, before=0):
+    """Steady velocity of a sphere (radius A, XI = 2) driven by Fz along z (unsteady Stokes,
+    spectral, dt = 1/pi^2), held at its height (its position is reset after each step, so
+    the drag is that of one height).  Without wall: periodic N^3 box with a uniform counter
+    force on the fluid (Hasimoto's problem), velocity relative to the mean flow.  Returns
+    the velocity after nsteps (with ``before``: also the one ``before`` steps earlier)."""
+    p = ParticleState.spheres([0], [A], [1.0], 1.0)
+    p.R[:] = [[N / 2, N / 2, N / 2 if z is None else z]]
+    p.R_raw[:] = p.R
+    R0 = p.R.copy()
+    fluid = SpectralNS(Grid((N, N, N), 1.0), 1.0, 1.0, BRENNER_DT, advection=False)
+    if wall is None:
+        fluid.set_force([0.0, 0.0, -Fz / N ** 3])
+    F = np.array([[0.0, 0.0, Fz]])
+    spm = SPM(fluid, p, A, 2.0, 1.0, 1.0, BRENNER_DT, wall=wall,
+              forces=lambda q: (F, np.zeros((1, 3))))
+    hist = {}
+    for k in range(1, nsteps + 1):
+        spm.step()
+        p.R[:] = p.R_raw[:] = R0
+        spm.refresh()
+        if k in (nsteps - before, nsteps):
+            hist[k] = p.v[0, 2] - (fluid.mean_velocity()[2] if wall is None else 0.0)
+    return (hist[nsteps - before], hist[nsteps]) if before else hist[nsteps]
+
+
 @pytest.mark.slow
 def test_a_sphere_driven_towards_a_wall_slows_as_brenner_predicts():
-    """A sphere (A = 4, XI = 2) pushed towards a Z wall by a constant force (Stokes regime,
-    Re ~ 1e-3) in a 64^3 spectral box with walls DH = 4, held 1500 steps (t = 152) at
-    h/a = 2, 3 and 4 (h: centre to the solid face, the phi_wall = 1/2 plane).  The drag
-    ratios lambda(2)/lambda(3) and lambda(2)/lambda(4) match Brenner's single-wall values
-    within 10 %: the ratio of two positions near one wall cancels most of what the box adds
-    (the far wall 13-15 a away, the periodic images 16 a apart, the SPM radius).  Measured
-    lambda = F / (6 pi ETA A U) after 1500 steps: 1.946 (h/a = 2), 1.498 (3), 1.346 (4);
-    ratios 1.299 and 1.446 against Brenner's 1.355 and 1.540 (-4 %, -6 %); the absolute
-    values lie below Brenner's 2.126, 1.569, 1.380 (not explained here: the box and the SPM's
-    diffuse surface both change them; the ratios cancel most of it).  Run time 258 s (the
-    three heights; 2-core machine shared with other jobs)."""
-    N, A, dt, Fz = 64, 4.0, 1.0 / math.pi ** 2, -0.075
+    """A sphere (A = 4, XI = 2) pushed towards a Z wall by a constant force (Stokes flow) in
+    a 64^3 spectral box with walls DH = 4: its drag lambda(h) = F / (6 pi ETA a U) is within
+    5 % of Brenner's single-wall value at h/a = 2, 3, 4, in absolute terms.  What the SPM
+    and the box add is measured or computed, not fitted:
+
+    * a: the SPM sphere's hydrodynamic radius, from its drag in a periodic 32^3 box (no
+      walls) and Hasimoto's K(a / L): K = 1.4550 -> a = 3.867 (64^3, extrapolated to steady
+      state: K = 1.1665 -> a = 3.870, the same; nominal A = 4 would give K = 1.530, 1.214);
+    * h: sphere centre to the wall's no-slip plane, which lies delta beyond the solid face
+      (phi_wall = 1/2), delta = 0.051 from the steady Poiseuille flux between the same walls
+      (wall_no_slip_offset); the sphere is placed at z = lo - delta + h a;
+    * the far wall (H - h = 13.5 .. 11.5 a away) and the box: the first-order (point-force)
+      effect of the far wall, the two-wall reflection minus the one-wall one
+      (wall_reflection), is removed from the mobility: 1/lambda_near = 1/lambda -
+      6 pi a (w_2 - w_1) = 1/lambda + 0.0004, 0.0016, 0.0044.  It is that small because a
+      force normal to a wall makes a far field decaying as 1/r^3; adding the far wall's
+      single-wall excess drag instead (lambda_B(H - h) - 1 = 0.09 .. 0.11) would remove
+      13 to 60 times too much (measured at mid-gap, l = 7.77 a: lambda = 1.292 after 1250 steps,
+      1.257 after 2500, still settling: the slow far-field mode; point-force two-wall
+      theory 1 / (1 - 1.4516 a / l) = 1.230, the two walls' excesses added 1.336).  The
+      periodic images along the walls, 64 = 16.5 a apart, are screened by the walls (the
+      flow of a force normal to two walls decays as exp(-4.2 r / H), H = 60; Liron &
+      Mochon 1976) and neglected.
+    The sphere is held at its height (quasi-static, Brenner's problem) for 2000 steps
+    (t = 203; near the wall the drag settles within t ~ 100, the walls screening the slow
+    far-field modes: the change over the last 500 steps is asserted below 1 %).
+    Measured (this test: delta = 0.0510, K(32) = 1.4550, a = 3.8670):
+
+        h/a   lambda (500 steps before)   far wall   lambda_near   Brenner
+        2     2.0956 (2.0970)             0.00036    2.0940        2.1255  (-1.5 %)
+        3     1.5755 (1.5792)             0.00157    1.5717        1.5692  (+0.2 %)
+        4     1.4012 (1.4080)             0.00433    1.3928        1.3802  (+0.9 %)
+
+    asserted within 5 % (the issue asks 10 %).  With the nominal A = 4 and h from the solid
+    face, the same runs read lambda = 2.03, 1.52, 1.35 at h/a = 1.92, 2.89, 3.85 (the old
+    ratio-only test: 1.946, 1.498, 1.346 after 1500 steps, the sphere free to move, the
+    fluid in the walls not held).  Run time 545 s on the 2-core machine shared with other
+    jobs, nearly all of it the three 64^3 runs of 2000 steps."""
+    N, A, Fz = 64, 4.0, -0.075
+    delta = wall_no_slip_offset()
+    assert 0.0 < delta < 0.2
+    K = Fz / (6 * math.pi * A * sphere_velocity(32, A, Fz, 2000))
+    from scipy.optimize import brentq
+    a = brentq(lambda r: r * hasimoto_drag(r / 32) - A * K, 0.5 * A, 1.5 * A)
+    assert abs(a - A) < 0.1 * A
     wall = FlatWall(2, 4, (N, N, N), 1.0, 2.0)
-    lam = {}
+    lo, hi = wall.lo - delta, wall.hi + delta          # the no-slip planes
+    print(f"delta = {delta:.4f}, K(32) = {K:.4f}, a = {a:.4f}")
     for h in (2.0, 3.0, 4.0):
-        p = ParticleState.spheres([0], [A], [1.0], 1.0)
-        p.R[:] = [[N / 2, N / 2, wall.lo + h * A]]
-        p.R_raw[:] = p.R
-        fluid = SpectralNS(Grid((N, N, N), 1.0), 1.0, 1.0, dt)
-        F = np.array([[0.0, 0.0, Fz]])
-        spm = SPM(fluid, p, A, 2.0, 1.0, 1.0, dt, wall=wall,
-                  forces=lambda q: (F, np.zeros((1, 3))))
-        for _ in range(1500):
-            spm.step()
-        lam[h] = Fz / (6 * math.pi * A * p.v[0, 2])
-    for h in (3.0, 4.0):
-        assert lam[2.0] / lam[h] == pytest.approx(brenner(2.0) / brenner(h), rel=0.10)
-    assert lam[2.0] > lam[3.0] > lam[4.0] > 1.0
+        U0, U = sphere_velocity(N, A, Fz, 2000, wall, lo + h * a, before=500)
+        lam = Fz / (6 * math.pi * a * U)
+        far = 6 * math.pi * a * (wall_reflection(h * a, hi - lo) - wall_reflection(h * a))
+        near = 1.0 / (1.0 / lam - far)
+        print(f"h/a = {h}: lambda = {lam:.4f} (500 steps before: "
+              f"{Fz / (6 * math.pi * a * U0):.4f}), far wall {-far:.5f} in 1/lambda, "
+              f"lambda_near = {near:.4f}, Brenner {brenner(h):.4f} "
+              f"({near / brenner(h) - 1:+.2%})")
+        assert abs(U / U0 - 1) < 0.01
+        assert near == pytest.approx(brenner(h), rel=0.05)
 
 
 def test_rigid_bodies_are_placed_between_the_walls():

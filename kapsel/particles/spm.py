@@ -25,8 +25,11 @@ it to u before step 4.
 
 ``wall`` (kapsel.particles.walls.FlatWall): the solid walls join step 4 with zero
 velocity: du -= phi_w u*, with phi_w limited to 1 - phi where particles overlap the wall's
-interface (PHYSICS-EXTRA.md §2.3), so the velocity in the solid stays 0; done also without
-particles.  The walls absorb momentum, so P below is then not conserved.
+interface (PHYSICS-EXTRA.md §2.3); done also without particles.  The projection of du would
+leave the particles' pressure gradient in the solid (a few % of max|u|, as in the original),
+so the step ends with the projection onto divergence-free fields that vanish on the solid
+(kapsel.particles.wall_rest): the velocity in the solid (phi_w = 1) is 0 to round-off.  The
+walls absorb momentum, so P below is then not conserved.
 
 Steps 3 and 5 are those of free particles (motion.update_velocities / update_positions) or,
 when ``particles.constraints`` is set, its own (motion.Pinned: pinned particles;
@@ -115,6 +118,11 @@ class SPM:
             raise TypeError("fluid must be a SpectralNS or a MACSolver")
         self.size = int(np.prod(self.shape))
         self.wall = wall
+        self._rest = self._c = None
+        if wall is not None:
+            from .wall_rest import SolidRest
+            self._rest = SolidRest(wall, self._projection())
+            self._c = np.zeros((3,) + self.shape)
         # kept 0 between steps: a step scatters du onto its stencil points and clears them
         # (with walls du is dense: cleared whole at the start of the next step instead)
         self._du = None
@@ -212,8 +220,31 @@ class SPM:
             self.u += du
             self.fluid.project(self.u)
 
+    def _projection(self):
+        """f -> P f, the fluid's own projection of a real field (3, NX, NY, NZ), without
+        touching the fluid's state."""
+        if self.mode == "spectral":
+            grid = self.fluid.grid
+
+            def project(f):
+                h = np.fft.rfftn(f, axes=(1, 2, 3))
+                grid.project(h)
+                return np.fft.irfftn(h, s=self.shape, axes=(1, 2, 3))
+            return project
+        return self.fluid.project
+
+    def _hold_solid(self, du=None):
+        """After u = P(u* + du): add P of the walls' holding force (kapsel.particles.
+        wall_rest), so that u vanishes on the solid; the force joins du (last_increment)."""
+        u = self.fluid.velocity(out=self.u) if self.mode == "spectral" else self.u
+        c = self._rest.force(u, self._c)
+        self._add_solenoidal(c)
+        if du is not None:
+            du[:, :self.shape[0], :self.shape[1], :self.shape[2]] += c
+
     def impose_particle_velocity(self):
-        """u <- u + P[sum_i phi_i (V_i + Omega_i x r) - phi u] (rigidity increment, eq 6)."""
+        """u <- u + P[sum_i phi_i (V_i + Omega_i x r) - phi u] (rigidity increment, eq 6);
+        with walls the fluid in their solid is then held at rest."""
         if not self.p.n:
             return
         u = self.fluid.velocity(out=self.u) if self.mode == "spectral" else self.u
@@ -221,6 +252,8 @@ class SPM:
         v, shear = self._relative_velocity()
         self._add_solenoidal(rigidity_increment(u, self.idx, self.phi_i, self.r, v,
                                                 p.omega, self.size, shear=shear))
+        if self._rest is not None:
+            self._hold_solid()
 
     def _relative_velocity(self):
         """(V relative to the imposed flow at the centres, gamma_dot) for an oblique fluid,
@@ -268,6 +301,8 @@ class SPM:
             if self.wall is not None:
                 self._wall_increment(du)
             self._add_solenoidal(du)
+            if self._rest is not None:
+                self._hold_solid(du)
             self._du_stepped = True
             if self.wall is None:
                 flat = self.idx.reshape(-1)
@@ -288,6 +323,7 @@ class SPM:
             self._du.fill(0.0)
             self._wall_increment(self._du)
             self._add_solenoidal(self._du)
+            self._hold_solid(self._du)
             self._du_stepped = True
         self.step_index += 1
 
