@@ -119,7 +119,7 @@ class SPM:
         self.size = int(np.prod(self.shape))
         self.wall = wall
         self._rest = self._c = None
-        if wall is not None:
+        if wall is not None and not dry:      # (its blocks are measured: not for a check)
             from .wall_rest import SolidRest
             self._rest = SolidRest(wall, self._projection())
             self._c = np.zeros((3,) + self.shape)
