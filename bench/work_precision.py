@@ -31,14 +31,18 @@ reaches 1 % and 5 % per test, and under --out (default bench/results/): work_pre
 and one log-log PNG per test (error against CPU s, one line per scheme).  --quick runs one
 small case per test and scheme (a smoke run, < 1 min); --only restricts the tests.
 """
-import argparse
-import csv
-import math
 import os
-import sys
-import time
 
-import numpy as np
+for _v in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_v, "1")       # as kapsel.cli: BLAS threads only slow BiCGSTAB
+
+import argparse  # noqa: E402
+import csv  # noqa: E402
+import math  # noqa: E402
+import sys  # noqa: E402
+import time  # noqa: E402
+
+import numpy as np  # noqa: E402
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
 from kapsel import compiled  # noqa: E402
@@ -227,40 +231,33 @@ def plan(quick):
 
     if quick:
         for kind in FLUIDS:
-            fac = 4.0 if kind == "MAC implicit" else 1.0
-            add("drag", kind, f"L=16 A=4 xi=2 f={fac:g}", drag, kind, 16, 4.0, 2.0, fac)
-            add("rotation", kind, f"L=16 A=4 xi=2 f={fac:g}", rotation, kind, 16, 4.0, 2.0,
-                fac)
+            add("drag", kind, "L=16 A=4 xi=2 f=1", drag, kind, 16, 4.0, 2.0, 1.0)
+            add("rotation", kind, "L=16 A=4 xi=2 f=1", rotation, kind, 16, 4.0, 2.0, 1.0)
         for kind in ("spectral etd1", "spectral etd2", "MAC explicit", "MAC implicit"):
             add("taylor_green", kind, "N=16 f=1", taylor_green, kind, 16, 1.0)
         for s, name in (("explicit_scheme", "CH explicit"), ("implicit_scheme", "CH BDF2")):
             add("spinodal", name, "N=16 (8/wave) f=0.5", spinodal, s, 16, 0.5)
         for kind in FLUIDS:
-            fac = 4.0 if kind == "MAC implicit" else 1.0
-            add("lees_edwards", kind, f"16^3 A=3 f={fac:g}", lees_edwards, kind, (16,) * 3,
-                3.0, fac)
+            add("lees_edwards", kind, "16^3 A=3 f=1", lees_edwards, kind, (16,) * 3, 3.0, 1.0)
         return rows
 
     # drag and rotation: L = 32, A = 4, xi = 2 (c = 0.0082) is the validation setting and
     # the dt series; A/DX = 3 and 5 at the same volume fraction (L = 24, 40); xi = 1 and 3.
-    # The implicit MAC solver costs ~5x the explicit one per step (BiCGSTAB): its series is
-    # at L = 24, A = 3, next to the other two solvers at the same setting.
     for test, f in (("drag", drag), ("rotation", rotation)):
         for kind, factors in (("spectral", (1.0, 0.5, 0.25, 0.1)),
-                              ("MAC explicit", (1.0, 0.5, 0.25))):
+                              ("MAC explicit", (1.0, 0.5, 0.25)),
+                              ("MAC implicit", (2.0, 1.0, 0.5))):
             for fac in factors:
                 add(test, kind, f"L=32 A=4 xi=2 f={fac:g}", f, kind, 32, 4.0, 2.0, fac)
         for xi in (1.0, 3.0):
             add(test, "spectral", f"L=32 A=4 xi={xi:g} f=0.5", f, "spectral", 32, 4.0, xi,
                 0.5)
+        for fac in (1.0, 0.5):
+            add(test, "spectral", f"L=24 A=3 xi=2 f={fac:g}", f, "spectral", 24, 3.0, 2.0, fac)
         add(test, "spectral", "L=40 A=5 xi=2 f=0.5", f, "spectral", 40, 5.0, 2.0, 0.5)
-        for kind, factors in (("spectral", (1.0, 0.5, 0.25)), ("MAC explicit", (1.0, 0.5)),
-                              ("MAC implicit", (2.0, 1.0))):
-            for fac in factors:
-                add(test, kind, f"L=24 A=3 xi=2 f={fac:g}", f, kind, 24, 3.0, 2.0, fac)
     # Taylor-Green: box 32 (one wavelength), N = 16, 32, 48 points per wavelength
     for kind, factors in (("spectral etd1", (10.0, 1.0)), ("spectral etd2", (10.0,)),
-                          ("MAC explicit", (1.0, 0.25)), ("MAC implicit", (10.0, 1.0, 0.25))):
+                          ("MAC explicit", (1.0, 0.25)), ("MAC implicit", (10.0, 1.0))):
         for n in (16, 32, 48):
             for fac in factors:
                 add("taylor_green", kind, f"N={n} f={fac:g}", taylor_green, kind, n, fac)
@@ -333,23 +330,27 @@ def main(argv=None):
     print(f"{'test':13s} {'scheme':14s} {'settings':34s} {'error':>10s} {'CPU s':>8s}")
     results = []
     for test, scheme, settings, run in rows:
-        t0 = time.process_time()
-        try:
-            err, note = run(), ""
-        except Exception as e:       # an unstable setting is a result too
-            err, note = None, f"{type(e).__name__}: {str(e).splitlines()[0][:60]}"
-        cpu = time.process_time() - t0
+        cpu = math.inf
+        for _ in range(3):           # runs under 0.5 s: the fastest of three (plans, caches)
+            t0 = time.process_time()
+            try:
+                err, note = run(), ""
+            except Exception as e:   # an unstable setting is a result too
+                err, note = None, f"{type(e).__name__}: {str(e).splitlines()[0][:60]}"
+            cpu = min(cpu, time.process_time() - t0)
+            if cpu > 0.5 or err is None:
+                break
         results.append(dict(test=test, scheme=scheme, settings=settings, error=err, cpu=cpu,
                             note=note))
         e = f"{100 * err:+9.3g}%" if err is not None else f"{'failed':>10s}"
-        print(f"{test:13s} {scheme:14s} {settings:34s} {e} {cpu:8.2f} {note}", flush=True)
+        print(f"{test:13s} {scheme:14s} {settings:34s} {e} {cpu:8.3f} {note}", flush=True)
     print(f"# total {time.perf_counter() - t_start:.0f} s wall")
     print("\ncheapest setting reaching |error| <= 1 % and <= 5 %:")
     for test in dict.fromkeys(r["test"] for r in results):
         for level in (0.01, 0.05):
             r = cheapest(results, test, level)
-            txt = (f"{r['scheme']}, {r['settings']}: {100 * r['error']:+.3f} % in "
-                   f"{r['cpu']:.2f} s" if r else "none of the tried settings")
+            txt = (f"{r['scheme']}, {r['settings']}: {100 * r['error']:+.3g} % in "
+                   f"{r['cpu']:.3g} s" if r else "none of the tried settings")
             print(f"  {test:13s} {100 * level:g} %: {txt}")
     os.makedirs(a.out, exist_ok=True)
     with open(os.path.join(a.out, "work_precision.csv"), "w", newline="") as fh:
