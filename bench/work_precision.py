@@ -273,13 +273,15 @@ def plan(quick):
         for fac in factors:
             add("lees_edwards", kind, f"16^3 A=3 f={fac:g}", lees_edwards, kind, (16,) * 3,
                 3.0, fac)
-    # A/DX = 4.5 at the same volume fraction and the same particle Reynolds number
+    # A/DX = 4.5 and 6 at the same volume fraction and the same particle Reynolds number
     # gamma_dot A^2 / nu = 0.18 (the sphere's spin falls with it: Lin, Peery & Schowalter
     # 1970, 1 - 0.0385 Re^1.5, -1 % at 0.4)
     rate = 0.02 * (3.0 / 4.5) ** 2
     for kind in ("spectral", "MAC explicit"):
         add("lees_edwards", kind, f"24^3 A=4.5 f=1 rate={rate:.4f}", lees_edwards, kind,
             (24,) * 3, 4.5, 1.0, rate=rate)
+    add("lees_edwards", "spectral", "32^3 A=6 f=1 rate=0.005", lees_edwards, "spectral",
+        (32,) * 3, 6.0, 1.0, rate=0.005)
     # OBL_INT matters only when NX is not a multiple of NY (the re-mapping interpolates);
     # the oblique explicit limit is below f = 1 there (metric terms)
     for obl in ("linear", "spline"):
