@@ -28,9 +28,10 @@ to the automatic time step of a run: kapsel.timestep.auto_dt is 0.7 of it at fac
 the Cahn-Hilliard test f is in units of the explicit scheme's stability limit (stable_dt).
 
 Output: the table on stdout (test, scheme, settings, error, CPU s), the cheapest setting that
-reaches 1 % and 5 % per test (and per scheme), and under --out (default bench/results/): work_precision.csv
-and one log-log PNG per test (error against CPU s, one line per scheme).  --quick runs one
-small case per test and scheme (a smoke run, < 1 min); --only restricts the tests.
+reaches 1 % and 5 % per test (and per scheme), and under --out (default bench/results/):
+work_precision.csv and one log-log PNG per test (error against CPU s, colour per scheme, a
+line through each dt series).  --quick runs one small case per test and scheme (a smoke
+run, < 1 min); --only runs the named tests and replaces their rows in an existing CSV.
 """
 import os
 
