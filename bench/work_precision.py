@@ -356,7 +356,8 @@ def plot(results, test, path):
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="one small case per test and scheme")
-    ap.add_argument("--only", nargs="+", choices=TESTS, help="run only these tests (their rows replace those in an existing CSV)")
+    ap.add_argument("--only", nargs="+", choices=TESTS,
+                    help="run only these tests (their rows replace those in an existing CSV)")
     ap.add_argument("--scheme", help="run only the rows whose scheme contains this text")
     ap.add_argument("--out", default=os.path.join(os.path.dirname(__file__), "results"),
                     help="directory of the CSV and PNGs (default bench/results)")
