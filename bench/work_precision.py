@@ -396,10 +396,15 @@ def main(argv=None):
                 print(f"  {test:13s} {scheme or 'any':14s} {100 * level:g} %: {txt}")
     os.makedirs(a.out, exist_ok=True)
     csv_path = os.path.join(a.out, "work_precision.csv")
-    ran = {r["test"] for r in results}
-    kept = [r for r in read_csv(csv_path) if r["test"] not in ran] if a.only else []
+    # --only: the named tests' rows are replaced (with --scheme too: only the rows run)
+    ran = {(r["test"], r["scheme"], r["settings"]) if a.scheme else r["test"] for r in results}
+    kept = [r for r in read_csv(csv_path)
+            if ((r["test"], r["scheme"], r["settings"]) if a.scheme else r["test"]) not in ran
+            ] if (a.only or a.scheme) else []
     order = {t: i for i, t in enumerate(TESTS)}
-    table = sorted(kept + results, key=lambda r: order[r["test"]])   # stable within a test
+    in_plan = {(t, sch, st): i for i, (t, sch, st, _) in enumerate(plan(a.quick))}
+    table = sorted(kept + results, key=lambda r: (
+        order[r["test"]], in_plan.get((r["test"], r["scheme"], r["settings"]), math.inf)))
     with open(csv_path, "w", newline="") as fh:
         w = csv.writer(fh)
         w.writerow(["test", "scheme", "settings", "relative_error", "cpu_s", "note"])
