@@ -15,8 +15,12 @@ the flux arithmetic, plus Poisson (4) and the Coulomb force (3 + projection).
 """
 from __future__ import annotations
 
-import argparse
 import os
+
+for _v in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_v, "1")      # single-threaded BLAS, as kapsel-py runs (kapsel.cli)
+
+import argparse
 import statistics
 import sys
 import tempfile

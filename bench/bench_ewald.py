@@ -4,6 +4,11 @@ and reciprocal times and their total; the total should grow about as N^1.5.
 
     PYTHONPATH=. python bench/bench_ewald.py [N ...]
 """
+import os
+
+for _v in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_v, "1")      # single-threaded BLAS, as kapsel-py runs (kapsel.cli)
+
 import sys
 import time
 

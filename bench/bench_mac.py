@@ -9,8 +9,12 @@ dt = RHO DX^2 / (ETA pi^2) (auto time increment with k_max = pi/DX, factor 1).  
 --variable the implicit rows are repeated with a viscosity field varying 1..10 (tanh
 interfaces), as with viscosity_change ON.  Times are the median over the timed steps.
 """
-import argparse
 import os
+
+for _v in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_v, "1")      # single-threaded BLAS, as kapsel-py runs (kapsel.cli)
+
+import argparse
 import sys
 import time
 

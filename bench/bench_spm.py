@@ -8,8 +8,12 @@ dt = auto_dt(1).  Combinations that cannot hold the particles (volume fraction >
 are skipped.  Times: median over the timed steps after 3 warm-up steps.
 --profile prints the split of one configuration (64^3, 100 particles, 1 thread).
 """
-import argparse
 import os
+
+for _v in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_v, "1")      # single-threaded BLAS, as kapsel-py runs (kapsel.cli)
+
+import argparse
 import sys
 import time
 

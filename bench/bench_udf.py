@@ -3,8 +3,12 @@ an output file with 200 records of 4096 particles.  Prints a table.
 
     .venv/bin/python bench/bench_udf.py [--n 128] [--records 200] [--particles 4096]
 """
-import argparse
 import os
+
+for _v in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_v, "1")      # single-threaded BLAS, as kapsel-py runs (kapsel.cli)
+
+import argparse
 import sys
 import tempfile
 import time
