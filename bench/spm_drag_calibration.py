@@ -107,7 +107,7 @@ def main():
     for pt in a.points:
         xi, factor = (float(x) for x in pt.split(":"))
         dt = auto_dt(factor, 1.0, 1.0, 1.0, (a.L,) * 3)
-        prof = profile_radius(a.A, xi, 1.0, dt) if a.calibrated else a.A
+        prof = profile_radius(a.A, xi, 1.0, dt, solver=a.solver) if a.calibrated else a.A
         V, steps, sec = terminal_velocity(a.L, a.A, xi, factor, a.solver, prof)
         VH = 1.0 / (6 * np.pi * a.A * hasimoto_K(a.A, a.L))
         ae = effective_radius(V, a.L)

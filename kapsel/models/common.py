@@ -309,7 +309,7 @@ class Model:
         from ..particles.drag_calibration import OutOfCalibration, profile_radius
         try:
             return profile_radius(A, cfg.particles.A_XI, cfg.fluid.ETA / cfg.fluid.RHO,
-                                  self.dt, cfg.mesh.DX)
+                                  self.dt, cfg.mesh.DX, cfg.fluid.ns_solver)
         except OutOfCalibration as e:
             raise ConfigError(f"{e} (A_XI = {cfg.particles.A_XI:g}, DX = {cfg.mesh.DX:g}, "
                               f"dt = {self.dt:.6g}); run without it", where=where) from None
