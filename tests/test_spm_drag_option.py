@@ -137,3 +137,12 @@ def test_the_option_refused_where_it_does_not_hold(tmp_path, capsys):
     err = capsys.readouterr().err
     assert "calibrated for A_XI / DX from" in err and "not 0.5" in err
     assert not os.path.exists(d / "output.udf")
+
+
+def test_the_banner_names_the_profile_radius(tmp_path, capsys):
+    argv = _sample(str(tmp_path), "Navier_Stokes")
+    assert main(argv + ["--check"]) == 0
+    assert "SPM drag" not in capsys.readouterr().out
+    assert main(argv + ["--check", "--spm-drag", "calibrated"]) == 0
+    out = capsys.readouterr().out
+    assert "SPM drag calibrated: profile radius 4.0" in out and "hydrodynamic radius A = 4" in out
