@@ -54,6 +54,7 @@ bench: $(VENV)/.installed-bench
 	$(BIN)/python bench/bench_output.py
 	$(BIN)/python bench/bench_vs_original.py
 	$(BIN)/python bench/work_precision.py
+	$(BIN)/python bench/stability_map.py
 
 clean:
 	rm -rf $(VENV) build *.egg-info

@@ -116,6 +116,9 @@ def describe(cfg, args, model, resumed: bool, files: list[tuple[str, str]],
              f"mesh {nx} x {ny} x {nz}, DX = {_g(cfg.mesh.DX)}, box {bx} x {by} x {bz}",
              _particles(cfg), *_electric(cfg),
              _dt(cfg, dt)]
+    if getattr(model, "spm_drag", "original") != "original" and cfg.particles.count:
+        lines.append(f"SPM drag {model.spm_drag}: profile radius {model.spm.stencil.A:.4f} "
+                     f"(hydrodynamic radius A = {_g(cfg.particles.A)})")
     if resumed:
         lines.append(f"continues from step {model.step_index} (t = {_g(model.time)}) to step "
                      f"{total}: {max(total - model.step_index, 0)} steps, a snapshot every "

@@ -94,6 +94,19 @@ def first_blow_up(model) -> str | None:
     return None
 
 
+def table_row(model) -> list:
+    """This step's row of the sheared types' stress table, checked first: the table is
+    printed every step, the blow-up checks run only every few steps (InstabilityError)."""
+    row = model.shear_table_row()
+    values = np.asarray(row, dtype=float)
+    if values[1] == 0.0:                # at rate 0 the viscosity column is NaN, as the
+        values = values[:-1]            # original's (stress / rate)
+    if not np.isfinite(values).all():
+        check_step(model)               # names the quantity when it is the velocity
+        raise InstabilityError("the shear stress table row is not finite (NaN or infinity)")
+    return row
+
+
 def restart_hint(step, args=None) -> str:
     if step is None:
         return "No restart file was written"
@@ -246,6 +259,7 @@ def _run(cfg, args, input_doc, model, resumed, saved) -> int:
                     raise
                 if model.step_index % check_every == 0:
                     check_step(model)
+                row = table_row(model) if table is not None else None
             except (SolverDidNotConverge, FloatingPointError, InstabilityError) as e:
                 cause = first_blow_up(model)
                 if cause is not None and not isinstance(e, InstabilityError):
@@ -255,8 +269,8 @@ def _run(cfg, args, input_doc, model, resumed, saved) -> int:
                       f"{restart_hint(saved['step'], args)}. Try a smaller time_increment "
                       f"factor (or delta_t), or the implicit_scheme.", file=sys.stderr)
                 return 1
-            if table is not None:
-                table.row(model.shear_table_row())
+            if row is not None:
+                table.row(row)
             if not compiled_on and compiled.want(model.step_index - start,
                                                  total - model.step_index):
                 compiled_on = compiled.enable() or True   # bit-identical kernels from here
@@ -289,7 +303,7 @@ def _run(cfg, args, input_doc, model, resumed, saved) -> int:
                 check_step(model)
                 check_finite(model)
                 if table is not None:
-                    table.row(model.shear_table_row())
+                    table.row(table_row(model))
             except (SolverDidNotConverge, FloatingPointError, InstabilityError, ValueError,
                     IndexError, OverflowError) as e:
                 complete_restart()

@@ -286,6 +286,7 @@ class Model:
         # rigidity imposition, no FFT plans); such a model is never advanced
         self.dry = bool(getattr(args, "check", False))
         self.dt = time_step(cfg)
+        self.spm_drag = getattr(args, "spm_drag", None) or "original"
         self.time = 0.0
         self.step_index = 0
         self.seed = random_seed(args)
@@ -296,6 +297,25 @@ class Model:
         # output.udf's first line, so a continuation can tell its own output.udf
         self.run_id = secrets.token_hex(8)
         self.run_id_known = False   # True once taken from a restart's state file
+
+    def spm_radius(self) -> float:
+        """The radius of the SPM profile: A, or with ``--spm-drag calibrated`` the radius
+        whose hydrodynamic radius is A (kapsel.particles.drag_calibration)."""
+        cfg = self.cfg
+        A = cfg.particles.A
+        if self.spm_drag == "original" or not cfg.particles.count:
+            return A
+        where = f"--spm-drag {self.spm_drag}"
+        if cfg.type == "Electrolyte":
+            raise ConfigError("not available for Electrolyte (the ions' profile would keep "
+                              "the radius A)", where=where)
+        from ..particles.drag_calibration import OutOfCalibration, profile_radius
+        try:
+            return profile_radius(A, cfg.particles.A_XI, cfg.fluid.ETA / cfg.fluid.RHO,
+                                  self.dt, cfg.mesh.DX, cfg.fluid.ns_solver)
+        except OutOfCalibration as e:
+            raise ConfigError(f"{e} (A_XI = {cfg.particles.A_XI:g}, DX = {cfg.mesh.DX:g}, "
+                              f"dt = {self.dt:.6g}); run without it", where=where) from None
 
     def tick(self) -> None:
         self.step_index += 1

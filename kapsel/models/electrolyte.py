@@ -75,7 +75,7 @@ class ElectrolyteModel(SpectralModel):
         self.grid = Grid(cfg.mesh.shape, cfg.mesh.DX, threads=self.threads)
         self.fluid = SpectralNS(self.grid, f.RHO, f.ETA, self.dt, fix_cell=cfg.switches.fix_cell)
         self.particles = make_particles(cfg, self.rng)
-        self.spm = SPM(self.fluid, self.particles, cfg.particles.A, cfg.particles.A_XI, f.RHO,
+        self.spm = SPM(self.fluid, self.particles, self.spm_radius(), cfg.particles.A_XI, f.RHO,
                        cfg.mesh.DX, self.dt, rotation=cfg.switches.ROTATION,
                        forces=overlap_guard(make_forces(cfg, self.particles)), noise=None,
                        impose=not self.dry)    # the profiles: ion numbers, PB start

@@ -60,7 +60,7 @@ class FDMModel(Model):
         from ..particles.walls import make_wall
         self.particles = make_particles(cfg, self.rng)
         self.wall = make_wall(cfg)
-        self.spm = _ModelH_SPM(self.mac, self.particles, cfg.particles.A, cfg.particles.A_XI,
+        self.spm = _ModelH_SPM(self.mac, self.particles, self.spm_radius(), cfg.particles.A_XI,
                                f.RHO, dx, self.dt, rotation=cfg.switches.ROTATION,
                                forces=overlap_guard(make_forces(
                                    cfg, self.particles, strain=self._pair_strain(),

@@ -142,7 +142,7 @@ class ShearLEModel(SpectralModel):
         fluid = self.fluid
         start_with_flow(cfg, self.particles, fluid)
         forces = make_forces(cfg, self.particles, strain=lambda: fluid.frame_strain)
-        self.spm = SPM(self.fluid, self.particles, cfg.particles.A, cfg.particles.A_XI, f.RHO,
+        self.spm = SPM(self.fluid, self.particles, self.spm_radius(), cfg.particles.A_XI, f.RHO,
                        cfg.mesh.DX, self.dt, rotation=cfg.switches.ROTATION,
                        forces=overlap_guard(forces), noise=make_noise(cfg, self.particles, seed),
                        dry=self.dry)

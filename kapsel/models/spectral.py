@@ -24,7 +24,7 @@ class SpectralModel(Model):
         from ..particles.walls import make_wall
         self.particles = make_particles(cfg, self.rng)
         self.wall = make_wall(cfg)
-        self.spm = SPM(self.fluid, self.particles, cfg.particles.A, cfg.particles.A_XI, f.RHO,
+        self.spm = SPM(self.fluid, self.particles, self.spm_radius(), cfg.particles.A_XI, f.RHO,
                        cfg.mesh.DX, self.dt, rotation=cfg.switches.ROTATION,
                        forces=overlap_guard(make_forces(cfg, self.particles, wall=self.wall)),
                        noise=make_noise(cfg, self.particles, seed), wall=self.wall,
