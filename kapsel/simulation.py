@@ -107,6 +107,18 @@ def table_row(model) -> list:
     return row
 
 
+def stability_advice(cfg) -> str:
+    """What to try after a blow-up: a smaller step, and the implicit schemes the run's type
+    offers and does not use yet."""
+    schemes = []
+    if cfg.is_fdm and cfg.fluid.ns_solver == "explicit_scheme":
+        schemes.append("NS_solver implicit_scheme")
+    if cfg.phase is not None and cfg.phase.ch_solver == "explicit_scheme":
+        schemes.append("CH_solver implicit_scheme")
+    return ("Try a smaller time_increment factor (or delta_t)"
+            + (f", or the {' and '.join(schemes)}" if schemes else "") + ".")
+
+
 def restart_hint(step, args=None) -> str:
     if step is None:
         return "No restart file was written"
@@ -266,8 +278,8 @@ def _run(cfg, args, input_doc, model, resumed, saved) -> int:
                     e = f"{cause} (then: {e})"
                 complete_restart()
                 print(f"kapsel-py: error: the run stopped at step {before + 1}: {e}. "
-                      f"{restart_hint(saved['step'], args)}. Try a smaller time_increment "
-                      f"factor (or delta_t), or the implicit_scheme.", file=sys.stderr)
+                      f"{restart_hint(saved['step'], args)}. {stability_advice(cfg)}",
+                      file=sys.stderr)
                 return 1
             if row is not None:
                 table.row(row)
@@ -286,7 +298,14 @@ def _run(cfg, args, input_doc, model, resumed, saved) -> int:
                     return 1
             if stop["signal"] is not None:
                 closing = "interrupted"
-                check_finite(model)
+                try:
+                    check_finite(model)
+                except InstabilityError as e:    # blew up since the last check: not saved
+                    complete_restart()
+                    print(f"kapsel-py: interrupted at step {model.step_index}, where {e}: "
+                          f"that state is not saved. {restart_hint(saved['step'], args)}. "
+                          f"{stability_advice(cfg)}", file=sys.stderr)
+                    return 1
                 save_restart(full=True)
                 print(f"kapsel-py: interrupted at step {model.step_index} (t = {model.time:g}); "
                       f"{args.output} holds every snapshot so far and {args.restart} this "

@@ -67,3 +67,32 @@ def test_rate_zero_keeps_the_originals_nan_viscosity(tmp_path, capsys):
                  f"-R{d}/restart.udf", "--seed", "11", "--quiet"]) == 0
     rows = table_rows(capsys.readouterr().out)
     assert len(rows) == 11 and all(r[-1].lower() == "nan" for r in rows)
+
+
+def test_an_interrupt_just_after_a_blow_up_says_so_without_a_traceback(tmp_path, capsys,
+                                                                      monkeypatch):
+    """SIGINT arrives in the step where the fluid turned NaN, before the every-10-steps check:
+    the run stops with exit 1 and a message (the state is not saved; the restart file keeps
+    the last good one), never a traceback, and the advice names no scheme the spectral type
+    lacks."""
+    import os
+    import signal
+
+    d = tmp_path / "run"
+    make_input(d, "Navier_Stokes", particles=2, gts=5, nsnap=4, kBT=0.0)
+    from kapsel.models import spectral
+    advance = spectral.SpectralModel.advance
+
+    def poisoned(self):
+        advance(self)
+        if self.step_index == 13:
+            self.fluid.u_hat[0, 1, 2, 3] = np.nan
+            os.kill(os.getpid(), signal.SIGINT)
+    monkeypatch.setattr(spectral.SpectralModel, "advance", poisoned)
+    assert main([f"-I{d}/input.udf", f"-O{d}/output.udf", f"-D{d}/define.udf",
+                 f"-R{d}/restart.udf", "--seed", "11", "--quiet"]) == 1
+    err = capsys.readouterr().err
+    assert "Traceback" not in err
+    assert "interrupted at step 13, where the field u is not finite" in err, err[-600:]
+    assert "holds the last good state (step 10)" in err
+    assert "implicit_scheme" not in err
