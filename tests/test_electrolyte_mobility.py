@@ -26,6 +26,9 @@ What is compared (the slow test's docstring has the numbers):
   small: C ~ 1 - (2/3) 6 pi a (1 + kappa a) (lambda_D^2 + ...) / L^3 (0.88 for kappa a =
   0.5, A = 4, L = 32; 0.98 for kappa a = 3), and it tends to Hasimoto's
   1 - 1.7601 phi^(1/3) as kappa -> 0 (the cloud spreads into the uniform background).
+  Resolution: the thin layer's ratio falls towards 1 as lambda_D grows in grid units:
+  kappa a = 3 with A = 8, lambda_D = 8/3 on 64^3 (29 min, not a test) gives 1.004 with
+  a = A (1.085 on 32^3 with a = A; kappa a = 4 with lambda_D = 1 on 32^3: 1.12).
   The field's distortion by the insulating sphere (f - 1 of Henry's function) is a dipole
   field decaying as r^-3: its periodic correction is O(phi) (0.8 % here), not applied.
 """
