@@ -16,6 +16,7 @@ Measured (h16, 2026-11-29, shared 2-core machine):
     --npx 5 --A 4 --debye 1.3333 --Z -30 --T 100     1.066;              1.055
     --npx 5 --A 4 --debye 1 --Z -40 --T 140          1.10;               1.087
     --npx 6 --A 8 --debye 2.6667 --Z -60 --T 190     0.978 (rising, tau = 50: 0.985); C(A) = 0.981
+    --npx 6 --A 4 --debye 8 --Z -10 --T 260          0.991 at t = 250 (tau ~ 70); C(A) = 0.981
 """
 from __future__ import annotations
 
