@@ -89,6 +89,7 @@ class Ions:
         self._t = g.empty_real(None)
         self._mask = g.dealias_f
         self._ik = (1j * g.kx, 1j * g.ky, 1j * g.kz)
+        self._idx = self._q = self._r = None      # particles' stencil, charges, offsets
 
     # ------------------------------------------------------------------ particles
     def set_particles(self, idx, phi_i, r, Z, A, xi):
@@ -102,6 +103,7 @@ class Ions:
         w = -slope
         tot = w.sum(axis=1) * self.dv
         q = np.asarray(Z, dtype=float)[:, None] * w / tot[:, None]
+        self._idx, self._q, self._r = idx, q, r
         self.rho_surf[...] = np.bincount(idx.ravel(), weights=q.ravel(),
                                          minlength=size).reshape(g.shape)
         with np.errstate(invalid="ignore", divide="ignore"):
@@ -115,6 +117,7 @@ class Ions:
         np.divide(1.0, n2, out=self._inv_n2, where=self._has_normal)
 
     def no_particles(self):
+        self._idx = self._q = self._r = None
         self.phi[...] = 0.0
         self.rho_surf[...] = 0.0
         self.normal[...] = 0.0
@@ -213,15 +216,36 @@ class Ions:
             if now[s] > 0:
                 self.c[s] *= self.counts[s] / now[s]
 
-    def coulomb_force(self, E=(0.0, 0.0, 0.0), out=None):
-        """Coulomb force density rho_e (E - grad Psi), (3, NX, NY, NZ), with grad Psi and
-        rho_e of the last ``potential``."""
+    def coulomb_force(self, E=(0.0, 0.0, 0.0), out=None, surface=True):
+        """Coulomb force density rho (E - grad Psi), (3, NX, NY, NZ), with grad Psi of the
+        last ``potential``: rho = rho_e of that call (``surface``) or only the ions' charge
+        sum_s z_s c_s (1 - phi) (``surface=False``: the particles' own charge is then given
+        its force by ``particle_force``)."""
         out = self._v if out is None else out
         rho = self._rho
+        if not surface:
+            rho = rho - self.rho_surf
         for d in range(3):
             np.subtract(E[d], self.grad_psi[d], out=out[d])
             out[d] *= rho
         return out
+
+    def particle_force(self, E=(0.0, 0.0, 0.0)):
+        """Force and torque (N, 3) on each particle's own surface charge,
+        F_i = DX^3 sum_x rho_surf,i (E - grad Psi), T_i = DX^3 sum_x r x rho_surf,i (E -
+        grad Psi), with grad Psi of the last ``potential`` (r from the particle centre)."""
+        if self._idx is None:
+            return np.zeros((0, 3)), np.zeros((0, 3))
+        idx, q = self._idx, self._q
+        f = np.empty((3,) + idx.shape)
+        for d in range(3):
+            f[d] = q * (E[d] - self.grad_psi[d].reshape(-1)[idx])
+        F = f.sum(axis=2).T * self.dv
+        r = self._r
+        T = np.stack([(r[..., 1] * f[2] - r[..., 2] * f[1]).sum(axis=1),
+                      (r[..., 2] * f[0] - r[..., 0] * f[2]).sum(axis=1),
+                      (r[..., 0] * f[1] - r[..., 1] * f[0]).sum(axis=1)], axis=1) * self.dv
+        return F, T
 
     # ------------------------------------------------------------------ initial profiles
     def init_uniform(self, counts):
