@@ -1,0 +1,298 @@
+"""Pencil-decomposed real-to-complex FFTs over MPI: the distributed ``kapsel.grid.Grid``.
+
+Layout (fields indexed [x, y, z], z fastest, as in kapsel.grid), on a px x py process grid
+(the original's ``-X px -Y py``; rank = cx py + cy):
+
+    real space      (NX / px, NY / py, NZ)      x split over px, y over py, z whole
+    Fourier space   (NX, NY / px, NZ//2+1 / py) x whole, y split over px, z split over py
+
+(N / p: a block of the split, the first N mod p blocks one larger).  A forward transform is
+an r2c FFT along z, a transpose within the py ranks of one row (z split, y whole), a c2c FFT
+along y, a transpose within the px ranks of one column (y split, x whole) and a c2c FFT along
+x; the backward transform runs the same way back.  The transposes are single
+``MPI_Alltoallw`` calls with subarray datatypes (no packing in Python), the local FFTs FFTW
+plans (pyfftw) on buffers made once.  px = P, py = 1 is a slab decomposition (one transpose).
+
+Why not mpi4py-fft: it builds its FFTW wrappers from source and needs the FFTW headers and
+libraries of the system (``pip install mpi4py-fft`` stops with "No FFTW libraries found"
+without Debian's libfftw3-dev), so it cannot install from PyPI alone, which ``make test`` on
+a fresh machine requires; the pyFFTW wheels carry FFTW inside.  This module is the same
+algorithm (mpi4py-fft's ``Pencil`` / ``Transfer``: Alltoallw over subarray types) in ~200
+lines on mpi4py and pyfftw, both installed from wheels.
+
+The Fourier fields keep the serial axis order, so every whole-array operation of the
+spectral solver (products with kx, ky, kz, k^2, the 2/3 mask, the ETD weights) runs on the
+local block unchanged: the wavenumber arrays are the serial ones sliced to the block.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pyfftw
+
+from ..grid import Grid, auto_planner
+
+__all__ = ["PencilGrid", "block"]
+
+
+def block(n: int, parts: int, i: int) -> tuple[int, int]:
+    """[start, stop) of block i when n points are split into ``parts`` blocks."""
+    q, r = divmod(n, parts)
+    start = i * q + min(i, r)
+    return start, start + q + (1 if i < r else 0)
+
+
+class _Transfer:
+    """Alltoallw within ``comm`` between two distributions of a (c, n0, n1, n2) array:
+    ``whole`` axis complete and ``split`` axis local (A) <-> ``whole`` axis split and
+    ``split`` axis complete (B).  Axes count the leading component axis."""
+
+    def __init__(self, comm, shape_a, shape_b, whole, split, mpitype):
+        from mpi4py import MPI
+        self.comm = comm
+        m = comm.Get_size()
+        self.trivial = m == 1
+        if self.trivial:
+            return
+        self.types_a, self.types_b = [], []
+        for j in range(m):
+            s0, s1 = block(shape_a[whole], m, j)
+            sub = list(shape_a)
+            sub[whole] = s1 - s0
+            st = [0] * 4
+            st[whole] = s0
+            self.types_a.append(mpitype.Create_subarray(shape_a, sub, st, order=MPI.ORDER_C).Commit())
+            s0, s1 = block(shape_b[split], m, j)
+            sub = list(shape_b)
+            sub[split] = s1 - s0
+            st = [0] * 4
+            st[split] = s0
+            self.types_b.append(mpitype.Create_subarray(shape_b, sub, st, order=MPI.ORDER_C).Commit())
+        self.cd = ([1] * m, [0] * m)
+
+    def forward(self, a, b):
+        if self.trivial:
+            np.copyto(b, a)
+        else:
+            self.comm.Alltoallw([a, self.cd, self.types_a], [b, self.cd, self.types_b])
+
+    def backward(self, b, a):
+        if self.trivial:
+            np.copyto(a, b)
+        else:
+            self.comm.Alltoallw([b, self.cd, self.types_b], [a, self.cd, self.types_a])
+
+
+class _Pipeline:
+    """Buffers, FFTW plans and transposes of the transforms of ``ncomp``-component fields."""
+
+    def __init__(self, g: "PencilGrid", ncomp: int):
+        from mpi4py import MPI
+        c = (ncomp,)
+        nx, ny, nz = g.shape
+        nzh = nz // 2 + 1
+        (x0, x1), (y0, y1) = g.real_range[0], g.real_range[1]
+        zc0, zc1 = g.spec_range[2]
+        self.R = pyfftw.empty_aligned(c + g.local_shape, dtype="float64")
+        self.A = pyfftw.empty_aligned(c + (x1 - x0, y1 - y0, nzh), dtype="complex128")
+        self.B = pyfftw.empty_aligned(c + (x1 - x0, ny, zc1 - zc0), dtype="complex128")
+        self.C = pyfftw.empty_aligned(c + g.local_cshape, dtype="complex128")
+        flags = (g.planner,)
+        F, Bk = "FFTW_FORWARD", "FFTW_BACKWARD"
+        self.fz = pyfftw.FFTW(self.R, self.A, axes=(3,), direction=F, flags=flags)
+        self.bz = pyfftw.FFTW(self.A, self.R, axes=(3,), direction=Bk,
+                              flags=flags + ("FFTW_DESTROY_INPUT",))
+        self.fy = pyfftw.FFTW(self.B, self.B, axes=(2,), direction=F, flags=flags)
+        self.by = pyfftw.FFTW(self.B, self.B, axes=(2,), direction=Bk, flags=flags)
+        self.fx = pyfftw.FFTW(self.C, self.C, axes=(1,), direction=F, flags=flags)
+        self.bx = pyfftw.FFTW(self.C, self.C, axes=(1,), direction=Bk, flags=flags)
+        ct = MPI.C_DOUBLE_COMPLEX
+        self.ty = _Transfer(g.comm_y, self.A.shape, self.B.shape, 3, 2, ct)
+        self.tx = _Transfer(g.comm_x, self.B.shape, self.C.shape, 2, 1, ct)
+
+    def forward(self, u, out):
+        np.copyto(self.R, u)
+        self.fz.execute()
+        self.ty.forward(self.A, self.B)
+        self.fy.execute()
+        self.tx.forward(self.B, self.C)
+        self.fx.execute()
+        np.copyto(out, self.C)
+        return out
+
+    def backward(self, c, out):
+        np.copyto(self.C, c)
+        self.bx.execute()
+        self.tx.backward(self.C, self.B)
+        self.by.execute()
+        self.ty.backward(self.B, self.A)
+        self.bz.execute()
+        np.copyto(out, self.R)
+        return out
+
+
+class PencilGrid(Grid):
+    """``kapsel.grid.Grid`` distributed over ``comm`` on a px x py process grid (module
+    docstring).  ``shape``, ``size``, ``box`` are global; arrays (``empty_real``,
+    ``empty_complex``, ``kx`` ... ``dealias``) are this rank's blocks; ``forward`` /
+    ``backward`` are collective (every rank calls them in the same order)."""
+
+    def __init__(self, shape, dx, comm, dims, threads=1, planner="auto"):
+        self.shape = tuple(int(n) for n in shape)
+        self.dx = float(dx)
+        self.threads = 1
+        self.comm = comm
+        self.px, self.py = (int(d) for d in dims)
+        if self.px * self.py != comm.Get_size():
+            raise ValueError(f"process grid {self.px} x {self.py} != {comm.Get_size()} ranks")
+        nx, ny, nz = self.shape
+        nzh = nz // 2 + 1
+        if nx < self.px or ny < self.px or ny < self.py or nzh < self.py:
+            raise ValueError(f"mesh {nx} x {ny} x {nz} is too small for a {self.px} x "
+                             f"{self.py} process grid (NX, NY >= X; NY, NZ/2+1 >= Y)")
+        rank = comm.Get_rank()
+        self.cx, self.cy = divmod(rank, self.py)
+        self.comm_x = comm.Split(self.cy, self.cx)     # one column: varying cx
+        self.comm_y = comm.Split(self.cx, self.cy)     # one row: varying cy
+        self.real_range = (block(nx, self.px, self.cx), block(ny, self.py, self.cy), (0, nz))
+        self.spec_range = ((0, nx), block(ny, self.px, self.cx), block(nzh, self.py, self.cy))
+        self.local_shape = tuple(b - a for a, b in self.real_range)
+        self.local_cshape = tuple(b - a for a, b in self.spec_range)
+        self.cshape = (nx, ny, nzh)
+        self.size = nx * ny * nz
+        self.box = np.array(self.shape, dtype=float) * self.dx
+        self.volume = float(np.prod(self.box))
+        self.k_max = math.pi / self.dx
+
+        m = [np.fft.fftfreq(nx, 1.0 / nx), np.fft.fftfreq(ny, 1.0 / ny),
+             np.fft.rfftfreq(nz, 1.0 / nz)]
+        for mi, n in zip(m[:2], (nx, ny)):
+            if n % 2 == 0:
+                mi[n // 2] = n // 2
+        m = [mi[a:b] for mi, (a, b) in zip(m, self.spec_range)]
+        k = [2.0 * np.pi * mi / (n * self.dx) for mi, n in zip(m, self.shape)]
+        self.kx = k[0].reshape(-1, 1, 1)
+        self.ky = k[1].reshape(1, -1, 1)
+        self.kz = k[2].reshape(1, 1, -1)
+        self.k2 = self.kx ** 2 + self.ky ** 2 + self.kz ** 2
+        self.inv_k2 = np.zeros(self.local_cshape)
+        np.divide(1.0, self.k2, out=self.inv_k2, where=self.k2 > 0)
+        self.trunc = tuple((n - 1) // 3 for n in self.shape)
+        masks = [np.abs(mi) <= K for mi, K in zip(m, self.trunc)]
+        self.dealias = (masks[0].reshape(-1, 1, 1) & masks[1].reshape(1, -1, 1)
+                        & masks[2].reshape(1, 1, -1))
+        self.dealias_f = self.dealias.astype(float)
+        self.k_trunc = max(2.0 * np.pi * K / (n * self.dx) for K, n in zip(self.trunc, self.shape))
+        z0, z1 = self.spec_range[2]
+        w = np.full(nzh, 2.0)
+        w[0] = 1.0
+        if nz % 2 == 0:
+            w[-1] = 1.0
+        self.half_weight = w[z0:z1].reshape(1, 1, -1)
+        # the k = 0 mode lives on the rank holding the first y and z blocks of Fourier space
+        self.has_k0 = self.spec_range[1][0] == 0 and self.spec_range[2][0] == 0
+        self.k0_rank = 0
+        self.planner = auto_planner(self.size) if planner == "auto" else planner
+        self.per_component = False
+        self._pipes = {}
+        self._ptmp = None
+        self._real_buf = self._complex_buf = None
+        self._vshape = (3,) + self.local_shape
+        self._vcshape = (3,) + self.local_cshape
+
+    # ------------------------------------------------------------------ arrays
+    def empty_real(self, n=3):
+        shape = self.local_shape if n is None else (n,) + self.local_shape
+        return pyfftw.empty_aligned(shape, dtype="float64")
+
+    def empty_complex(self, n=3):
+        shape = self.local_cshape if n is None else (n,) + self.local_cshape
+        return pyfftw.empty_aligned(shape, dtype="complex128")
+
+    def coordinates(self):
+        (x0, x1), (y0, y1), (_, nz) = self.real_range
+        return (np.arange(x0, x1).reshape(-1, 1, 1) * self.dx,
+                np.arange(y0, y1).reshape(1, -1, 1) * self.dx,
+                np.arange(nz).reshape(1, 1, -1) * self.dx)
+
+    # ------------------------------------------------------------------ FFT
+    def _pipe(self, n):
+        p = self._pipes.get(n)
+        if p is None:
+            p = self._pipes[n] = _Pipeline(self, n)
+        return p
+
+    def forward(self, u=None, out=None):
+        u = self.real_buf if u is None else u
+        out = self.complex_buf if out is None else out
+        return self._pipe(u.shape[0]).forward(u, out)
+
+    def backward_raw(self, c, out=None):
+        out = self.real_buf if out is None else out
+        return self._pipe(c.shape[0]).backward(c, out)
+
+    def rfft_scalar(self, f, out=None):
+        if out is None:
+            out = self.empty_complex(None)
+        self._pipe(1).forward(f[None], out[None])
+        return out
+
+    def irfft_scalar(self, f_hat, out=None):
+        if out is None:
+            out = self.empty_real(None)
+        c = np.multiply(f_hat, 1.0 / self.size)
+        self._pipe(1).backward(c[None], out[None])
+        return out
+
+    # ------------------------------------------------------------------ gather / scatter
+    def k0(self, a_hat):
+        """a_hat[:, 0, 0, 0] (the k = 0 mode) of a local (c, ...) Fourier array, on every rank."""
+        v = a_hat[:, 0, 0, 0].copy() if self.has_k0 else None
+        owner = self.comm.allreduce(self.comm.Get_rank() if self.has_k0 else -1, op=_max())
+        return self.comm.bcast(v, root=owner)
+
+    def sum(self, x) -> float:
+        """Sum over the ranks of a local float, in rank order (the same on every rank)."""
+        return float(sum(self.comm.allgather(float(x))))
+
+    def max(self, x) -> float:
+        return float(self.comm.allreduce(float(x), op=_max()))
+
+    def gather_real(self, a, root=0):
+        """The global (..., NX, NY, NZ) field of local blocks ``a`` on ``root`` (else None)."""
+        parts = self.comm.gather((self.real_range, np.ascontiguousarray(a)), root=root)
+        if parts is None:
+            return None
+        out = np.empty(a.shape[:-3] + self.shape, dtype=a.dtype)
+        for (xr, yr, _), blk in parts:
+            out[..., xr[0]:xr[1], yr[0]:yr[1], :] = blk
+        return out
+
+    def gather_complex(self, a, root=0):
+        """The global (..., NX, NY, NZ//2+1) Fourier field of local blocks ``a`` on ``root``."""
+        parts = self.comm.gather((self.spec_range, np.ascontiguousarray(a)), root=root)
+        if parts is None:
+            return None
+        out = np.empty(a.shape[:-3] + self.cshape, dtype=a.dtype)
+        for (_, yr, zr), blk in parts:
+            out[..., :, yr[0]:yr[1], zr[0]:zr[1]] = blk
+        return out
+
+    def local_complex(self, a):
+        """This rank's block of a global Fourier field (every rank holds ``a``)."""
+        (_, _), (y0, y1), (z0, z1) = self.spec_range
+        return a[..., :, y0:y1, z0:z1]
+
+    def local_real(self, a):
+        (x0, x1), (y0, y1), _ = self.real_range
+        return a[..., x0:x1, y0:y1, :]
+
+    def __repr__(self):
+        return (f"PencilGrid(shape={self.shape}, dx={self.dx}, ranks={self.px} x {self.py}, "
+                f"rank ({self.cx}, {self.cy}))")
+
+
+def _max():
+    from mpi4py import MPI
+    return MPI.MAX
