@@ -1,2 +1,127 @@
-"""Distributed runs over MPI (README "Distributed runs"): imported only by runs started
-under mpiexec with more than one rank, or given -X / -Y; a plain run never imports mpi4py."""
+"""Distributed runs over MPI (README "Distributed runs").
+
+``start(args)`` is called by the command line before anything else: it returns None for a
+plain run (mpi4py is then never imported) or a ``Dist`` when the process was started by an
+MPI launcher (mpiexec / mpirun / srun: their PMI or Open MPI environment variables) or was
+given the original's ``-X`` / ``-Y`` process-grid flags with X Y > 1.
+
+Which types run distributed: ``DISTRIBUTED``.  Any other type is refused with more than one
+rank (``refuse``), never run serially on every rank writing the same files.
+
+Division of work (kapsel.parallel.pencil for the fields, kapsel.parallel.lockstep for the
+output): every rank holds its block of the fields and all the particles (replicated: the
+particle state is N x ~30 numbers, 24 MB for N = 10^5); each rank computes the profiles,
+forces and motion of all particles identically, couples them to its own block of the
+fluid, and the per-particle sums of the coupling (hydrodynamic force and torque) are summed
+over the ranks by MPI_Reduce to rank 0 + MPI_Bcast, so every rank gets the same bits and
+the particles stay identical everywhere.  Rank 0 writes output.udf, restart.udf and the
+field files with the fields gathered to it.
+"""
+from __future__ import annotations
+
+import os
+import sys
+
+__all__ = ["DISTRIBUTED", "Dist", "launched_size", "start"]
+
+DISTRIBUTED = ("Navier_Stokes",)
+
+_SIZE_VARS = ("PMI_SIZE", "OMPI_COMM_WORLD_SIZE", "MV2_COMM_WORLD_SIZE", "PMIX_SIZE")
+
+
+def launched_size() -> int | None:
+    """Number of ranks an MPI launcher started this process with, None if none did."""
+    for v in _SIZE_VARS:
+        s = os.environ.get(v)
+        if s and s.isdigit():
+            return int(s)
+    return None
+
+
+class DistError(Exception):
+    """A distributed run cannot start (message for the user)."""
+
+
+class Dist:
+    """The MPI world of a run: ``comm``, ``rank``, ``size``, process grid ``dims`` (px, py)."""
+
+    def __init__(self, comm, dims):
+        self.comm = comm
+        self.rank = comm.Get_rank()
+        self.size = comm.Get_size()
+        self.dims = dims
+        self.lockstep = None        # kapsel.parallel.lockstep.Lockstep, set by the model
+
+    @property
+    def root(self) -> bool:
+        return self.rank == 0
+
+    def agree(self, status):
+        """The worst of every rank's ``status`` (None = fine, else an exit code), on every
+        rank: a refusal on one rank stops them all, before any collective work."""
+        code = 0 if status is None else int(status)
+        return self.comm.allreduce(code, op=_mpi().MAX) or None
+
+    def bcast(self, value):
+        return self.comm.bcast(value, root=0)
+
+    def __repr__(self):
+        return f"Dist(rank {self.rank} of {self.size}, grid {self.dims[0]} x {self.dims[1]})"
+
+
+def _mpi():
+    from mpi4py import MPI
+    return MPI
+
+
+def start(args):
+    """None (a plain run) or the ``Dist`` of this process (module docstring).  Raises
+    DistError when mpi4py is missing or the -X / -Y grid does not match the ranks."""
+    X, Y = getattr(args, "X", None), getattr(args, "Y", None)
+    launched = launched_size()
+    for flag, v in (("-X", X), ("-Y", Y)):
+        if v is not None and v < 1:
+            raise DistError(f"{flag} must be at least 1, got {v}")
+    grid = (X or 1) * (Y or 1)
+    if launched is None and grid == 1:
+        return None
+    try:
+        from mpi4py import MPI
+    except ImportError:
+        raise DistError("a distributed run needs mpi4py and an MPI library: pip install "
+                        "'kapsel-py[mpi]' (the mpi4py and mpich wheels)") from None
+    comm = MPI.COMM_WORLD
+    size = comm.Get_size()
+    if X is None and Y is None:
+        dims = (size, 1)
+    elif X is None:
+        dims = (size // Y, Y)
+    elif Y is None:
+        dims = (X, size // X)
+    else:
+        dims = (X, Y)
+    if dims[0] * dims[1] != size:
+        raise DistError(f"the process grid -X{X or '?'} -Y{Y or '?'} does not match the "
+                        f"{size} rank(s) of this run (X Y must equal the number of ranks; "
+                        f"start with mpirun -n {(X or 1) * (Y or 1)})")
+    dist = Dist(comm, dims)
+    if not dist.root:                         # one voice: rank 0 speaks for the run
+        sys.stdout = open(os.devnull, "w")
+        sys.stderr = open(os.devnull, "w")
+        hook = sys.excepthook
+
+        def abort(*exc):                      # a failure on one rank ends them all
+            sys.stderr = sys.__stderr__
+            hook(*exc)
+            comm.Abort(1)
+        sys.excepthook = abort
+    return dist
+
+
+def refuse(dist, type_name: str) -> str | None:
+    """Why ``type_name`` cannot run on ``dist`` (None: it can)."""
+    if dist is None or dist.size == 1 or type_name in DISTRIBUTED:
+        return None
+    return (f"constitutive_eq.type {type_name} does not run distributed: run it on one "
+            f"process (without mpirun, or mpirun -n 1); distributed types: "
+            f"{', '.join(DISTRIBUTED)}")

@@ -33,7 +33,14 @@ import pyfftw
 
 from ..grid import Grid, auto_planner
 
-__all__ = ["PencilGrid", "block"]
+__all__ = ["Gathered", "PencilGrid", "block"]
+
+
+class Gathered:
+    """A value a distributed source already gathered to rank 0 (None on the others)."""
+
+    def __init__(self, value):
+        self.value = value
 
 
 def block(n: int, parts: int, i: int) -> tuple[int, int]:
@@ -257,7 +264,9 @@ class PencilGrid(Grid):
         return float(sum(self.comm.allgather(float(x))))
 
     def max(self, x) -> float:
-        return float(self.comm.allreduce(float(x), op=_max()))
+        """Max over the ranks of a local float (NaN counts as infinity)."""
+        x = float(x)
+        return float(self.comm.allreduce(math.inf if x != x else x, op=_max()))
 
     def gather_real(self, a, root=0):
         """The global (..., NX, NY, NZ) field of local blocks ``a`` on ``root`` (else None)."""

@@ -112,6 +112,17 @@ class SPM:
         else:
             raise TypeError("fluid must be a SpectralNS or a MACSolver")
         self.size = int(np.prod(self.shape))
+        # distributed fluid (kapsel.parallel.pencil): this rank's block of the fields; the
+        # profiles are computed whole (masses, centroids as in a serial run), then cut to the
+        # block (_localize) for every field operation, and the per-particle sums of the
+        # coupling are summed over the ranks (_reduce)
+        g = getattr(fluid, "grid", None)
+        self.dist = g if hasattr(g, "comm") else None
+        if self.dist is not None and (wall is not None or getattr(particles, "janus", None)
+                                      is not None):
+            raise ValueError("walls and self-propelled particles do not run distributed")
+        self.fshape = tuple(g.local_shape) if self.dist is not None else self.shape
+        self.fsize = int(np.prod(self.fshape))
         self.wall = wall
         # kept 0 between steps: a step scatters du onto its stencil points and clears them
         # (with walls du is dense: cleared whole at the start of the next step instead)
@@ -171,6 +182,44 @@ class SPM:
             self.inertia = (2.0 / 3.0) * self.rho * self.dx ** 3 * r2 + self.excess_inertia
         else:
             self.mass, self.inertia = p.mass, p.inertia
+        if self.dist is not None:
+            self._localize()
+
+    def _localize(self):
+        """Cut the stencils to this rank's block of the distributed fields: ``idx`` flat
+        indices into the local block (0 off the block), ``phi_i`` 0 off the block, so every
+        sum over stencil points is this rank's part of it."""
+        nx, ny, nz = self.shape
+        (x0, x1), (y0, y1), _ = self.dist.real_range
+        ix, rest = np.divmod(self.idx, ny * nz)
+        iy, iz = np.divmod(rest, nz)
+        ix -= x0
+        iy -= y0
+        on = (ix >= 0) & (ix < x1 - x0) & (iy >= 0) & (iy < y1 - y0)
+        ix *= (y1 - y0)
+        ix += iy
+        ix *= nz
+        ix += iz
+        self.idx = np.where(on, ix, 0)
+        self.phi_i = np.where(on, self.phi_i, 0.0)
+
+    def _reduce(self, *arrays):
+        """Sum of per-particle arrays over the ranks, the same bits on every rank (MPI
+        Reduce to rank 0 in MPI's fixed order for this number of ranks, then Bcast)."""
+        if self.dist is None:
+            return arrays
+        from mpi4py import MPI
+        buf = np.concatenate([np.asarray(a, dtype=float).reshape(-1) for a in arrays])
+        out = np.empty_like(buf)
+        comm = self.dist.comm
+        comm.Reduce(buf, out, op=MPI.SUM, root=0)
+        comm.Bcast(out, root=0)
+        res, i = [], 0
+        for a in arrays:
+            a = np.asarray(a)
+            res.append(out[i:i + a.size].reshape(a.shape))
+            i += a.size
+        return tuple(res)
 
     def refresh(self):
         """Recompute the profiles after the positions were set from outside (a restart)."""
@@ -180,14 +229,14 @@ class SPM:
     def phi(self):
         """Total profile phi (eq 4), (NX, NY, NZ)."""
         if not self.p.n:
-            return np.zeros(self.shape)
-        return total_phi(self.idx, self.phi_i, self.size).reshape(self.shape)
+            return np.zeros(self.fshape)
+        return total_phi(self.idx, self.phi_i, self.fsize).reshape(self.fshape)
 
     def particle_velocity(self):
         """phi u_p of eq 6, (3, NX, NY, NZ)."""
         p = self.p
-        return particle_velocity_field(self.idx, self.phi_i, self.r, p.v, p.omega, self.size,
-                                       self.shape)
+        return particle_velocity_field(self.idx, self.phi_i, self.r, p.v, p.omega, self.fsize,
+                                       self.fshape)
 
     # ------------------------------------------------------------------ fluid access
     def velocity(self):
@@ -219,7 +268,7 @@ class SPM:
         p = self.p
         v, shear = self._relative_velocity()
         self._add_solenoidal(rigidity_increment(u, self.idx, self.phi_i, self.r, v,
-                                                p.omega, self.size, shear=shear))
+                                                p.omega, self.fsize, shear=shear))
 
     def _relative_velocity(self):
         """(V relative to the imposed flow at the centres, gamma_dot) for an oblique fluid,
@@ -245,6 +294,8 @@ class SPM:
             v, shear = self._relative_velocity()
             F_H, T_H = hydro_force_torque(u, self.idx, self.phi_i, self.r, v, p.omega,
                                           self.rho, self.dx, self.dt, shear=shear, sampled=us)
+            if self.dist is not None:
+                F_H, T_H = self._reduce(F_H, T_H)
             F_o = T_o = None
             if self.forces is not None:
                 res = self.forces(p)
@@ -260,10 +311,12 @@ class SPM:
             v, shear = self._relative_velocity()
             if self.wall is not None:
                 self._du.fill(0.0)            # dense after a wall step
-            du = rigidity_increment(u, self.idx, self.phi_i, self.r, v, p.omega, self.size,
+            du = rigidity_increment(u, self.idx, self.phi_i, self.r, v, p.omega, self.fsize,
                                     out=self._du, shear=shear,
                                     moment=self.moment if self.oblique else None,
                                     sampled=us, zeroed=True)
+            if self.oblique and self.dist is not None:
+                self.moment[...] = self._reduce(self.moment)[0]
             if self.wall is not None:
                 self._wall_increment(du)
             self._add_solenoidal(du)
@@ -310,7 +363,7 @@ class SPM:
         if self.wall is not None:             # dense, kept until the next step
             return (np.array(self._du[:, :self.shape[0], :self.shape[1], :self.shape[2]])
                     if self._du_stepped else np.zeros((3,) + self.shape))
-        du = np.zeros((3,) + self.shape)
+        du = np.zeros((3,) + self.fshape)
         if self._du_points is not None and self.p.n:
             flat = self.idx.reshape(-1)
             if flat.size == self._du_points.shape[1]:
