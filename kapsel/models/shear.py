@@ -321,9 +321,22 @@ class ZigzagShear:
         self.Z -= self.Z.mean()
         self.Zh = np.fft.fft(self.Z) * (nx * nz)          # the (0, k_y, 0) modes of u_hat
         self.Zh[0] = 0.0
+        my = np.fft.fftfreq(ny, 1.0 / ny)       # all k_y, as kapsel.grid computes them
+        if ny % 2 == 0:
+            my[ny // 2] = ny // 2
+        ky = 2.0 * np.pi * my / (ny * g.dx)
+        dZ = np.fft.ifft(1j * ky * np.fft.fft(self.Z)).real
+        self.Zf = np.fft.fft(self.Z)
+        # a distributed grid (kapsel.parallel.pencil): the (0, k_y, 0) modes are on the ranks
+        # of the first z block, each with its block of k_y; the stress sums over the ranks
+        self._sum, self.on = None, True
+        if hasattr(g, "comm"):
+            y0, y1 = g.spec_range[1]
+            self.Zh, self.Zf = self.Zh[y0:y1], self.Zf[y0:y1]
+            self.on = g.spec_range[2][0] == 0
+            self._sum = g.sum
         ky = g.ky.ravel()
         self.w = fluid.dt * phi1(-fluid.nu * ky * ky * fluid.dt)
-        dZ = np.fft.ifft(1j * ky * np.fft.fft(self.Z)).real
         self.Z2 = float(np.mean(self.Z ** 2))
         self.dZ2 = float(np.mean(dZ ** 2))
         self.scale = nx * nz
@@ -332,14 +345,19 @@ class ZigzagShear:
 
     def impose(self, t_new):
         """Set the zigzag modes for time t_new; accumulate the stress of the step."""
-        uh = self.fluid.u_hat[0, 0, :, 0]
-        target = self.shear.rate(t_new) * self.Zh
-        corr = target - uh
-        corr[0] = 0.0
-        uh += corr
-        F = corr / self.w                                  # force modes (times N_x N_z)
-        # <F_x Z> = (1/Ny) sum_y F(y) Z(y) = (1/Ny^2) sum_k F^ Z^* / (N_x N_z)
-        fz = float(np.real(np.vdot(np.fft.fft(self.Z), F))) / (self.Z.size ** 2 * self.scale)
+        fz = 0.0
+        if self.on:
+            uh = self.fluid.u_hat[0, 0, :, 0]
+            target = self.shear.rate(t_new) * self.Zh
+            corr = target - uh
+            if self._sum is None or self.fluid.grid.spec_range[1][0] == 0:
+                corr[0] = 0.0
+            uh += corr
+            F = corr / self.w                              # force modes (times N_x N_z)
+            # <F_x Z> = (1/Ny) sum_y F(y) Z(y) = (1/Ny^2) sum_k F^ Z^* / (N_x N_z)
+            fz = float(np.real(np.vdot(self.Zf, F))) / (self.Z.size ** 2 * self.scale)
+        if self._sum is not None:
+            fz = self._sum(fz)
         dt = self.fluid.dt
         drate = (self.shear.rate(t_new) - self.shear.rate(t_new - dt)) / dt
         self.last_force = self.rho * fz / self.dZ2          # this step's, for the table
@@ -355,7 +373,8 @@ class ZigzagShear:
         return s
 
     def initial(self, t):
-        self.fluid.u_hat[0, 0, :, 0] = self.shear.rate(t) * self.Zh
+        if self.on:
+            self.fluid.u_hat[0, 0, :, 0] = self.shear.rate(t) * self.Zh
 
 
 class ZigzagModel(SpectralModel):
