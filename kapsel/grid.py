@@ -83,6 +83,8 @@ class Grid:
         self.threads = max(1, int(threads))
         nx, ny, nz = self.shape
         self.cshape = (nx, ny, nz // 2 + 1)
+        # this process's part of the fields: all of them (kapsel.parallel.pencil: a block)
+        self.local_shape, self.local_cshape = self.shape, self.cshape
         self.size = nx * ny * nz
         self.box = np.array(self.shape, dtype=float) * self.dx
 

@@ -130,12 +130,11 @@ class ShearLEModel(SpectralModel):
 
     def __init__(self, cfg: RunConfig, args):
         from ..fluid.oblique import ObliqueSpectralNS
-        from ..grid import Grid
         from ..particles.spm import SPM
         Model.__init__(self, cfg, args)
         f, seed = cfg.fluid, self.seed
         self.interpolation = check_interpolation(cfg)
-        self.grid = Grid(cfg.mesh.shape, cfg.mesh.DX, threads=self.threads)
+        self.grid = self.make_grid(cfg)
         self.fluid = ObliqueSpectralNS(self.grid, f.RHO, f.ETA, self.dt, shear_flow(cfg),
                                        fix_cell=cfg.switches.fix_cell)
         self.particles = make_particles(cfg, self.rng)
@@ -159,7 +158,8 @@ class ShearLEModel(SpectralModel):
         y = self.grid.coordinates()[1]
         u[0] += self.fluid.shear_rate_now * (y - self.fluid.y0)
         phi = self.spm.phi() if self.particles.n else None
-        return kinetic_energy(self.cfg.fluid.RHO, self.cfg.mesh.DX, u, phi, self.particles)
+        return kinetic_energy(self.cfg.fluid.RHO, self.cfg.mesh.DX, u, phi, self.particles,
+                              reduce=self.grid.sum if self.dist is not None else None)
 
     sheared = True
 
@@ -203,6 +203,55 @@ class ShearLEModel(SpectralModel):
                "pressure": pressure}
         if self.particles.n:
             src["phi"] = lambda: rect(self.spm.phi())
+        if self.dist is not None:
+            return self._gathered_sources(rect)
+        return src
+
+    def _gathered_sources(self, rect):
+        """The field sources of a distributed run: the oblique-grid fields (blocks along x
+        and y) gathered to rank 0, which interpolates them to the rectangular frame along x
+        and derives tau and the pressure there."""
+        from ..fluid.diagnostics import spectral_pressure, viscous_stress_spectral
+        from ..parallel.pencil import Gathered
+        g, fl, f, dx = self.grid, self.fluid, self.cfg.fluid, self.cfg.mesh.DX
+        root = self.dist.root
+        memo = {}
+
+        def deviation():          # gathered once per snapshot (None off rank 0)
+            if "u" not in memo:
+                memo["u"] = g.gather_real(self.spm.velocity())
+            return memo["u"]
+
+        def u():
+            d = deviation()
+            if not root:
+                return Gathered(None)
+            out = rect(d)
+            y = (np.arange(g.shape[1]) * dx)[None, :, None]
+            out[0] += fl.shear_rate_now * (y - fl.y0)
+            return Gathered(out)
+
+        def tau():
+            d = deviation()
+            if not root:
+                return Gathered(None)
+            t = viscous_stress_spectral(d, dx, f.ETA, fl.frame_strain)
+            t[1] += f.ETA * fl.shear_rate_now
+            return Gathered(rect(t))
+
+        def pressure():
+            d, du = deviation(), g.gather_real(self.spm.last_increment())
+            if not root:
+                return Gathered(None)
+            return Gathered(rect(spectral_pressure(d, du, f.RHO, self.dt, dx,
+                                                   fl.shear_rate_now, fl.frame_strain)))
+
+        src = {"u": u, "tau": tau, "pressure": pressure}
+        if self.particles.n:
+            def phi():
+                p = g.gather_real(self.spm.phi())
+                return Gathered(rect(p) if root else None)
+            src["phi"] = phi
         return src
 
     shear_table = LE_TABLE
@@ -216,6 +265,8 @@ class ShearLEModel(SpectralModel):
         uy = uh[1]
         n = self.grid.size
         uxuy = float(np.sum(self.grid.half_weight * (ux.real * uy.real + ux.imag * uy.imag)))
+        if self.dist is not None:
+            uxuy = self.grid.sum(uxuy)
         reynolds = -self.cfg.fluid.RHO * uxuy / (n * n)   # Parseval: sum_x = sum_k / N
         rate = fl.shear.rate(self.time - self.dt)
         return le_table_row(self.time, rate, g, fl.applied_strain,
@@ -230,7 +281,7 @@ class ShearLEModel(SpectralModel):
 
     # ------------------------------------------------------------------ restart
     def exact_state(self) -> dict:
-        return {"u_hat": self.fluid.u_hat.copy(), "remaps": int(self.fluid.remaps)}
+        return {"u_hat": self.global_u_hat().copy(), "remaps": int(self.fluid.remaps)}
 
     def accumulators(self) -> dict:
         st = self.stress
@@ -252,7 +303,7 @@ class ShearLEModel(SpectralModel):
         """Zeta / uk_dc of the covariant components in the oblique frame (FORMAT.md), and
         oblique.degree_oblique the frame strain."""
         from ..io.restart import pack_zeta
-        zeta, dc = pack_zeta(self._covariant(self.fluid.u_hat), self.cfg.mesh.DX,
+        zeta, dc = pack_zeta(self._covariant(self.global_u_hat()), self.cfg.mesh.DX,
                              sheared=True)
         return {"Zeta": zeta, "uk_dc": [float(c) for c in dc],
                 "oblique": [float(self.fluid.frame_strain)]}
@@ -261,12 +312,13 @@ class ShearLEModel(SpectralModel):
         """The state file's u_hat, or else Zeta / uk_dc (covariant, oblique frame) back to
         contravariant components, metric-projected, in the frame of degree_oblique."""
         if exact and "u_hat" in exact:
-            if exact["u_hat"].shape != self.fluid.u_hat.shape:
+            want = (3,) + tuple(self.grid.cshape)
+            if exact["u_hat"].shape != want:
                 raise ConfigError(f"the restart's velocity has shape {exact['u_hat'].shape}, "
-                                  f"the mesh needs {self.fluid.u_hat.shape}",
+                                  f"the mesh needs {want}",
                                   path="resume.CONTINUE.Saved_Data.Zeta[]", value="shape")
             self.fluid.set_time(self.time, exact.get("remaps"))
-            self.fluid.set_contravariant_hat(exact["u_hat"])
+            self.fluid.set_contravariant_hat(self.local(exact["u_hat"]))
         else:
             fl = self.fluid
             g_saved = float((fields.get("oblique") or [0.0])[0])
@@ -277,8 +329,10 @@ class ShearLEModel(SpectralModel):
             u[0] = (1.0 + g * g) * w[0] - g * w[1]
             u[1] = w[1] - g * w[0]
             dc = u[:, 0, 0, 0].copy()
+            u = np.ascontiguousarray(self.local(u))
             fl.project_metric(u, g)
-            u[:, 0, 0, 0] = dc
+            if getattr(self.grid, "has_k0", True):
+                u[:, 0, 0, 0] = dc
             fl.set_contravariant_hat(u)
         self.spm.refresh()
 

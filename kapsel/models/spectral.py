@@ -15,20 +15,10 @@ from .common import (Model, kinetic_energy, make_forces, make_noise, make_partic
 class SpectralModel(Model):
     def __init__(self, cfg: RunConfig, args):
         from ..fluid.spectral import SpectralNS
-        from ..grid import Grid
         from ..particles.spm import SPM
         super().__init__(cfg, args)
         f, seed = cfg.fluid, self.seed
-        if self.dist is not None:      # distributed (kapsel.parallel): this rank's blocks
-            from ..parallel.pencil import PencilGrid
-            try:
-                self.grid = PencilGrid(cfg.mesh.shape, cfg.mesh.DX, self.dist.comm,
-                                       self.dist.dims)
-            except ValueError as e:
-                raise ConfigError(str(e), path="mesh", value="process grid") from None
-            self.lockstep.register("u_hat", lambda: self.grid.gather_complex(self.fluid.u_hat))
-        else:
-            self.grid = Grid(cfg.mesh.shape, cfg.mesh.DX, threads=self.threads)
+        self.grid = self.make_grid(cfg)
         self.fluid = SpectralNS(self.grid, f.RHO, f.ETA, self.dt, fix_cell=cfg.switches.fix_cell)
         from ..particles.walls import make_wall
         self.particles = make_particles(cfg, self.rng)
@@ -37,6 +27,24 @@ class SpectralModel(Model):
                        cfg.mesh.DX, self.dt, rotation=cfg.switches.ROTATION,
                        forces=overlap_guard(make_forces(cfg, self.particles, wall=self.wall)),
                        noise=make_noise(cfg, self.particles, seed), wall=self.wall)
+
+    def make_grid(self, cfg):
+        """The mesh: a ``kapsel.grid.Grid``, or in a distributed run this rank's blocks of
+        it (kapsel.parallel.pencil.PencilGrid)."""
+        from ..grid import Grid
+        if self.dist is None:
+            return Grid(cfg.mesh.shape, cfg.mesh.DX, threads=self.threads)
+        from ..parallel.pencil import PencilGrid
+        try:
+            grid = PencilGrid(cfg.mesh.shape, cfg.mesh.DX, self.dist.comm, self.dist.dims)
+        except ValueError as e:
+            raise ConfigError(str(e), path="mesh", value="process grid") from None
+        self.lockstep.register("u_hat", lambda: grid.gather_complex(self.fluid.u_hat))
+        return grid
+
+    def local(self, a):
+        """This rank's block of a whole Fourier field (itself in a plain run)."""
+        return a if self.dist is None else self.grid.local_complex(a)
 
     def advance(self):
         self.spm.step()
@@ -102,7 +110,7 @@ class SpectralModel(Model):
 
     def load_fields(self, fields: dict, exact) -> None:
         """The state file's u_hat (bit-identical continuation) or else Zeta / uk_dc."""
-        local = self.grid.local_complex if self.dist is not None else (lambda a: a)
+        local = self.local
         if exact and "u_hat" in exact:
             want = (3,) + tuple(self.grid.cshape)
             if exact["u_hat"].shape != want:

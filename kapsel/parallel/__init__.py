@@ -24,7 +24,7 @@ import sys
 
 __all__ = ["DISTRIBUTED", "Dist", "launched_size", "start"]
 
-DISTRIBUTED = ("Navier_Stokes", "Shear_Navier_Stokes")
+DISTRIBUTED = ("Navier_Stokes", "Shear_Navier_Stokes", "Shear_Navier_Stokes_Lees_Edwards")
 
 _SIZE_VARS = ("PMI_SIZE", "OMPI_COMM_WORLD_SIZE", "MV2_COMM_WORLD_SIZE", "PMIX_SIZE")
 
