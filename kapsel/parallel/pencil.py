@@ -10,15 +10,17 @@ Layout (fields indexed [x, y, z], z fastest, as in kapsel.grid), on a px x py pr
 an r2c FFT along z, a transpose within the py ranks of one row (z split, y whole), a c2c FFT
 along y, a transpose within the px ranks of one column (y split, x whole) and a c2c FFT along
 x; the backward transform runs the same way back.  The transposes are single
-``MPI_Alltoallw`` calls with subarray datatypes (no packing in Python), the local FFTs FFTW
+``MPI_Alltoallv`` calls on blocks packed by numpy (``_Transfer``), the local FFTs FFTW
 plans (pyfftw) on buffers made once.  px = P, py = 1 is a slab decomposition (one transpose).
 
 Why not mpi4py-fft: it builds its FFTW wrappers from source and needs the FFTW headers and
 libraries of the system (``pip install mpi4py-fft`` stops with "No FFTW libraries found"
 without Debian's libfftw3-dev), so it cannot install from PyPI alone, which ``make test`` on
-a fresh machine requires; the pyFFTW wheels carry FFTW inside.  This module is the same
-algorithm (mpi4py-fft's ``Pencil`` / ``Transfer``: Alltoallw over subarray types) in ~200
-lines on mpi4py and pyfftw, both installed from wheels.
+a fresh machine requires; the pyFFTW wheels carry FFTW inside (as do no other PyPI parallel
+FFT packages: pfft-python builds PFFT and FFTW from source with mpicc).  This module is the
+same algorithm as mpi4py-fft's ``Pencil`` / ``Transfer`` (global transposes between pencil
+orientations, local 1-d FFTs) in ~250 lines on mpi4py and pyfftw, both installed from
+wheels.
 
 The Fourier fields keep the serial axis order, so every whole-array operation of the
 spectral solver (products with kx, ky, kz, k^2, the 2/3 mask, the ETD weights) runs on the
@@ -51,51 +53,74 @@ def block(n: int, parts: int, i: int) -> tuple[int, int]:
 
 
 class _Transfer:
-    """Alltoallw within ``comm`` between two distributions of a (c, n0, n1, n2) array:
+    """All-to-all within ``comm`` between two distributions of a (c, n0, n1, n2) array:
     ``whole`` axis complete and ``split`` axis local (A) <-> ``whole`` axis split and
-    ``split`` axis complete (B).  Axes count the leading component axis."""
+    ``split`` axis complete (B).  Axes count the leading component axis.
 
-    def __init__(self, comm, shape_a, shape_b, whole, split, mpitype):
-        from mpi4py import MPI
+    The blocks are packed into contiguous buffers by numpy and sent by one
+    ``MPI_Alltoallv``: measured 1.7x faster than ``MPI_Alltoallw`` over subarray datatypes
+    (mpi4py-fft's way) for a 64^3 vector field on 2 ranks (4.1-4.4 ms against 6.7-8.0 ms,
+    MPICH 5 shared memory, busy 2-core machine)."""
+
+    def __init__(self, comm, shape_a, shape_b, whole, split):
         self.comm = comm
         m = comm.Get_size()
         self.trivial = m == 1
         if self.trivial:
             return
-        self.types_a, self.types_b = [], []
-        for j in range(m):
-            s0, s1 = block(shape_a[whole], m, j)
-            sub = list(shape_a)
-            sub[whole] = s1 - s0
-            st = [0] * 4
-            st[whole] = s0
-            self.types_a.append(mpitype.Create_subarray(shape_a, sub, st, order=MPI.ORDER_C).Commit())
-            s0, s1 = block(shape_b[split], m, j)
-            sub = list(shape_b)
-            sub[split] = s1 - s0
-            st = [0] * 4
-            st[split] = s0
-            self.types_b.append(mpitype.Create_subarray(shape_b, sub, st, order=MPI.ORDER_C).Commit())
-        self.cd = ([1] * m, [0] * m)
+        self.whole, self.split = whole, split
+        self.wb = [block(shape_a[whole], m, j) for j in range(m)]   # blocks of A's whole axis
+        self.sb = [block(shape_b[split], m, j) for j in range(m)]   # blocks of B's split axis
+        na = int(np.prod(shape_a)) // shape_a[whole]
+        nb = int(np.prod(shape_b)) // shape_b[split]
+        self.ca = [na * (b - a) for a, b in self.wb]                 # A-side counts
+        self.cb = [nb * (b - a) for a, b in self.sb]                 # B-side counts
+        self.da = [sum(self.ca[:j]) for j in range(m)]
+        self.db = [sum(self.cb[:j]) for j in range(m)]
+        self.shape_a, self.shape_b = tuple(shape_a), tuple(shape_b)
+        self.buf_a = np.empty(sum(self.ca), dtype=complex)
+        self.buf_b = np.empty(sum(self.cb), dtype=complex)
+
+    @staticmethod
+    def _piece(shape, axis, ab):
+        sh = list(shape)
+        sh[axis] = ab[1] - ab[0]
+        return tuple(sh)
+
+    def _slices(self, axis, ab):
+        idx = [slice(None)] * 4
+        idx[axis] = slice(*ab)
+        return tuple(idx)
 
     def forward(self, a, b):
         if self.trivial:
             np.copyto(b, a)
-        else:
-            self.comm.Alltoallw([a, self.cd, self.types_a], [b, self.cd, self.types_b])
+            return
+        for j, ab in enumerate(self.wb):
+            self.buf_a[self.da[j]:self.da[j] + self.ca[j]].reshape(
+                self._piece(self.shape_a, self.whole, ab))[...] = a[self._slices(self.whole, ab)]
+        self.comm.Alltoallv([self.buf_a, (self.ca, self.da)], [self.buf_b, (self.cb, self.db)])
+        for j, ab in enumerate(self.sb):
+            b[self._slices(self.split, ab)] = self.buf_b[self.db[j]:self.db[j] + self.cb[j]].reshape(
+                self._piece(self.shape_b, self.split, ab))
 
     def backward(self, b, a):
         if self.trivial:
             np.copyto(a, b)
-        else:
-            self.comm.Alltoallw([b, self.cd, self.types_b], [a, self.cd, self.types_a])
+            return
+        for j, ab in enumerate(self.sb):
+            self.buf_b[self.db[j]:self.db[j] + self.cb[j]].reshape(
+                self._piece(self.shape_b, self.split, ab))[...] = b[self._slices(self.split, ab)]
+        self.comm.Alltoallv([self.buf_b, (self.cb, self.db)], [self.buf_a, (self.ca, self.da)])
+        for j, ab in enumerate(self.wb):
+            a[self._slices(self.whole, ab)] = self.buf_a[self.da[j]:self.da[j] + self.ca[j]].reshape(
+                self._piece(self.shape_a, self.whole, ab))
 
 
 class _Pipeline:
     """Buffers, FFTW plans and transposes of the transforms of ``ncomp``-component fields."""
 
     def __init__(self, g: "PencilGrid", ncomp: int):
-        from mpi4py import MPI
         c = (ncomp,)
         nx, ny, nz = g.shape
         nzh = nz // 2 + 1
@@ -105,37 +130,58 @@ class _Pipeline:
         self.A = pyfftw.empty_aligned(c + (x1 - x0, y1 - y0, nzh), dtype="complex128")
         self.B = pyfftw.empty_aligned(c + (x1 - x0, ny, zc1 - zc0), dtype="complex128")
         self.C = pyfftw.empty_aligned(c + g.local_cshape, dtype="complex128")
+        self.D = pyfftw.empty_aligned(c + g.local_cshape, dtype="complex128")
         flags = (g.planner,)
         F, Bk = "FFTW_FORWARD", "FFTW_BACKWARD"
+        # out of place at the ends, so that the callers' aligned arrays are used directly
         self.fz = pyfftw.FFTW(self.R, self.A, axes=(3,), direction=F, flags=flags)
         self.bz = pyfftw.FFTW(self.A, self.R, axes=(3,), direction=Bk,
                               flags=flags + ("FFTW_DESTROY_INPUT",))
         self.fy = pyfftw.FFTW(self.B, self.B, axes=(2,), direction=F, flags=flags)
         self.by = pyfftw.FFTW(self.B, self.B, axes=(2,), direction=Bk, flags=flags)
-        self.fx = pyfftw.FFTW(self.C, self.C, axes=(1,), direction=F, flags=flags)
-        self.bx = pyfftw.FFTW(self.C, self.C, axes=(1,), direction=Bk, flags=flags)
-        ct = MPI.C_DOUBLE_COMPLEX
-        self.ty = _Transfer(g.comm_y, self.A.shape, self.B.shape, 3, 2, ct)
-        self.tx = _Transfer(g.comm_x, self.B.shape, self.C.shape, 2, 1, ct)
+        self.fx = pyfftw.FFTW(self.C, self.D, axes=(1,), direction=F, flags=flags)
+        self.bx = pyfftw.FFTW(self.D, self.C, axes=(1,), direction=Bk, flags=flags)
+        self.ty = _Transfer(g.comm_y, self.A.shape, self.B.shape, 3, 2)
+        self.tx = _Transfer(g.comm_x, self.B.shape, self.C.shape, 2, 1)
+        self._align = pyfftw.simd_alignment
+
+    def _fits(self, x, like):
+        return (x.shape == like.shape and x.dtype == like.dtype and x.strides == like.strides
+                and x.ctypes.data % self._align == 0)
 
     def forward(self, u, out):
-        np.copyto(self.R, u)
+        if self._fits(u, self.R):
+            self.fz.update_arrays(u, self.A)
+        else:
+            np.copyto(self.R, u)
+            self.fz.update_arrays(self.R, self.A)
         self.fz.execute()
         self.ty.forward(self.A, self.B)
         self.fy.execute()
         self.tx.forward(self.B, self.C)
+        o = out if self._fits(out, self.D) else self.D
+        self.fx.update_arrays(self.C, o)
         self.fx.execute()
-        np.copyto(out, self.C)
+        if o is not out:
+            np.copyto(out, o)
         return out
 
     def backward(self, c, out):
-        np.copyto(self.C, c)
+        """Unnormalised c2r of ``c`` (not modified) into ``out``."""
+        i = c if self._fits(c, self.D) else None
+        if i is None:
+            np.copyto(self.D, c)
+            i = self.D
+        self.bx.update_arrays(i, self.C)
         self.bx.execute()
         self.tx.backward(self.C, self.B)
         self.by.execute()
         self.ty.backward(self.B, self.A)
+        o = out if self._fits(out, self.R) else self.R
+        self.bz.update_arrays(self.A, o)
         self.bz.execute()
-        np.copyto(out, self.R)
+        if o is not out:
+            np.copyto(out, o)
         return out
 
 
