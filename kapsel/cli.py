@@ -446,7 +446,7 @@ def _check_inputs(args, locks, dist):
         return fail(str(e))
     if dist is not None:
         from .parallel import refuse
-        problem = refuse(dist, cfg.type)
+        problem = refuse(dist, cfg)
         if problem:
             return fail(problem)
     _START.check()

@@ -223,3 +223,15 @@ def test_sheared_types_distributed(tmp_path, eq, rate, ranks):
     assert fa.keys() == fb.keys() and len(fa) > 10
     for k in fa:
         np.testing.assert_allclose(fb[k], fa[k], rtol=1e-5, atol=1e-6, err_msg=k)
+
+
+def test_walls_are_refused_with_more_than_one_rank(tmp_path):
+    """Flat walls (ex14's input with Navier_Stokes) are not distributed: refused by name."""
+    from test_walls import EX14, _wall_run_input
+    for f in ("define.udf", "kapsel_unit.udf"):
+        shutil.copy(os.path.join(EX14, f), tmp_path / f)
+    (tmp_path / "in.udf").write_text(_wall_run_input(tmp_path, "Navier_Stokes"))
+    r = mpirun(tmp_path, 2, "in.udf", check=False)
+    assert r.returncode == 2
+    assert "switch.wall (flat walls) does not run distributed" in r.stderr
+    assert not (tmp_path / "output.udf").exists()

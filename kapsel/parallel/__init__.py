@@ -118,10 +118,21 @@ def start(args):
     return dist
 
 
-def refuse(dist, type_name: str) -> str | None:
-    """Why ``type_name`` cannot run on ``dist`` (None: it can)."""
-    if dist is None or dist.size == 1 or type_name in DISTRIBUTED:
+def refuse(dist, cfg) -> str | None:
+    """Why the run of ``cfg`` cannot be distributed over ``dist`` (None: it can)."""
+    if dist is None or dist.size == 1:
         return None
-    return (f"constitutive_eq.type {type_name} does not run distributed: run it on one "
-            f"process (without mpirun, or mpirun -n 1); distributed types: "
-            f"{', '.join(DISTRIBUTED)}")
+    if cfg.type not in DISTRIBUTED:
+        return (f"constitutive_eq.type {cfg.type} does not run distributed: run it on one "
+                f"process (without mpirun, or mpirun -n 1); distributed types: "
+                f"{', '.join(DISTRIBUTED)}")
+    if getattr(cfg.switches, "wall", None) is not None:
+        return ("switch.wall (flat walls) does not run distributed: run this input on one "
+                "process (without mpirun, or mpirun -n 1)")
+    if cfg.particles.object_type == "spherical_particle" and any(
+            getattr(s, "janus", None) is not None and s.janus.propulsion != "OFF"
+            for s in cfg.particles.species):
+        return ("self-propelled particles (Particle_spec[].janus_axis / janus_propulsion) do "
+                "not run distributed: run this input on one process (without mpirun, or "
+                "mpirun -n 1)")
+    return None
