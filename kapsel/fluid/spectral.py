@@ -324,4 +324,6 @@ class SpectralNS:
     def divergence_max(self):
         """max |div u| in real space (spectral derivative), for checks."""
         d = self.grid.divergence_hat(self.u_hat)
+        if self._dist:        # this rank's block, then the max over the ranks
+            return self.grid.max(np.abs(self.grid.irfft_scalar(np.ascontiguousarray(d))).max())
         return float(np.abs(np.fft.irfftn(d, s=self.grid.shape, axes=(0, 1, 2))).max())
