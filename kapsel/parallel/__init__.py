@@ -9,13 +9,16 @@ Which types run distributed: ``DISTRIBUTED``.  Any other type is refused with mo
 rank (``refuse``), never run serially on every rank writing the same files.
 
 Division of work (kapsel.parallel.pencil for the fields, kapsel.parallel.lockstep for the
-output): every rank holds its block of the fields and all the particles (replicated: the
-particle state is N x ~30 numbers, 24 MB for N = 10^5); each rank computes the profiles,
-forces and motion of all particles identically, couples them to its own block of the
-fluid, and the per-particle sums of the coupling (hydrodynamic force and torque) are summed
+output): every rank holds its block of the fields and the state of all the particles
+(replicated: ~0.3 kB per particle, 32 MB for N = 10^5), moves all of them identically
+(pair forces, noise, motion) and computes the profiles of those whose stencil meets its
+block (kapsel.particles.spm, ``_profiles_distributed``), coupling them to its part of the
+fluid; the per-particle sums of the coupling (hydrodynamic force and torque) are summed
 over the ranks by MPI_Reduce to rank 0 + MPI_Bcast, so every rank gets the same bits and
 the particles stay identical everywhere.  Rank 0 writes output.udf, restart.udf and the
-field files with the fields gathered to it.
+field files with the fields gathered to it.  This replication instead of particles owned
+by one rank with halo exchange is the simpler design for N <= 10^5 particles; its limits
+are in the README ("Distributed runs").
 """
 from __future__ import annotations
 
