@@ -286,3 +286,29 @@ def test_chains_and_rigid_bodies_distributed(tmp_path, kind):
     diff = differences(str(tmp_path / "serial"), str(tmp_path / "dist"))
     print(f"{kind}, 2 ranks: max |distributed - serial| {diff}")
     assert max(diff.values()) < 1e-10, diff
+
+
+def test_a_distributed_run_that_blows_up_stops_on_every_rank(tmp_path):
+    """A huge gravity (G = 1e12) blows the particles up: every rank stops (no rank left
+    waiting in a collective), exit 1, rank 0 says what the plain run says (once), the
+    restart of the initial snapshot is kept."""
+    said = {}
+    for name, n in (("serial", 0), ("dist", 2)):
+        d = tmp_path / name
+        make_input(d, "Navier_Stokes", gts=2, nsnap=3, kBT=0.0, particles=4)
+        u = UDFManager(str(d / "input.udf"))
+        u.put(1e12, "gravity.G")
+        u.put(2.0, "object_type.spherical_particle.Particle_spec[0].MASS_RATIO")
+        u.write(str(d / "input.udf"))
+        if n:
+            r = mpirun(d, n, "input.udf", check=False)
+        else:
+            r = subprocess.run([sys.executable, "-m", "kapsel.cli", "-Iinput.udf",
+                                "-Ooutput.udf", "-Ddefine.udf", "-Rrestart.udf", "--seed", "11",
+                                "--quiet"], cwd=d, capture_output=True, text=True, timeout=300)
+        assert r.returncode == 1, r.stderr[-2000:]
+        said[name] = [line for line in r.stderr.splitlines() if "error" in line]
+        said[name + " restart"] = list(saved_data(str(d / "restart.udf"))["jikan"])
+    assert len(said["dist"]) == 1 and "the run stopped at step" in said["dist"][0]
+    assert said["dist"] == said["serial"]
+    assert said["dist restart"] == said["serial restart"] == [-1.0, 0.0]   # the initial state
