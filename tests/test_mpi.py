@@ -312,3 +312,18 @@ def test_a_distributed_run_that_blows_up_stops_on_every_rank(tmp_path):
     assert len(said["dist"]) == 1 and "the run stopped at step" in said["dist"][0]
     assert said["dist"] == said["serial"]
     assert said["dist restart"] == said["serial restart"] == [-1.0, 0.0]   # the initial state
+
+
+def test_a_launcher_of_another_mpi_is_refused(tmp_path):
+    """Started by an mpirun that is not that of mpi4py's MPI library, each process would see
+    one rank and run the whole input alone: refused (the launcher's PMI_SIZE says 2)."""
+    d = tmp_path / "other"
+    make_input(d, "Navier_Stokes")
+    env = dict(os.environ, PMI_SIZE="2")
+    r = subprocess.run([sys.executable, "-m", "kapsel.cli", "-Iinput.udf", "-Ooutput.udf",
+                        "-Ddefine.udf", "-Rrestart.udf", "--quiet"], cwd=d, env=env,
+                       capture_output=True, text=True, timeout=300)
+    assert r.returncode == 2
+    assert "started by an MPI launcher for 2 ranks, but the MPI library of mpi4py sees 1" \
+        in r.stderr
+    assert not (d / "output.udf").exists()

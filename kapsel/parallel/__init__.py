@@ -95,6 +95,12 @@ def start(args):
                         "'kapsel-py[mpi]' (the mpi4py and mpich wheels)") from None
     comm = MPI.COMM_WORLD
     size = comm.Get_size()
+    if launched is not None and launched != size:
+        raise DistError(f"started by an MPI launcher for {launched} ranks, but the MPI library "
+                        f"of mpi4py sees {size}: the mpirun / mpiexec is not that of the MPI "
+                        f"library mpi4py uses (use the one installed with it, e.g. the venv's "
+                        f"bin/mpiexec of the mpich wheel); every process would otherwise run "
+                        f"the whole input alone")
     if X is None and Y is None:
         dims = (size, 1)
     elif X is None:
