@@ -126,38 +126,37 @@ class _Pipeline:
         nzh = nz // 2 + 1
         (x0, x1), (y0, y1) = g.real_range[0], g.real_range[1]
         zc0, zc1 = g.spec_range[2]
-        self.R = pyfftw.empty_aligned(c + g.local_shape, dtype="float64")
-        self.A = pyfftw.empty_aligned(c + (x1 - x0, y1 - y0, nzh), dtype="complex128")
-        self.B = pyfftw.empty_aligned(c + (x1 - x0, ny, zc1 - zc0), dtype="complex128")
-        self.C = pyfftw.empty_aligned(c + g.local_cshape, dtype="complex128")
-        self.D = pyfftw.empty_aligned(c + g.local_cshape, dtype="complex128")
-        flags = (g.planner,)
-        F, Bk = "FFTW_FORWARD", "FFTW_BACKWARD"
-        # out of place at the ends, so that the callers' aligned arrays are used directly
-        self.fz = pyfftw.FFTW(self.R, self.A, axes=(3,), direction=F, flags=flags)
-        self.bz = pyfftw.FFTW(self.A, self.R, axes=(3,), direction=Bk,
-                              flags=flags + ("FFTW_DESTROY_INPUT",))
-        self.fy = pyfftw.FFTW(self.B, self.B, axes=(2,), direction=F, flags=flags)
-        self.by = pyfftw.FFTW(self.B, self.B, axes=(2,), direction=Bk, flags=flags)
-        self.fx = pyfftw.FFTW(self.C, self.D, axes=(1,), direction=F, flags=flags)
-        self.bx = pyfftw.FFTW(self.D, self.C, axes=(1,), direction=Bk, flags=flags)
-        self.ty = _Transfer(g.comm_y, self.A.shape, self.B.shape, 3, 2)
-        self.tx = _Transfer(g.comm_x, self.B.shape, self.C.shape, 2, 1)
-        self._align = pyfftw.simd_alignment
         # fewer, larger local transforms where a transpose is trivial: one 3-d plan on one
         # rank, a 2-d (y, z) plan for slabs (Y = 1; FFTW's multi-dimensional plans are
-        # faster than the same 1-d transforms in turn)
-        self.mode = "pencil"
-        if g.px == 1 and g.py == 1:
-            self.mode = "one"
+        # faster than the same 1-d transforms in turn); only the buffers a mode uses
+        self.mode = ("one" if g.px == 1 and g.py == 1 else "slab" if g.py == 1 else "pencil")
+        empty = pyfftw.empty_aligned
+        self.R = empty(c + g.local_shape, dtype="float64")
+        self.C = empty(c + g.local_cshape, dtype="complex128")
+        self.D = empty(c + g.local_cshape, dtype="complex128")
+        flags = (g.planner,)
+        F, Bk = "FFTW_FORWARD", "FFTW_BACKWARD"
+        destroy = flags + ("FFTW_DESTROY_INPUT",)
+        self._align = pyfftw.simd_alignment
+        if self.mode == "one":
             self.f3 = pyfftw.FFTW(self.R, self.D, axes=(1, 2, 3), direction=F, flags=flags)
-            self.b3 = pyfftw.FFTW(self.C, self.R, axes=(1, 2, 3), direction=Bk,
-                                  flags=flags + ("FFTW_DESTROY_INPUT",))
-        elif g.py == 1:
-            self.mode = "slab"
+            self.b3 = pyfftw.FFTW(self.C, self.R, axes=(1, 2, 3), direction=Bk, flags=destroy)
+            return
+        self.B = empty(c + (x1 - x0, ny, zc1 - zc0), dtype="complex128")
+        # out of place at the ends, so that the callers' aligned arrays are used directly
+        self.fx = pyfftw.FFTW(self.C, self.D, axes=(1,), direction=F, flags=flags)
+        self.bx = pyfftw.FFTW(self.D, self.C, axes=(1,), direction=Bk, flags=flags)
+        self.tx = _Transfer(g.comm_x, self.B.shape, self.C.shape, 2, 1)
+        if self.mode == "slab":
             self.fyz = pyfftw.FFTW(self.R, self.B, axes=(2, 3), direction=F, flags=flags)
-            self.byz = pyfftw.FFTW(self.B, self.R, axes=(2, 3), direction=Bk,
-                                   flags=flags + ("FFTW_DESTROY_INPUT",))
+            self.byz = pyfftw.FFTW(self.B, self.R, axes=(2, 3), direction=Bk, flags=destroy)
+            return
+        self.A = empty(c + (x1 - x0, y1 - y0, nzh), dtype="complex128")
+        self.fz = pyfftw.FFTW(self.R, self.A, axes=(3,), direction=F, flags=flags)
+        self.bz = pyfftw.FFTW(self.A, self.R, axes=(3,), direction=Bk, flags=destroy)
+        self.fy = pyfftw.FFTW(self.B, self.B, axes=(2,), direction=F, flags=flags)
+        self.by = pyfftw.FFTW(self.B, self.B, axes=(2,), direction=Bk, flags=flags)
+        self.ty = _Transfer(g.comm_y, self.A.shape, self.B.shape, 3, 2)
 
     def _fits(self, x, like):
         return (x.shape == like.shape and x.dtype == like.dtype and x.strides == like.strides
