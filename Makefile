@@ -1,8 +1,8 @@
 # Two commands do all set-up on a fresh machine: `make run` and `make test`.
 #   make run    installs kapsel-py with what a run needs (+ matplotlib for the picture),
 #               runs the manual's sample in samples/, reports its time, draws the last snapshot
-#   make test   installs the test tools too (pytest, hypothesis, vtk, ovito, matplotlib), runs
-#               the fast suite
+#   make test   installs the test tools too (pytest, hypothesis, vtk, ovito, matplotlib, and
+#               mpi4py + mpich for the distributed tests), runs the fast suite
 #   make bench  installs the benchmark extra, runs the benchmarks
 # pip's own output goes to .venv/pip-<what>.log and is shown only when an install fails.
 PY ?= python3
@@ -25,7 +25,7 @@ $(VENV)/.installed-plot: pyproject.toml
 	$(call pip_install,plot,kapsel-py and numpy scipy pyfftw h5py lark orjson numba (the run) + matplotlib (the picture))
 
 $(VENV)/.installed-test: pyproject.toml
-	$(call pip_install,test,kapsel-py + test tools: pytest hypothesis vtk ovito matplotlib)
+	$(call pip_install,test,kapsel-py + test tools: pytest hypothesis vtk ovito matplotlib mpi4py mpich)
 
 $(VENV)/.installed-bench: pyproject.toml
 	$(call pip_install,bench,kapsel-py + benchmark tools: matplotlib)

@@ -38,6 +38,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("-R", dest="restart", metavar="RESTART.udf", default="restart.udf",
                    help="restart UDF written at every snapshot and at the end "
                         "(default: restart.udf)")
+    p.add_argument("-X", dest="X", type=int, default=None, metavar="PX",
+                   help="distributed runs (mpirun -n P kapsel-py ...): ranks along x of the "
+                        "px x py process grid, the original kapsel_u2m_mpi's flag "
+                        "(default: P, with -Y: P / Y)")
+    p.add_argument("-Y", dest="Y", type=int, default=None, metavar="PY",
+                   help="ranks along y of the process grid (default: 1, with -X: P / X)")
     p.add_argument("--threads", type=int, default=1, metavar="N",
                    help="threads for FFTs and array work (default: 1)")
     p.add_argument("--seed", type=int, default=None, metavar="S",
@@ -400,31 +406,18 @@ def prepare(args, locks: list | None = None):
     (lock_output_dirs; the caller releases them when the run ends).  Returns the exit code
     of a refusal (the message printed), or (cfg, doc, model, resumed, seed_drawn).  Writes
     nothing."""
-    for flag, path in (("-I", args.input), ("-D", args.define)):
-        if not os.path.isfile(path):
-            return fail(f"{flag}{path}: no such file")
-    try:
-        cfg, doc, define = validate(args.input, args.define)
-    except BadInput as e:
-        return fail(str(e))
-    _START.check()
-    problem = check_output_paths(args)
-    if problem:
-        return fail(problem)
-    resumed = cfg.resume.calculation != "NEW"
-    if locks is not None:
-        held, problem = lock_output_dirs(args)    # from here to the end of the run
-        if problem:
-            return fail(problem)
-        locks.extend(held)
-    if not resumed and not args.overwrite:
-        problem = existing_outputs(args, cfg)
-        if problem:
-            return fail(problem)
-    seed_drawn = args.seed is None
-    if args.seed is None:   # drawn here, reported once the input is known to be good
-        import secrets
-        args.seed = secrets.randbits(63)
+    dist = getattr(args, "dist", None)
+    checked = _check_inputs(args, locks, dist)
+    if dist is not None:      # every rank stops if one refuses, before any collective work
+        code = dist.agree(checked if isinstance(checked, int) else None)
+        if code:
+            return code
+        args.seed = dist.bcast(args.seed)
+        if not isinstance(checked, int) and checked[0].type not in _distributed():
+            args.dist = dist = None       # one rank (refused with more): a plain run
+    elif isinstance(checked, int):
+        return checked
+    cfg, doc, define, resumed, seed_drawn = checked
     try:
         model = build_model(cfg, args, doc, resumed)
     except BadInput as e:
@@ -432,9 +425,55 @@ def prepare(args, locks: list | None = None):
     _START.check()
     problem = (check_define(define, args, model) or check_same_schema(doc, define, args)
                or (resumed and check_own_output(args, model)))
+    code = fail(problem) if problem else None
+    if dist is not None:
+        code = dist.agree(code)
+    if code:
+        return code
+    return cfg, doc, model, resumed, seed_drawn
+
+
+def _distributed():
+    from .parallel import DISTRIBUTED
+    return DISTRIBUTED
+
+
+def _check_inputs(args, locks, dist):
+    """The checks of ``prepare`` before the model is built: an exit code, or (cfg, doc,
+    define, resumed, seed_drawn).  In a distributed run the output paths are checked and
+    locked by rank 0 only (the one that writes)."""
+    for flag, path in (("-I", args.input), ("-D", args.define)):
+        if not os.path.isfile(path):
+            return fail(f"{flag}{path}: no such file")
+    try:
+        cfg, doc, define = validate(args.input, args.define)
+    except BadInput as e:
+        return fail(str(e))
+    if dist is not None:
+        from .parallel import refuse
+        problem = refuse(dist, cfg)
+        if problem:
+            return fail(problem)
+    _START.check()
+    writes = dist is None or dist.root
+    problem = check_output_paths(args) if writes else None
     if problem:
         return fail(problem)
-    return cfg, doc, model, resumed, seed_drawn
+    resumed = cfg.resume.calculation != "NEW"
+    if locks is not None and writes:
+        held, problem = lock_output_dirs(args)    # from here to the end of the run
+        if problem:
+            return fail(problem)
+        locks.extend(held)
+    if not resumed and not args.overwrite and writes:
+        problem = existing_outputs(args, cfg)
+        if problem:
+            return fail(problem)
+    seed_drawn = args.seed is None
+    if args.seed is None:   # drawn here, reported once the input is known to be good
+        import secrets
+        args.seed = secrets.randbits(63)
+    return cfg, doc, define, resumed, seed_drawn
 
 
 def main(argv=None) -> int:
@@ -450,6 +489,11 @@ def main(argv=None) -> int:
         return fail(f"--threads must be at least 1, got {args.threads}")
     if args.seed is not None and not 0 <= args.seed < 2 ** 63:
         return fail(f"--seed must be an integer from 0 to 2^63 - 1, got {args.seed}")
+    from .parallel import DistError, start
+    try:
+        args.dist = start(args)      # None for a plain run (mpi4py is not imported)
+    except DistError as e:
+        return fail(str(e))
     locks: list = []
     try:
         with _START:

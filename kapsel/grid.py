@@ -125,6 +125,8 @@ class Grid:
         self.threads = max(1, int(threads))
         nx, ny, nz = self.shape
         self.cshape = (nx, ny, nz // 2 + 1)
+        # this process's part of the fields: all of them (kapsel.parallel.pencil: a block)
+        self.local_shape, self.local_cshape = self.shape, self.cshape
         self.size = nx * ny * nz
         self.box = np.array(self.shape, dtype=float) * self.dx
 
@@ -378,13 +380,17 @@ class Grid:
     def zeros_real(self, n=3):
         """``empty_real`` filled with zeros, its pages given by the system as they are first
         written (calloc): nothing is touched until used."""
-        shape = self.shape if n is None else (n,) + self.shape
-        return _aligned_zeros(shape, np.float64, self._align)
+        shape = self.local_shape if n is None else (n,) + self.local_shape
+        return _aligned_zeros(shape, np.float64, self._zeros_align())
 
     def zeros_complex(self, n=3):
         """``empty_complex`` filled with zeros, untouched until used (``zeros_real``)."""
-        shape = self.cshape if n is None else (n,) + self.cshape
-        return _aligned_zeros(shape, np.complex128, self._align)
+        shape = self.local_cshape if n is None else (n,) + self.local_cshape
+        return _aligned_zeros(shape, np.complex128, self._zeros_align())
+
+    def _zeros_align(self) -> int:
+        """The SIMD alignment of this grid's arrays (a distributed grid keeps pyfftw's)."""
+        return getattr(self, "_align", None) or (pyfftw.simd_alignment if pyfftw else 1)
 
     def empty_complex(self, n=3):
         """SIMD-aligned uninitialised (n, cshape) complex128 array (n=None: scalar)."""

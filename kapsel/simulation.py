@@ -185,8 +185,18 @@ def _run(cfg, args, input_doc, model, resumed, saved) -> int:
               f"{args.input} and run kapsel-py -I{args.input} -O{args.output} "
               f"-D{args.define} -R{args.restart}", file=sys.stderr)
         return 0
-    writers = make_writers(cfg, args, input_doc, model.snapshot(),
-                           comment=run_comment(model.run_id, model.seed))
+    # a distributed run (kapsel.parallel.lockstep): rank 0 writes, the others serve
+    lockstep = getattr(model, "lockstep", None)
+    writes = lockstep is None or lockstep.dist.root
+    writers = (make_writers(cfg, args, input_doc, model.snapshot(),
+                            comment=run_comment(model.run_id, model.seed)) if writes else [])
+
+    def output(body):
+        """Run ``body`` (writers, restart) alone, or on rank 0 as a round of output."""
+        if lockstep is None:
+            return body()
+        model.snapshot()          # every rank: the sources rank 0 may ask for
+        return lockstep.round(body)
     start = model.step_index
     progress = Progress(total, quiet=args.quiet, gts=cfg.output.GTS, start_step=start)
     table = None
@@ -200,14 +210,20 @@ def _run(cfg, args, input_doc, model, resumed, saved) -> int:
     compiled_on = compiled.mode() == "1" and (compiled.enable() or True)
 
     def snapshot(snap=None):
-        snap = model.snapshot() if snap is None else snap
-        check_finite(model, snap)
-        check_step(model)
-        for w in writers:
-            w.write(snap)
-        save_restart()
-        if model.step_index != start:
-            progress.snapshot(model.step_index)
+        if lockstep is not None:
+            check_step(model)     # collective: every rank, before the round of output
+
+        def body(snap=snap):
+            snap = model.snapshot() if snap is None else snap
+            check_finite(model, snap)
+            if lockstep is None:
+                check_step(model)
+            for w in writers:
+                w.write(snap)
+            save_restart()
+            if model.step_index != start:
+                progress.snapshot(model.step_index)
+        output(body)
 
     define_doc = [None]
 
@@ -235,7 +251,7 @@ def _run(cfg, args, input_doc, model, resumed, saved) -> int:
 
     def complete_restart():
         """After a failure: restart.udf written in full from the last checkpoint."""
-        if saved.get("step") is not None and saved.get("full") != saved["step"]:
+        if writes and saved.get("step") is not None and saved.get("full") != saved["step"]:
             from .io.restart import complete_restart as complete
             try:
                 complete(args.restart, args.define, input_doc)
@@ -252,9 +268,12 @@ def _run(cfg, args, input_doc, model, resumed, saved) -> int:
     closing = "failed"
     try:
         try:
-            first = model.snapshot()
-            for w in writers:
-                w.open(first, resumed)
+            def open_writers():
+                first = model.snapshot()
+                for w in writers:
+                    w.open(first, resumed)
+                return first
+            first = output(open_writers)
             if model.step_index % cfg.output.GTS == 0 and model.step_index <= total:
                 snapshot(first)          # the writers skip what the continued run wrote
         except InstabilityError as e:
@@ -296,17 +315,23 @@ def _run(cfg, args, input_doc, model, resumed, saved) -> int:
                           f"{restart_hint(saved['step'], args)}. Try a smaller time_increment "
                           f"factor (or delta_t).", file=sys.stderr)
                     return 1
+            if lockstep is not None:     # every rank stops at the same step
+                stop["signal"] = lockstep.dist.comm.allreduce(stop["signal"] or 0,
+                                                              op=_mpi_max()) or None
             if stop["signal"] is not None:
                 closing = "interrupted"
-                try:
+
+                def last():
                     check_finite(model)
+                    save_restart(full=True)
+                try:
+                    output(last)
                 except InstabilityError as e:    # blew up since the last check: not saved
                     complete_restart()
                     print(f"kapsel-py: interrupted at step {model.step_index}, where {e}: "
                           f"that state is not saved. {restart_hint(saved['step'], args)}. "
                           f"{stability_advice(cfg)}", file=sys.stderr)
                     return 1
-                save_restart(full=True)
                 print(f"kapsel-py: interrupted at step {model.step_index} (t = {model.time:g}); "
                       f"{args.output} holds every snapshot so far and {args.restart} this "
                       f"step. Continue with: kapsel-py -I{args.restart} -O{args.output} "
@@ -320,7 +345,7 @@ def _run(cfg, args, input_doc, model, resumed, saved) -> int:
             try:
                 model.advance()
                 check_step(model)
-                check_finite(model)
+                output(lambda: check_finite(model))
                 if table is not None:
                     table.row(table_row(model))
             except (SolverDidNotConverge, FloatingPointError, InstabilityError, ValueError,
@@ -329,8 +354,11 @@ def _run(cfg, args, input_doc, model, resumed, saved) -> int:
                 print(f"kapsel-py: error: the step after the last snapshot failed: {e}. "
                       f"{restart_hint(saved['step'], args)}.", file=sys.stderr)
                 return 1
-        if saved.get("full") != model.step_index:
-            save_restart(full=True)
+        need = saved.get("full") != model.step_index
+        if lockstep is not None:         # rank 0 keeps the books of the restart
+            need = lockstep.dist.bcast(need)
+        if need:
+            output(lambda: save_restart(full=True))
         closing = "end"
     finally:
         for s, h in old.items():
@@ -340,3 +368,8 @@ def _run(cfg, args, input_doc, model, resumed, saved) -> int:
     sys.stdout.flush()
     progress.summary(args.output if cfg.output.UDF else None, args.restart)
     return 0
+
+
+def _mpi_max():
+    from mpi4py import MPI
+    return MPI.MAX

@@ -286,8 +286,8 @@ class ObliqueSpectralNS(_ObliqueFrame, SpectralNS):
         self._k22 = k.ky * k.ky + k.kz * k.kz      # k2^2 + k3^2
         self._m1 = np.rint(k.kx.ravel() * grid.box[0] / (2 * np.pi)).astype(np.int64)
         self._m2 = np.rint(k.ky.ravel() * grid.box[1] / (2 * np.pi)).astype(np.int64)
-        self._K2 = np.empty(grid.cshape)
-        self._invK2 = np.empty(grid.cshape)
+        self._K2 = np.empty(grid.local_cshape)
+        self._invK2 = np.empty(grid.local_cshape)
         self._gK = None
 
     def _metric(self, g):
@@ -376,7 +376,8 @@ class ObliqueSpectralNS(_ObliqueFrame, SpectralNS):
                 cross_in_place(u, w, n)
             n[0] -= g * n[1]                          # contravariant
             gr.forward(n, out=nl)
-            nl[:, 0, 0, 0] = 0.0
+            if self._k0:
+                nl[:, 0, 0, 0] = 0.0
             nl *= gr.dealias_f
         else:
             nl[...] = 0.0
@@ -396,7 +397,7 @@ class ObliqueSpectralNS(_ObliqueFrame, SpectralNS):
         gs = [self.shear.strain(t0 + a * dt) - off for a in (0.0, 0.5, 1.0)]
         gm = (gs[0] + 4 * gs[1] + gs[2]) / 6.0
         g2m = (gs[0] ** 2 + 4 * gs[1] ** 2 + gs[2] ** 2) / 6.0
-        K2 = np.multiply(self._k11, 1.0 + g2m, out=np.empty(self.grid.cshape))
+        K2 = np.multiply(self._k11, 1.0 + g2m, out=np.empty(self.grid.local_cshape))
         K2 -= (2.0 * gm) * self._k12
         K2 += self._k22
         z = K2
@@ -422,6 +423,8 @@ class ObliqueSpectralNS(_ObliqueFrame, SpectralNS):
     def apply_fix_cell(self):
         """Zero the mean Cartesian velocity along the flagged axes."""
         g = self.frame_strain
+        if not self._k0:
+            return
         m = self.u_hat[:, 0, 0, 0]
         if self.fix_cell[1]:
             m[1] = 0.0
@@ -439,6 +442,8 @@ class ObliqueSpectralNS(_ObliqueFrame, SpectralNS):
         """Replace the frame g by g - n s (module docstring): contravariant components
         u^1 += n s u^2 and mode (m1, m2) -> (m1, m2 - n m1); modes leaving the band are
         dropped."""
+        if self._dist:
+            return self._remap_distributed(n)
         uh = self.u_hat
         uh[0] += (n * self.s) * uh[1]
         ny = self.grid.shape[1]
@@ -455,6 +460,35 @@ class ObliqueSpectralNS(_ObliqueFrame, SpectralNS):
         self.remap_count += 1
         self._gK = None
 
+    def _remap_distributed(self, n):
+        """remap_fourier on a distributed grid (kapsel.parallel.pencil): the mode shift runs
+        along k_y, split over the ranks of a column, so each column gathers its
+        (NX, NY, z block) slab, shifts it as above and keeps its own block again (a re-mapping
+        happens once per strain Lx/Ly: rare)."""
+        g = self.grid
+        (y0, y1), nzb = g.spec_range[1], self.u_hat.shape[3]
+        parts = g.comm_x.allgather((y0, y1, self.u_hat))
+        ny = g.shape[1]
+        uh = np.empty((3, g.shape[0], ny, nzb), dtype=complex)
+        for a, b, blk in parts:
+            uh[:, :, a:b] = blk
+        uh[0] += (n * self.s) * uh[1]
+        m2 = np.fft.fftfreq(ny, 1.0 / ny)
+        if ny % 2 == 0:
+            m2[ny // 2] = ny // 2
+        m1, m2 = self._m1[:, None], np.rint(m2).astype(np.int64)[None, :]
+        new_m2 = m2 - n * m1
+        keep = (new_m2 >= -((ny - 1) // 2)) & (new_m2 <= (ny - 1) // 2)
+        src_i, src_j = np.nonzero(keep)
+        dst_j = new_m2[src_i, src_j] % ny
+        out = np.zeros_like(uh)
+        out[:, src_i, dst_j] = uh[:, src_i, src_j]
+        out *= np.exp(1j * g.kx * (n * self.s * self.y0))
+        np.copyto(self.u_hat, out[:, :, y0:y1])
+        self.remaps += n
+        self.remap_count += 1
+        self._gK = None
+
     def add_solenoidal(self, du, project=True):
         """u^ += P^G[FFT(contravariant(du))] for a Cartesian increment du on the oblique grid."""
         g = self.frame_strain
@@ -467,7 +501,7 @@ class ObliqueSpectralNS(_ObliqueFrame, SpectralNS):
     # ------------------------------------------------------------------ diagnostics
     def momentum(self):
         """RHO DX^3 sum u (Cartesian deviation)."""
-        m = self.u_hat[:, 0, 0, 0].real.copy()
+        m = self._mean_mode().real.copy()
         m[0] += self.frame_strain * m[1]
         return self.rho * self.grid.dx ** 3 * m
 
@@ -477,7 +511,10 @@ class ObliqueSpectralNS(_ObliqueFrame, SpectralNS):
     def kinetic_energy(self):
         """1/2 RHO DX^3 sum |u^|^2 of the deviation (Cartesian)."""
         u = self.velocity()
-        return 0.5 * self.rho * self.grid.dx ** 3 * float(np.sum(u * u))
+        e = float(np.sum(u * u))
+        if self._dist:
+            e = self.grid.sum(e)
+        return 0.5 * self.rho * self.grid.dx ** 3 * e
 
     def divergence_max(self):
         k = self.grid

@@ -145,6 +145,9 @@ class SpectralNS:
         # k as contiguous 1-d arrays for the compiled passes (kapsel.compiled)
         self._k1 = tuple(np.ascontiguousarray(k.ravel()) for k in (g.kx, g.ky, g.kz))
         self.force_hat = None
+        # a distributed grid (kapsel.parallel.pencil) holds the k = 0 mode on one rank only
+        self._k0 = getattr(g, "has_k0", True)
+        self._dist = hasattr(g, "comm")
         if force is not None:
             self.set_force(force)
 
@@ -185,7 +188,8 @@ class SpectralNS:
         fh = self.grid.empty_complex()
         if f.shape == (3,):
             fh[...] = 0.0
-            fh[:, 0, 0, 0] = f * self.grid.size
+            if self._k0:
+                fh[:, 0, 0, 0] = f * self.grid.size
         else:
             self.grid.forward(f, out=fh)
             self.grid.project(fh, tmp=(self._s, self._t))  # only its solenoidal part acts
@@ -221,7 +225,8 @@ class SpectralNS:
             g.backward_raw(wh, w)
             K.cross(u, w, n)           # n = u x omega
             g.forward(n, out=nl)
-            nl[:, 0, 0, 0] = 0.0       # exact: mean of (u.grad)u is 0; projected by step()
+            if self._k0:
+                nl[:, 0, 0, 0] = 0.0   # exact: mean of (u.grad)u is 0; projected by step()
             return nl
         if self.advection:
             uh, wh = self._uh, self._wh
@@ -242,7 +247,8 @@ class SpectralNS:
             g.backward_raw(wh, w)
             cross_in_place(u, w, n)    # n = u x omega
             g.forward(n, out=nl)
-            nl[:, 0, 0, 0] = 0.0                # exact: mean of (u.grad)u is 0
+            if self._k0:
+                nl[:, 0, 0, 0] = 0.0            # exact: mean of (u.grad)u is 0
             g.project(nl, tmp=(self._s, self._t))
         else:
             nl[...] = 0.0
@@ -297,7 +303,7 @@ class SpectralNS:
     def apply_fix_cell(self):
         """switch.FIX_CELL: zero the mean velocity along the flagged axes."""
         for c, on in enumerate(self.fix_cell):
-            if on:
+            if on and self._k0:
                 self.u_hat[c, 0, 0, 0] = 0.0
 
     def add_solenoidal(self, du, project=True):
@@ -316,18 +322,26 @@ class SpectralNS:
     # ------------------------------------------------------------------ diagnostics
     def momentum(self):
         """Total fluid momentum RHO DX^3 sum_x u (from the k = 0 mode), (3,)."""
-        return self.rho * self.grid.dx ** 3 * self.u_hat[:, 0, 0, 0].real.copy()
+        return self.rho * self.grid.dx ** 3 * self._mean_mode().real.copy()
+
+    def _mean_mode(self):
+        """u_hat at k = 0 (3,) (from its rank when distributed)."""
+        return self.grid.k0(self.u_hat) if self._dist else self.u_hat[:, 0, 0, 0]
 
     def mean_velocity(self):
-        return self.u_hat[:, 0, 0, 0].real / self.grid.size
+        return self._mean_mode().real / self.grid.size
 
     def kinetic_energy(self):
         """1/2 RHO DX^3 sum_x |u|^2 (Parseval over the half spectrum)."""
         g = self.grid
         e = np.sum(g.half_weight * (self.u_hat.real ** 2 + self.u_hat.imag ** 2))
+        if self._dist:
+            e = g.sum(e)
         return 0.5 * self.rho * g.dx ** 3 * float(e) / g.size
 
     def divergence_max(self):
         """max |div u| in real space (spectral derivative), for checks."""
         d = self.grid.divergence_hat(self.u_hat)
+        if self._dist:        # this rank's block, then the max over the ranks
+            return self.grid.max(np.abs(self.grid.irfft_scalar(np.ascontiguousarray(d))).max())
         return float(np.abs(np.fft.irfftn(d, s=self.grid.shape, axes=(0, 1, 2))).max())

@@ -245,11 +245,14 @@ def make_noise(cfg: RunConfig, particles: ParticleState, seed: int):
     return impulses
 
 
-def kinetic_energy(rho, dx, u, phi, particles) -> float:
+def kinetic_energy(rho, dx, u, phi, particles, reduce=None) -> float:
     """E: fluid outside the particles, 1/2 RHO sum (1 - phi)|u|^2 dx^3, plus the particles'
-    translational and rotational energy."""
+    translational and rotational energy.  ``reduce``: sums the fluid part over the ranks of
+    a distributed run (u, phi are then this rank's blocks)."""
     w = 1.0 - np.clip(phi, 0.0, 1.0) if phi is not None else 1.0
     e = 0.5 * rho * dx ** 3 * float(np.sum(w * np.einsum("i...,i...->...", u, u)))
+    if reduce is not None:
+        e = reduce(e)
     if particles is not None and particles.n:
         e += 0.5 * float(np.sum(particles.mass * np.sum(particles.v ** 2, axis=1)))
         e += 0.5 * float(np.sum(particles.inertia * np.sum(particles.omega ** 2, axis=1)))
@@ -297,6 +300,14 @@ class Model:
         # output.udf's first line, so a continuation can tell its own output.udf
         self.run_id = secrets.token_hex(8)
         self.run_id_known = False   # True once taken from a restart's state file
+        # distributed run (kapsel.parallel): rank 0 writes, the others serve its collectives
+        self.dist = getattr(args, "dist", None)
+        self.lockstep = None
+        if self.dist is not None:
+            from ..parallel.lockstep import Lockstep
+            self.lockstep = Lockstep(self.dist)
+            self.lockstep.register("source", self._gathered_source)
+            self._local_sources = {}
 
     def spm_radius(self) -> float:
         """The radius of the SPM profile: A, or with ``--spm-drag calibrated`` the radius
@@ -345,9 +356,27 @@ class Model:
             from ..particles.rigid import RigidBodies
             if isinstance(p.constraints, RigidBodies):
                 src["E_rot"] = p.constraints.rotational_energies
+        if self.dist is not None:      # every source a collective of the lockstep protocol
+            self._local_sources = src
+            src = {name: (lambda name=name: self.lockstep.call("source", name))
+                   for name in src}
         return Snapshot(step=self.step_index, time=self.time, dt=self.dt,
                         shape=tuple(self.cfg.mesh.shape), dx=self.cfg.mesh.DX, particles=p,
                         strain=float(self.frame_strain()), sheared=self.sheared, sources=src)
+
+    def _gathered_source(self, name):
+        """A snapshot source in a distributed run (every rank): a field of local blocks
+        gathered to rank 0 (None elsewhere); sources that gather or reduce themselves
+        return a ``Gathered`` (taken as is), scalars and particle data are the same
+        everywhere."""
+        from ..parallel.pencil import Gathered
+        v = self._local_sources[name]()
+        if isinstance(v, Gathered):
+            return v.value
+        g = self.grid
+        if isinstance(v, np.ndarray) and v.ndim >= 3 and v.shape[-3:] == g.local_shape:
+            return g.gather_real(v)
+        return v
 
     # ------------------------------------------------------------------ stability
     cfl_limit = 1.0             # largest max|u| dt / DX the explicit advection takes
@@ -362,6 +391,8 @@ class Model:
         particles, against ``cfl_limit``."""
         u = self.velocity_field()
         umax2 = float(np.max(np.einsum("i...,i...->...", u, u)))
+        if self.dist is not None:
+            umax2 = self.grid.max(umax2)
         p = self.particles
         if p is not None and p.n:
             umax2 = max(umax2, float(np.max(np.einsum("ij,ij->i", p.v, p.v))))

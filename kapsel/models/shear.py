@@ -130,12 +130,11 @@ class ShearLEModel(SpectralModel):
 
     def __init__(self, cfg: RunConfig, args):
         from ..fluid.oblique import ObliqueSpectralNS
-        from ..grid import Grid
         from ..particles.spm import SPM
         Model.__init__(self, cfg, args)
         f, seed = cfg.fluid, self.seed
         self.interpolation = check_interpolation(cfg)
-        self.grid = Grid(cfg.mesh.shape, cfg.mesh.DX, threads=self.threads)
+        self.grid = self.make_grid(cfg)
         self.fluid = ObliqueSpectralNS(self.grid, f.RHO, f.ETA, self.dt, shear_flow(cfg),
                                        fix_cell=cfg.switches.fix_cell)
         self.particles = make_particles(cfg, self.rng)
@@ -160,7 +159,8 @@ class ShearLEModel(SpectralModel):
         y = self.grid.coordinates()[1]
         u[0] += self.fluid.shear_rate_now * (y - self.fluid.y0)
         phi = self.spm.phi() if self.particles.n else None
-        return kinetic_energy(self.cfg.fluid.RHO, self.cfg.mesh.DX, u, phi, self.particles)
+        return kinetic_energy(self.cfg.fluid.RHO, self.cfg.mesh.DX, u, phi, self.particles,
+                              reduce=self.grid.sum if self.dist is not None else None)
 
     sheared = True
 
@@ -204,6 +204,55 @@ class ShearLEModel(SpectralModel):
                "pressure": pressure}
         if self.particles.n:
             src["phi"] = lambda: rect(self.spm.phi())
+        if self.dist is not None:
+            return self._gathered_sources(rect)
+        return src
+
+    def _gathered_sources(self, rect):
+        """The field sources of a distributed run: the oblique-grid fields (blocks along x
+        and y) gathered to rank 0, which interpolates them to the rectangular frame along x
+        and derives tau and the pressure there."""
+        from ..fluid.diagnostics import spectral_pressure, viscous_stress_spectral
+        from ..parallel.pencil import Gathered
+        g, fl, f, dx = self.grid, self.fluid, self.cfg.fluid, self.cfg.mesh.DX
+        root = self.dist.root
+        memo = {}
+
+        def deviation():          # gathered once per snapshot (None off rank 0)
+            if "u" not in memo:
+                memo["u"] = g.gather_real(self.spm.velocity())
+            return memo["u"]
+
+        def u():
+            d = deviation()
+            if not root:
+                return Gathered(None)
+            out = rect(d)
+            y = (np.arange(g.shape[1]) * dx)[None, :, None]
+            out[0] += fl.shear_rate_now * (y - fl.y0)
+            return Gathered(out)
+
+        def tau():
+            d = deviation()
+            if not root:
+                return Gathered(None)
+            t = viscous_stress_spectral(d, dx, f.ETA, fl.frame_strain)
+            t[1] += f.ETA * fl.shear_rate_now
+            return Gathered(rect(t))
+
+        def pressure():
+            d, du = deviation(), g.gather_real(self.spm.last_increment())
+            if not root:
+                return Gathered(None)
+            return Gathered(rect(spectral_pressure(d, du, f.RHO, self.dt, dx,
+                                                   fl.shear_rate_now, fl.frame_strain)))
+
+        src = {"u": u, "tau": tau, "pressure": pressure}
+        if self.particles.n:
+            def phi():
+                p = g.gather_real(self.spm.phi())
+                return Gathered(rect(p) if root else None)
+            src["phi"] = phi
         return src
 
     shear_table = LE_TABLE
@@ -217,6 +266,8 @@ class ShearLEModel(SpectralModel):
         uy = uh[1]
         n = self.grid.size
         uxuy = float(np.sum(self.grid.half_weight * (ux.real * uy.real + ux.imag * uy.imag)))
+        if self.dist is not None:
+            uxuy = self.grid.sum(uxuy)
         reynolds = -self.cfg.fluid.RHO * uxuy / (n * n)   # Parseval: sum_x = sum_k / N
         rate = fl.shear.rate(self.time - self.dt)
         return le_table_row(self.time, rate, g, fl.applied_strain,
@@ -231,7 +282,7 @@ class ShearLEModel(SpectralModel):
 
     # ------------------------------------------------------------------ restart
     def exact_state(self) -> dict:
-        return {"u_hat": self.fluid.u_hat.copy(), "remaps": int(self.fluid.remaps)}
+        return {"u_hat": self.global_u_hat().copy(), "remaps": int(self.fluid.remaps)}
 
     def accumulators(self) -> dict:
         st = self.stress
@@ -253,7 +304,7 @@ class ShearLEModel(SpectralModel):
         """Zeta / uk_dc of the covariant components in the oblique frame (FORMAT.md), and
         oblique.degree_oblique the frame strain."""
         from ..io.restart import pack_zeta
-        zeta, dc = pack_zeta(self._covariant(self.fluid.u_hat), self.cfg.mesh.DX,
+        zeta, dc = pack_zeta(self._covariant(self.global_u_hat()), self.cfg.mesh.DX,
                              sheared=True)
         return {"Zeta": zeta, "uk_dc": [float(c) for c in dc],
                 "oblique": [float(self.fluid.frame_strain)]}
@@ -262,12 +313,13 @@ class ShearLEModel(SpectralModel):
         """The state file's u_hat, or else Zeta / uk_dc (covariant, oblique frame) back to
         contravariant components, metric-projected, in the frame of degree_oblique."""
         if exact and "u_hat" in exact:
-            if exact["u_hat"].shape != self.fluid.u_hat.shape:
+            want = (3,) + tuple(self.grid.cshape)
+            if exact["u_hat"].shape != want:
                 raise ConfigError(f"the restart's velocity has shape {exact['u_hat'].shape}, "
-                                  f"the mesh needs {self.fluid.u_hat.shape}",
+                                  f"the mesh needs {want}",
                                   path="resume.CONTINUE.Saved_Data.Zeta[]", value="shape")
             self.fluid.set_time(self.time, exact.get("remaps"))
-            self.fluid.set_contravariant_hat(exact["u_hat"])
+            self.fluid.set_contravariant_hat(self.local(exact["u_hat"]))
         else:
             fl = self.fluid
             g_saved = float((fields.get("oblique") or [0.0])[0])
@@ -278,8 +330,10 @@ class ShearLEModel(SpectralModel):
             u[0] = (1.0 + g * g) * w[0] - g * w[1]
             u[1] = w[1] - g * w[0]
             dc = u[:, 0, 0, 0].copy()
+            u = np.ascontiguousarray(self.local(u))
             fl.project_metric(u, g)
-            u[:, 0, 0, 0] = dc
+            if getattr(self.grid, "has_k0", True):
+                u[:, 0, 0, 0] = dc
             fl.set_contravariant_hat(u)
         self.spm.refresh()
 
@@ -322,9 +376,22 @@ class ZigzagShear:
         self.Z -= self.Z.mean()
         self.Zh = np.fft.fft(self.Z) * (nx * nz)          # the (0, k_y, 0) modes of u_hat
         self.Zh[0] = 0.0
+        my = np.fft.fftfreq(ny, 1.0 / ny)       # all k_y, as kapsel.grid computes them
+        if ny % 2 == 0:
+            my[ny // 2] = ny // 2
+        ky = 2.0 * np.pi * my / (ny * g.dx)
+        dZ = np.fft.ifft(1j * ky * np.fft.fft(self.Z)).real
+        self.Zf = np.fft.fft(self.Z)
+        # a distributed grid (kapsel.parallel.pencil): the (0, k_y, 0) modes are on the ranks
+        # of the first z block, each with its block of k_y; the stress sums over the ranks
+        self._sum, self.on = None, True
+        if hasattr(g, "comm"):
+            y0, y1 = g.spec_range[1]
+            self.Zh, self.Zf = self.Zh[y0:y1], self.Zf[y0:y1]
+            self.on = g.spec_range[2][0] == 0
+            self._sum = g.sum
         ky = g.ky.ravel()
         self.w = fluid.dt * phi1(-fluid.nu * ky * ky * fluid.dt)
-        dZ = np.fft.ifft(1j * ky * np.fft.fft(self.Z)).real
         self.Z2 = float(np.mean(self.Z ** 2))
         self.dZ2 = float(np.mean(dZ ** 2))
         self.scale = nx * nz
@@ -333,14 +400,19 @@ class ZigzagShear:
 
     def impose(self, t_new):
         """Set the zigzag modes for time t_new; accumulate the stress of the step."""
-        uh = self.fluid.u_hat[0, 0, :, 0]
-        target = self.shear.rate(t_new) * self.Zh
-        corr = target - uh
-        corr[0] = 0.0
-        uh += corr
-        F = corr / self.w                                  # force modes (times N_x N_z)
-        # <F_x Z> = (1/Ny) sum_y F(y) Z(y) = (1/Ny^2) sum_k F^ Z^* / (N_x N_z)
-        fz = float(np.real(np.vdot(np.fft.fft(self.Z), F))) / (self.Z.size ** 2 * self.scale)
+        fz = 0.0
+        if self.on:
+            uh = self.fluid.u_hat[0, 0, :, 0]
+            target = self.shear.rate(t_new) * self.Zh
+            corr = target - uh
+            if self._sum is None or self.fluid.grid.spec_range[1][0] == 0:
+                corr[0] = 0.0
+            uh += corr
+            F = corr / self.w                              # force modes (times N_x N_z)
+            # <F_x Z> = (1/Ny) sum_y F(y) Z(y) = (1/Ny^2) sum_k F^ Z^* / (N_x N_z)
+            fz = float(np.real(np.vdot(self.Zf, F))) / (self.Z.size ** 2 * self.scale)
+        if self._sum is not None:
+            fz = self._sum(fz)
         dt = self.fluid.dt
         drate = (self.shear.rate(t_new) - self.shear.rate(t_new - dt)) / dt
         self.last_force = self.rho * fz / self.dZ2          # this step's, for the table
@@ -356,7 +428,8 @@ class ZigzagShear:
         return s
 
     def initial(self, t):
-        self.fluid.u_hat[0, 0, :, 0] = self.shear.rate(t) * self.Zh
+        if self.on:
+            self.fluid.u_hat[0, 0, :, 0] = self.shear.rate(t) * self.Zh
 
 
 class ZigzagModel(SpectralModel):

@@ -15,11 +15,10 @@ from .common import (Model, kinetic_energy, make_forces, make_noise, make_partic
 class SpectralModel(Model):
     def __init__(self, cfg: RunConfig, args):
         from ..fluid.spectral import SpectralNS
-        from ..grid import Grid
         from ..particles.spm import SPM
         super().__init__(cfg, args)
         f, seed = cfg.fluid, self.seed
-        self.grid = Grid(cfg.mesh.shape, cfg.mesh.DX, threads=self.threads)
+        self.grid = self.make_grid(cfg)
         self.fluid = SpectralNS(self.grid, f.RHO, f.ETA, self.dt, fix_cell=cfg.switches.fix_cell)
         from ..particles.walls import make_wall
         self.particles = make_particles(cfg, self.rng)
@@ -29,6 +28,24 @@ class SpectralModel(Model):
                        forces=overlap_guard(make_forces(cfg, self.particles, wall=self.wall)),
                        noise=make_noise(cfg, self.particles, seed), wall=self.wall,
                        dry=self.dry)
+
+    def make_grid(self, cfg):
+        """The mesh: a ``kapsel.grid.Grid``, or in a distributed run this rank's blocks of
+        it (kapsel.parallel.pencil.PencilGrid)."""
+        from ..grid import Grid
+        if self.dist is None:
+            return Grid(cfg.mesh.shape, cfg.mesh.DX, threads=self.threads)
+        from ..parallel.pencil import PencilGrid
+        try:
+            grid = PencilGrid(cfg.mesh.shape, cfg.mesh.DX, self.dist.comm, self.dist.dims)
+        except ValueError as e:
+            raise ConfigError(str(e), path="mesh", value="process grid") from None
+        self.lockstep.register("u_hat", lambda: grid.gather_complex(self.fluid.u_hat))
+        return grid
+
+    def local(self, a):
+        """This rank's block of a whole Fourier field (itself in a plain run)."""
+        return a if self.dist is None else self.grid.local_complex(a)
 
     def advance(self):
         self.spm.step()
@@ -44,7 +61,14 @@ class SpectralModel(Model):
     def kinetic_energy(self) -> float:
         phi = self.phi_total() if self.particles.n or self.wall is not None else None
         return kinetic_energy(self.cfg.fluid.RHO, self.cfg.mesh.DX, self.spm.velocity(), phi,
-                              self.particles)
+                              self.particles,
+                              reduce=self.grid.sum if self.dist is not None else None)
+
+    def global_u_hat(self):
+        """The whole u_hat: gathered to rank 0 in a distributed run (None on the others)."""
+        if self.dist is None:
+            return self.fluid.u_hat
+        return self.lockstep.call("u_hat")
 
     def record_items(self) -> dict:
         return {}
@@ -55,11 +79,11 @@ class SpectralModel(Model):
     def restart_fields(self) -> dict:
         """Zeta and uk_dc: the fluid's u_hat in the original's packing (kapsel.io.restart)."""
         from ..io.restart import pack_zeta
-        zeta, dc = pack_zeta(self.fluid.u_hat, self.cfg.mesh.DX)
+        zeta, dc = pack_zeta(self.global_u_hat(), self.cfg.mesh.DX)
         return {"Zeta": zeta, "uk_dc": [float(c) for c in dc], "oblique": [0.0]}
 
     def exact_state(self) -> dict:
-        return {"u_hat": self.fluid.u_hat.copy()}
+        return {"u_hat": self.global_u_hat().copy()}
 
     checkpoint_complete = False
 
@@ -87,15 +111,17 @@ class SpectralModel(Model):
 
     def load_fields(self, fields: dict, exact) -> None:
         """The state file's u_hat (bit-identical continuation) or else Zeta / uk_dc."""
+        local = self.local
         if exact and "u_hat" in exact:
-            if exact["u_hat"].shape != self.fluid.u_hat.shape:
+            want = (3,) + tuple(self.grid.cshape)
+            if exact["u_hat"].shape != want:
                 raise ConfigError(f"the restart's velocity has shape {exact['u_hat'].shape}, "
-                                  f"the mesh needs {self.fluid.u_hat.shape}",
+                                  f"the mesh needs {want}",
                                   path=f"resume.{self.cfg.resume.calculation}.Saved_Data.Zeta[]",
                                   value="shape")
-            self.fluid.set_velocity_hat(exact["u_hat"])
+            self.fluid.set_velocity_hat(local(exact["u_hat"]))
         else:
-            self.fluid.set_velocity_hat(self._zeta_velocity(fields))
+            self.fluid.set_velocity_hat(local(self._zeta_velocity(fields)))
         self.spm.refresh()
 
     def field_sources(self) -> dict:
@@ -114,6 +140,18 @@ class SpectralModel(Model):
         src = {"u": u,
                "tau": lambda: viscous_stress_spectral(u(), dx, f.ETA),
                "pressure": lambda: spectral_pressure(u(), self.spm.last_increment(), f.RHO, self.dt, dx)}
+        if self.dist is not None:   # tau, pressure: from the gathered fields, on rank 0
+            from ..parallel.pencil import Gathered
+            g = self.grid
+
+            def on_root(fn):
+                def gathered():
+                    args = [g.gather_real(a()) for a in fn[1:]]
+                    return Gathered(fn[0](*args) if self.dist.root else None)
+                return gathered
+            src["tau"] = on_root((lambda U: viscous_stress_spectral(U, dx, f.ETA), u))
+            src["pressure"] = on_root((lambda U, D: spectral_pressure(U, D, f.RHO, self.dt, dx),
+                                       u, self.spm.last_increment))
         if self.particles.n or self.wall is not None:
             src["phi"] = self.phi_total
         return src

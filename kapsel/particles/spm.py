@@ -117,6 +117,18 @@ class SPM:
         else:
             raise TypeError("fluid must be a SpectralNS or a MACSolver")
         self.size = int(np.prod(self.shape))
+        # distributed fluid (kapsel.parallel.pencil): this rank's block of the fields; the
+        # profiles are computed whole (masses, centroids as in a serial run), then cut to the
+        # block (_localize) for every field operation, and the per-particle sums of the
+        # coupling are summed over the ranks (_reduce)
+        g = getattr(fluid, "grid", None)
+        self.dist = g if hasattr(g, "comm") else None
+        if self.dist is not None and (wall is not None or getattr(particles, "janus", None)
+                                      is not None):
+            raise ValueError("walls and self-propelled particles do not run distributed")
+        self.fshape = tuple(g.local_shape) if self.dist is not None else self.shape
+        self.fsize = int(np.prod(self.fshape))
+        self._T = None          # distributed: the particles whose stencil meets the block
         self.wall = wall
         self._rest = self._c = None
         if wall is not None and not dry:      # (its blocks are measured: not for a check)
@@ -162,6 +174,8 @@ class SPM:
     # ------------------------------------------------------------------ profiles
     def _profiles(self):
         """phi_i, r at the current positions; grid volumes, centroid-corrected r, masses."""
+        if self.dist is not None:
+            return self._profiles_distributed()
         p = self.p
         g, y0 = (self.fluid.frame_strain, self.fluid.y0) if self.oblique else (0.0, 0.0)
         self.idx, self.phi_i, r = particle_profiles(p.R, self.stencil, self.shape, self.dx, g,
@@ -181,6 +195,107 @@ class SPM:
         else:
             self.mass, self.inertia = p.mass, p.inertia
 
+    # ------------------------------------------------------------------ distributed
+    def _profiles_distributed(self):
+        """``_profiles`` on a distributed grid: the whole profiles of the particles whose
+        stencil meets this rank's block only (``_near``), so the profile work and memory of
+        a rank scale with its share of the particles; the grid volume and the sum of
+        phi_i |r|^2 of each particle (its mass and moment of inertia, needed by every rank
+        for the replicated motion) come from the rank holding its stencil's base point (one
+        value and zeros summed: exact), the same bits as the serial computation."""
+        p = self.p
+        g, y0 = (self.fluid.frame_strain, self.fluid.y0) if self.oblique else (0.0, 0.0)
+        T, own = self._near(p.R, g, y0)
+        self._T = T
+        self.idx, self.phi_i, r = particle_profiles(p.R[T], self.stencil, self.shape, self.dx,
+                                                    g, y0)
+        w = self.phi_i.sum(axis=1)
+        if self.center:
+            c = np.stack([np.einsum("ns,ns->n", self.phi_i, r[..., k]) for k in range(3)],
+                         axis=1) / w[:, None]
+            r -= c[:, None, :]
+        self.r = r
+        r2 = sum(np.einsum("ns,ns,ns->n", self.phi_i, r[..., k], r[..., k]) for k in range(3))
+        keep = np.zeros((p.n, 2))
+        keep[T[own], 0] = w[own]
+        keep[T[own], 1] = r2[own]
+        w, r2 = self._reduce(keep[:, 0].copy(), keep[:, 1].copy())
+        self.grid_volume = w * self.dx ** 3
+        if self.mass_mode == "grid":
+            self.mass = self.rho * self.grid_volume + self.excess_mass
+            self.inertia = (2.0 / 3.0) * self.rho * self.dx ** 3 * r2 + self.excess_inertia
+        else:
+            self.mass, self.inertia = p.mass, p.inertia
+        self._localize()
+
+    def _near(self, R, strain, origin):
+        """(indices of the particles whose stencil meets this rank's block, which of them
+        have their base point (the stencil's origin) in the block)."""
+        s = np.asarray(R, dtype=float) / self.dx
+        if strain:
+            s[:, 0] = (R[:, 0] - strain * (R[:, 1] - origin)) / self.dx
+        with np.errstate(invalid="ignore"):
+            b = np.floor(s).astype(np.int64)
+        near = np.ones(len(s), dtype=bool)
+        own = np.ones(len(s), dtype=bool)
+        for axis in (0, 1):                   # the blocks split x and y
+            n = self.shape[axis]
+            a0, a1 = self.dist.real_range[axis]
+            o = self.stencil.offsets[:, axis]
+            lo, width = int(o.min()), int(o.max() - o.min()) + 1
+            start = np.mod(b[:, axis] + lo, n)
+            if width < n:
+                near &= (np.mod(a0 - start, n) < width) | (np.mod(start - a0, n) < a1 - a0)
+            base = np.mod(b[:, axis], n)
+            own &= (base >= a0) & (base < a1)
+        T = np.flatnonzero(near)
+        return T, own[T]
+
+    def _sub(self, a):
+        """The rows of the particles this rank couples (all of them in a plain run)."""
+        return a if self._T is None else a[self._T]
+
+    def _full(self, a):
+        out = np.zeros((self.p.n,) + a.shape[1:])
+        out[self._T] = a
+        return out
+
+    def _localize(self):
+        """Cut the stencils to this rank's block of the distributed fields: ``idx`` flat
+        indices into the local block (0 off the block), ``phi_i`` 0 off the block, so every
+        sum over stencil points is this rank's part of it."""
+        nx, ny, nz = self.shape
+        (x0, x1), (y0, y1), _ = self.dist.real_range
+        ix, rest = np.divmod(self.idx, ny * nz)
+        iy, iz = np.divmod(rest, nz)
+        ix -= x0
+        iy -= y0
+        on = (ix >= 0) & (ix < x1 - x0) & (iy >= 0) & (iy < y1 - y0)
+        ix *= (y1 - y0)
+        ix += iy
+        ix *= nz
+        ix += iz
+        self.idx = np.where(on, ix, 0)
+        self.phi_i = np.where(on, self.phi_i, 0.0)
+
+    def _reduce(self, *arrays):
+        """Sum of per-particle arrays over the ranks, the same bits on every rank (MPI
+        Reduce to rank 0 in MPI's fixed order for this number of ranks, then Bcast)."""
+        if self.dist is None:
+            return arrays
+        from mpi4py import MPI
+        buf = np.concatenate([np.asarray(a, dtype=float).reshape(-1) for a in arrays])
+        out = np.empty_like(buf)
+        comm = self.dist.comm
+        comm.Reduce(buf, out, op=MPI.SUM, root=0)
+        comm.Bcast(out, root=0)
+        res, i = [], 0
+        for a in arrays:
+            a = np.asarray(a)
+            res.append(out[i:i + a.size].reshape(a.shape))
+            i += a.size
+        return tuple(res)
+
     def refresh(self):
         """Recompute the profiles after the positions were set from outside (a restart)."""
         if self.p.n:
@@ -189,14 +304,14 @@ class SPM:
     def phi(self):
         """Total profile phi (eq 4), (NX, NY, NZ)."""
         if not self.p.n:
-            return np.zeros(self.shape)
-        return total_phi(self.idx, self.phi_i, self.size).reshape(self.shape)
+            return np.zeros(self.fshape)
+        return total_phi(self.idx, self.phi_i, self.fsize).reshape(self.fshape)
 
     def particle_velocity(self):
         """phi u_p of eq 6, (3, NX, NY, NZ)."""
         p = self.p
-        return particle_velocity_field(self.idx, self.phi_i, self.r, p.v, p.omega, self.size,
-                                       self.shape)
+        return particle_velocity_field(self.idx, self.phi_i, self.r, self._sub(p.v),
+                                       self._sub(p.omega), self.fsize, self.fshape)
 
     # ------------------------------------------------------------------ fluid access
     def velocity(self):
@@ -250,8 +365,8 @@ class SPM:
         u = self.fluid.velocity(out=self.u) if self.mode == "spectral" else self.u
         p = self.p
         v, shear = self._relative_velocity()
-        self._add_solenoidal(rigidity_increment(u, self.idx, self.phi_i, self.r, v,
-                                                p.omega, self.size, shear=shear))
+        self._add_solenoidal(rigidity_increment(u, self.idx, self.phi_i, self.r, self._sub(v),
+                                                self._sub(p.omega), self.fsize, shear=shear))
         if self._rest is not None:
             self._hold_solid()
 
@@ -277,8 +392,11 @@ class SPM:
                 self._us = np.empty((3,) + self.idx.shape)
             us = sample(u, self.idx, out=self._us)
             v, shear = self._relative_velocity()
-            F_H, T_H = hydro_force_torque(u, self.idx, self.phi_i, self.r, v, p.omega,
-                                          self.rho, self.dx, self.dt, shear=shear, sampled=us)
+            F_H, T_H = hydro_force_torque(u, self.idx, self.phi_i, self.r, self._sub(v),
+                                          self._sub(p.omega), self.rho, self.dx, self.dt,
+                                          shear=shear, sampled=us)
+            if self.dist is not None:
+                F_H, T_H = self._reduce(self._full(F_H), self._full(T_H))
             F_o = T_o = None
             if self.forces is not None:
                 res = self.forces(p)
@@ -294,10 +412,13 @@ class SPM:
             v, shear = self._relative_velocity()
             if self.wall is not None:
                 self._du.fill(0.0)            # dense after a wall step
-            du = rigidity_increment(u, self.idx, self.phi_i, self.r, v, p.omega, self.size,
+            du = rigidity_increment(u, self.idx, self.phi_i, self.r, self._sub(v),
+                                    self._sub(p.omega), self.fsize,
                                     out=self._du, shear=shear,
                                     moment=self.moment if self.oblique else None,
                                     sampled=us, zeroed=True)
+            if self.oblique and self.dist is not None:
+                self.moment[...] = self._reduce(self.moment)[0]
             if self.wall is not None:
                 self._wall_increment(du)
             self._add_solenoidal(du)
@@ -347,7 +468,7 @@ class SPM:
         if self.wall is not None:             # dense, kept until the next step
             return (np.array(self._du[:, :self.shape[0], :self.shape[1], :self.shape[2]])
                     if self._du_stepped else np.zeros((3,) + self.shape))
-        du = np.zeros((3,) + self.shape)
+        du = np.zeros((3,) + self.fshape)
         if self._du_points is not None and self.p.n:
             flat = self.idx.reshape(-1)
             if flat.size == self._du_points.shape[1]:

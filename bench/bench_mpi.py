@@ -1,0 +1,122 @@
+"""Strong scaling of distributed Navier_Stokes runs (README "Distributed runs").
+
+    .venv/bin/python bench/bench_mpi.py [--sizes 64 128] [--ranks 1 2] [--particles 20]
+                                        [--steps 10]
+
+For each mesh N^3: the plain (serial, no MPI) run and ``mpiexec -n P`` for each P, on the
+manual's sample input (samples/input.udf) turned into Navier_Stokes with N^3 cells,
+``--particles`` particles (A = 4) and no thermal noise.  Each run builds the model as
+``kapsel-py`` does (kapsel.cli.prepare: input, model, particles, FFT plans), makes 2
+warm-up steps, then times ``--steps`` steps between two barriers (rank 0's wall clock):
+the time per step of the time loop, without start-up or output (and the CPU time per step
+of the slowest rank: MPICH polls while it waits, so this counts waiting too, but not the
+time the rank was kept off a busy machine's cores).  The fastest of ``--repeat`` runs is
+kept.  Efficiency E = T_serial / (P T_P).
+"""
+import argparse
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+ROOT = os.path.join(HERE, "..")
+sys.path.insert(0, ROOT)
+
+SAMPLES = os.path.join(ROOT, "samples")
+
+
+def make_input(d, n, particles):
+    from udf import UDFManager
+    os.makedirs(d, exist_ok=True)
+    for f in ("define.udf", "kapsel_unit.udf"):
+        shutil.copy(os.path.join(SAMPLES, f), os.path.join(d, f))
+    u = UDFManager(os.path.join(SAMPLES, "input.udf"))
+    u.put("Navier_Stokes", "constitutive_eq.type")
+    for k in ("NPX", "NPY", "NPZ"):
+        u.put(n.bit_length() - 1, f"mesh.{k}")            # N = 2^NP
+    u.put(0.0, "constitutive_eq.Navier_Stokes.kBT")
+    u.put(particles, "object_type.spherical_particle.Particle_spec[0].Particle_number")
+    u.put("OFF", "output.AVS")
+    u.write(os.path.join(d, "input.udf"))
+
+
+def worker(steps):
+    """In the run directory (under mpiexec or not): build the model, time ``steps`` steps."""
+    from kapsel.cli import build_parser, prepare
+    from kapsel.parallel import start
+    args = build_parser().parse_args(["-Iinput.udf", "-Ooutput.udf", "-Ddefine.udf",
+                                      "-Rrestart.udf", "--seed", "1", "--quiet", "--overwrite"])
+    args.dist = start(args)
+    prepared = prepare(args)
+    if isinstance(prepared, int):
+        raise SystemExit(prepared)
+    model = prepared[2]
+    comm = args.dist.comm if args.dist is not None else None
+    for _ in range(2):
+        model.advance()
+    if comm is not None:
+        comm.Barrier()
+    t0, c0 = time.perf_counter(), time.process_time()
+    for _ in range(steps):
+        model.advance()
+    c = (time.process_time() - c0) / steps
+    if comm is not None:
+        comm.Barrier()
+        c = comm.allreduce(c, op=_max())
+    t = (time.perf_counter() - t0) / steps
+    if comm is None or comm.Get_rank() == 0:
+        sys.__stdout__.write(f"{t:.6f} {c:.6f}\n")
+
+
+def _max():
+    from mpi4py import MPI
+    return MPI.MAX
+
+
+def timed(d, ranks, steps):
+    cmd = [sys.executable, os.path.abspath(__file__), "--worker", str(steps)]
+    if ranks:
+        mpiexec = (shutil.which("mpiexec", path=os.path.dirname(sys.executable))
+                   or shutil.which("mpiexec"))
+        cmd = [mpiexec, "-n", str(ranks)] + cmd
+    r = subprocess.run(cmd, cwd=d, capture_output=True, text=True)
+    if r.returncode:
+        raise SystemExit(f"{' '.join(cmd)} failed in {d}:\n{r.stderr[-2000:]}")
+    return tuple(float(x) for x in r.stdout.split()[-2:])
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--sizes", type=int, nargs="+", default=[64, 128])
+    ap.add_argument("--ranks", type=int, nargs="+", default=[1, 2])
+    ap.add_argument("--particles", type=int, default=20)
+    ap.add_argument("--steps", type=int, default=10)
+    ap.add_argument("--repeat", type=int, default=2)
+    ap.add_argument("--worker", type=int, default=None, help=argparse.SUPPRESS)
+    a = ap.parse_args()
+    if a.worker is not None:
+        return worker(a.worker)
+    if any(n & (n - 1) for n in a.sizes):
+        raise SystemExit("--sizes: powers of two (the input gives 2^NP)")
+    print(f"{a.particles} particles, {a.steps} timed steps, best of {a.repeat}\n"
+          f"| mesh | run | ms / step | speed-up | efficiency | CPU ms / step (slowest rank) |"
+          f"\n|---|---|---|---|---|---|",
+          flush=True)
+    with tempfile.TemporaryDirectory(prefix="bench_mpi-") as tmp:
+        for n in a.sizes:
+            d = os.path.join(tmp, f"n{n}")
+            make_input(d, n, a.particles)
+            t0, c0 = min(timed(d, 0, a.steps) for _ in range(a.repeat))
+            print(f"| {n}^3 | serial (no MPI) | {1e3 * t0:.1f} | 1 | 1 | {1e3 * c0:.1f} |",
+                  flush=True)
+            for p in a.ranks:
+                t, c = min(timed(d, p, a.steps) for _ in range(a.repeat))
+                print(f"| {n}^3 | mpiexec -n {p} | {1e3 * t:.1f} | {t0 / t:.2f} | "
+                      f"{t0 / (p * t):.2f} | {1e3 * c:.1f} |", flush=True)
+
+
+if __name__ == "__main__":
+    main()

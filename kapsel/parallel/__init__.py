@@ -1,0 +1,147 @@
+"""Distributed runs over MPI (README "Distributed runs").
+
+``start(args)`` is called by the command line before anything else: it returns None for a
+plain run (mpi4py is then never imported) or a ``Dist`` when the process was started by an
+MPI launcher (mpiexec / mpirun / srun: their PMI or Open MPI environment variables) or was
+given the original's ``-X`` / ``-Y`` process-grid flags with X Y > 1.
+
+Which types run distributed: ``DISTRIBUTED``.  Any other type is refused with more than one
+rank (``refuse``), never run serially on every rank writing the same files.
+
+Division of work (kapsel.parallel.pencil for the fields, kapsel.parallel.lockstep for the
+output): every rank holds its block of the fields and the state of all the particles
+(replicated: ~0.3 kB per particle, 32 MB for N = 10^5), moves all of them identically
+(pair forces, noise, motion) and computes the profiles of those whose stencil meets its
+block (kapsel.particles.spm, ``_profiles_distributed``), coupling them to its part of the
+fluid; the per-particle sums of the coupling (hydrodynamic force and torque) are summed
+over the ranks by MPI_Reduce to rank 0 + MPI_Bcast, so every rank gets the same bits and
+the particles stay identical everywhere.  Rank 0 writes output.udf, restart.udf and the
+field files with the fields gathered to it.  This replication instead of particles owned
+by one rank with halo exchange is the simpler design for N <= 10^5 particles; its limits
+are in the README ("Distributed runs").
+"""
+from __future__ import annotations
+
+import os
+import sys
+
+__all__ = ["DISTRIBUTED", "Dist", "launched_size", "start"]
+
+DISTRIBUTED = ("Navier_Stokes", "Shear_Navier_Stokes", "Shear_Navier_Stokes_Lees_Edwards")
+
+_SIZE_VARS = ("PMI_SIZE", "OMPI_COMM_WORLD_SIZE", "MV2_COMM_WORLD_SIZE", "PMIX_SIZE")
+
+
+def launched_size() -> int | None:
+    """Number of ranks an MPI launcher started this process with, None if none did."""
+    for v in _SIZE_VARS:
+        s = os.environ.get(v)
+        if s and s.isdigit():
+            return int(s)
+    return None
+
+
+class DistError(Exception):
+    """A distributed run cannot start (message for the user)."""
+
+
+class Dist:
+    """The MPI world of a run: ``comm``, ``rank``, ``size``, process grid ``dims`` (px, py)."""
+
+    def __init__(self, comm, dims):
+        self.comm = comm
+        self.rank = comm.Get_rank()
+        self.size = comm.Get_size()
+        self.dims = dims
+        self.lockstep = None        # kapsel.parallel.lockstep.Lockstep, set by the model
+
+    @property
+    def root(self) -> bool:
+        return self.rank == 0
+
+    def agree(self, status):
+        """The worst of every rank's ``status`` (None = fine, else an exit code), on every
+        rank: a refusal on one rank stops them all, before any collective work."""
+        code = 0 if status is None else int(status)
+        return self.comm.allreduce(code, op=_mpi().MAX) or None
+
+    def bcast(self, value):
+        return self.comm.bcast(value, root=0)
+
+    def __repr__(self):
+        return f"Dist(rank {self.rank} of {self.size}, grid {self.dims[0]} x {self.dims[1]})"
+
+
+def _mpi():
+    from mpi4py import MPI
+    return MPI
+
+
+def start(args):
+    """None (a plain run) or the ``Dist`` of this process (module docstring).  Raises
+    DistError when mpi4py is missing or the -X / -Y grid does not match the ranks."""
+    X, Y = getattr(args, "X", None), getattr(args, "Y", None)
+    launched = launched_size()
+    for flag, v in (("-X", X), ("-Y", Y)):
+        if v is not None and v < 1:
+            raise DistError(f"{flag} must be at least 1, got {v}")
+    grid = (X or 1) * (Y or 1)
+    if launched is None and grid == 1:
+        return None
+    try:
+        from mpi4py import MPI
+    except ImportError:
+        raise DistError("a distributed run needs mpi4py and an MPI library: pip install "
+                        "'kapsel-py[mpi]' (the mpi4py and mpich wheels)") from None
+    comm = MPI.COMM_WORLD
+    size = comm.Get_size()
+    if launched is not None and launched != size:
+        raise DistError(f"started by an MPI launcher for {launched} ranks, but the MPI library "
+                        f"of mpi4py sees {size}: the mpirun / mpiexec is not that of the MPI "
+                        f"library mpi4py uses (use the one installed with it, e.g. the venv's "
+                        f"bin/mpiexec of the mpich wheel); every process would otherwise run "
+                        f"the whole input alone")
+    if X is None and Y is None:
+        dims = (size, 1)
+    elif X is None:
+        dims = (size // Y, Y)
+    elif Y is None:
+        dims = (X, size // X)
+    else:
+        dims = (X, Y)
+    if dims[0] * dims[1] != size:
+        raise DistError(f"the process grid -X{X or '?'} -Y{Y or '?'} does not match the "
+                        f"{size} rank(s) of this run (X Y must equal the number of ranks; "
+                        f"start with mpirun -n {(X or 1) * (Y or 1)})")
+    dist = Dist(comm, dims)
+    if not dist.root:                         # one voice: rank 0 speaks for the run
+        sys.stdout = open(os.devnull, "w")
+        sys.stderr = open(os.devnull, "w")
+        hook = sys.excepthook
+
+        def abort(*exc):                      # a failure on one rank ends them all
+            sys.stderr = sys.__stderr__
+            hook(*exc)
+            comm.Abort(1)
+        sys.excepthook = abort
+    return dist
+
+
+def refuse(dist, cfg) -> str | None:
+    """Why the run of ``cfg`` cannot be distributed over ``dist`` (None: it can)."""
+    if dist is None or dist.size == 1:
+        return None
+    if cfg.type not in DISTRIBUTED:
+        return (f"constitutive_eq.type {cfg.type} does not run distributed: run it on one "
+                f"process (without mpirun, or mpirun -n 1); distributed types: "
+                f"{', '.join(DISTRIBUTED)}")
+    if getattr(cfg.switches, "wall", None) is not None:
+        return ("switch.wall (flat walls) does not run distributed: run this input on one "
+                "process (without mpirun, or mpirun -n 1)")
+    if cfg.particles.object_type == "spherical_particle" and any(
+            getattr(s, "janus", None) is not None and s.janus.propulsion != "OFF"
+            for s in cfg.particles.species):
+        return ("self-propelled particles (Particle_spec[].janus_axis / janus_propulsion) do "
+                "not run distributed: run this input on one process (without mpirun, or "
+                "mpirun -n 1)")
+    return None
