@@ -41,7 +41,8 @@ from kapsel.timestep import auto_dt  # noqa: E402
 
 def build(n, threads, scheme="etd1", planner="auto"):
     g = Grid((n, n, n), 1.0, threads=threads, planner=planner)
-    ns = SpectralNS(g, 1.0, 1.0, auto_dt(1.0, 1.0, 1.0, 1.0), fix_cell=True, scheme=scheme)
+    ns = SpectralNS(g, 1.0, 1.0, auto_dt(1.0, 1.0, 1.0, 1.0, g.shape), fix_cell=True,
+                    scheme=scheme)
     ns.set_velocity(np.random.default_rng(0).normal(size=(3,) + g.shape) * 1e-3)
     return ns
 

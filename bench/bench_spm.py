@@ -31,7 +31,7 @@ A, XI = 4.0, 2.0
 
 
 def build(n, npart, threads, seed=0):
-    dt = auto_dt(1.0, 1.0, 1.0, 1.0)
+    dt = auto_dt(1.0, 1.0, 1.0, 1.0, (n, n, n))
     grid = Grid((n, n, n), 1.0, threads=threads)
     fluid = SpectralNS(grid, 1.0, 1.0, dt, fix_cell=(True, True, True))
     rng = np.random.default_rng(seed)
