@@ -1,7 +1,26 @@
-"""Shared by the tests: the command's main() run in a directory."""
+"""Shared by the tests: the manual's sample as a starting input, and the command's main()
+run in a directory."""
 import os
+import shutil
 
 from kapsel.cli import main
+from udf import UDFManager
+
+SAMPLES = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "samples")
+
+
+def sample_input(d, eq, npx=4):
+    """The manual's sample in directory ``d`` (its define.udf and kapsel_unit.udf copied
+    there) as a UDFManager, with constitutive_eq.type ``eq`` and 2^npx cells per side; the
+    caller puts the rest and writes it."""
+    os.makedirs(d, exist_ok=True)
+    for f in ("define.udf", "kapsel_unit.udf"):
+        shutil.copy(os.path.join(SAMPLES, f), os.path.join(d, f))
+    u = UDFManager(os.path.join(SAMPLES, "input.udf"))
+    u.put(eq, "constitutive_eq.type")
+    for k in ("NPX", "NPY", "NPZ"):
+        u.put(npx, f"mesh.{k}")
+    return u
 
 
 def run_cli(d, inp, *extra, seed):

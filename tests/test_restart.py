@@ -10,24 +10,17 @@ import numpy as np
 import pytest
 
 from kapsel.cli import main
-from runs import run_cli
+from runs import SAMPLES, run_cli, sample_input
 from kapsel.io.restart import state_path
 from udf import UDFManager
 
-SAMPLES = os.path.join(os.path.dirname(__file__), "..", "samples")
 NS_CH = "constitutive_eq.Navier_Stokes_Cahn_Hilliard_FDM"
 
 
 def make_input(d, eq, ns="implicit_scheme", ch="implicit_scheme", particles=3, gts=2,
                nsnap=2, kBT=0.5, npx=4):
     """The manual's sample shrunk to 2^npx cells per side, with noise (kBT) on."""
-    os.makedirs(d, exist_ok=True)
-    for f in ("define.udf", "kapsel_unit.udf"):
-        shutil.copy(os.path.join(SAMPLES, f), os.path.join(d, f))
-    u = UDFManager(os.path.join(SAMPLES, "input.udf"))
-    u.put(eq, "constitutive_eq.type")
-    for k in ("NPX", "NPY", "NPZ"):
-        u.put(npx, f"mesh.{k}")
+    u = sample_input(d, eq, npx)
     for t in ("Navier_Stokes", "Navier_Stokes_FDM", "Navier_Stokes_Cahn_Hilliard_FDM"):
         u.put(kBT, f"constitutive_eq.{t}.kBT")
     u.put(ns, f"{NS_CH}.NS_solver.type")

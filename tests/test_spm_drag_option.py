@@ -4,7 +4,6 @@ runs without the option are those of before (the SPM keeps the radius A)."""
 import hashlib
 import math
 import os
-import shutil
 
 import numpy as np
 import pytest
@@ -12,9 +11,9 @@ import pytest
 from kapsel.cli import build_parser, main, prepare
 from kapsel.particles.drag_calibration import (ELL_RANGE, MAC_SHIFT, MEASURED, OutOfCalibration,
                                                offset, profile_radius)
+from runs import sample_input
 from udf import UDFManager
 
-SAMPLES = os.path.join(os.path.dirname(__file__), "..", "samples")
 
 
 def test_the_fit_reproduces_the_measurements():
@@ -75,13 +74,7 @@ def test_calibrated_drag_matches_hasimoto_at_the_sample_settings():
 
 
 def _sample(d, eq, npx=4, particles=2):
-    os.makedirs(d, exist_ok=True)
-    for f in ("define.udf", "kapsel_unit.udf"):
-        shutil.copy(os.path.join(SAMPLES, f), os.path.join(d, f))
-    u = UDFManager(os.path.join(SAMPLES, "input.udf"))
-    u.put(eq, "constitutive_eq.type")
-    for k in ("NPX", "NPY", "NPZ"):
-        u.put(npx, f"mesh.{k}")
+    u = sample_input(d, eq, npx)
     if eq != "Electrolyte":
         u.put(0.5, f"constitutive_eq.{eq}.kBT")
     else:

@@ -93,28 +93,29 @@ class _Transfer:
         return tuple(idx)
 
     def forward(self, a, b):
-        if self.trivial:
-            np.copyto(b, a)
-            return
-        for j, ab in enumerate(self.wb):
-            self.buf_a[self.da[j]:self.da[j] + self.ca[j]].reshape(
-                self._piece(self.shape_a, self.whole, ab))[...] = a[self._slices(self.whole, ab)]
-        self.comm.Alltoallv([self.buf_a, (self.ca, self.da)], [self.buf_b, (self.cb, self.db)])
-        for j, ab in enumerate(self.sb):
-            b[self._slices(self.split, ab)] = self.buf_b[self.db[j]:self.db[j] + self.cb[j]].reshape(
-                self._piece(self.shape_b, self.split, ab))
+        self._exchange(a, b, (self.buf_a, self.ca, self.da, self.shape_a, self.whole, self.wb),
+                       (self.buf_b, self.cb, self.db, self.shape_b, self.split, self.sb))
 
     def backward(self, b, a):
+        self._exchange(b, a, (self.buf_b, self.cb, self.db, self.shape_b, self.split, self.sb),
+                       (self.buf_a, self.ca, self.da, self.shape_a, self.whole, self.wb))
+
+    def _exchange(self, src, dst, send, recv):
+        """Pack the blocks of ``src`` (cut along the send side's axis), all-to-all, unpack
+        into ``dst`` (along the receive side's axis).  ``send`` / ``recv``: (buffer, counts,
+        displacements, local shape, axis, ranges)."""
         if self.trivial:
-            np.copyto(a, b)
+            np.copyto(dst, src)
             return
-        for j, ab in enumerate(self.sb):
-            self.buf_b[self.db[j]:self.db[j] + self.cb[j]].reshape(
-                self._piece(self.shape_b, self.split, ab))[...] = b[self._slices(self.split, ab)]
-        self.comm.Alltoallv([self.buf_b, (self.cb, self.db)], [self.buf_a, (self.ca, self.da)])
-        for j, ab in enumerate(self.wb):
-            a[self._slices(self.whole, ab)] = self.buf_a[self.da[j]:self.da[j] + self.ca[j]].reshape(
-                self._piece(self.shape_a, self.whole, ab))
+        sbuf, sc, sd, sshape, saxis, sranges = send
+        rbuf, rc, rd, rshape, raxis, rranges = recv
+        for j, ab in enumerate(sranges):
+            sbuf[sd[j]:sd[j] + sc[j]].reshape(
+                self._piece(sshape, saxis, ab))[...] = src[self._slices(saxis, ab)]
+        self.comm.Alltoallv([sbuf, (sc, sd)], [rbuf, (rc, rd)])
+        for j, ab in enumerate(rranges):
+            dst[self._slices(raxis, ab)] = rbuf[rd[j]:rd[j] + rc[j]].reshape(
+                self._piece(rshape, raxis, ab))
 
 
 class _Pipeline:
@@ -162,80 +163,51 @@ class _Pipeline:
         return (x.shape == like.shape and x.dtype == like.dtype and x.strides == like.strides
                 and x.ctypes.data % self._align == 0)
 
+    def _input(self, a, buf):
+        """``a`` when it has ``buf``'s layout (used in place), else ``buf`` holding a copy."""
+        if self._fits(a, buf):
+            return a
+        np.copyto(buf, a)
+        return buf
+
+    def _run(self, plan, src, out, buf):
+        """Execute ``plan`` from ``src`` into ``out`` (through ``buf`` when ``out`` does not
+        have its layout); returns ``out``."""
+        o = out if self._fits(out, buf) else buf
+        plan.update_arrays(src, o)
+        plan.execute()
+        if o is not out:
+            np.copyto(out, o)
+        return out
+
     def forward(self, u, out):
         if self.mode == "one":
-            i = u if self._fits(u, self.R) else None
-            if i is None:
-                np.copyto(self.R, u)
-                i = self.R
-            o = out if self._fits(out, self.D) else self.D
-            self.f3.update_arrays(i, o)
-            self.f3.execute()
-            if o is not out:
-                np.copyto(out, o)
-            return out
+            return self._run(self.f3, self._input(u, self.R), out, self.D)
         if self.mode == "slab":
-            i = u if self._fits(u, self.R) else None
-            if i is None:
-                np.copyto(self.R, u)
-                i = self.R
-            self.fyz.update_arrays(i, self.B)
+            self.fyz.update_arrays(self._input(u, self.R), self.B)
             self.fyz.execute()
             self.tx.forward(self.B, self.C)
-            o = out if self._fits(out, self.D) else self.D
-            self.fx.update_arrays(self.C, o)
-            self.fx.execute()
-            if o is not out:
-                np.copyto(out, o)
-            return out
-        if self._fits(u, self.R):
-            self.fz.update_arrays(u, self.A)
-        else:
-            np.copyto(self.R, u)
-            self.fz.update_arrays(self.R, self.A)
+            return self._run(self.fx, self.C, out, self.D)
+        self.fz.update_arrays(self._input(u, self.R), self.A)
         self.fz.execute()
         self.ty.forward(self.A, self.B)
         self.fy.execute()
         self.tx.forward(self.B, self.C)
-        o = out if self._fits(out, self.D) else self.D
-        self.fx.update_arrays(self.C, o)
-        self.fx.execute()
-        if o is not out:
-            np.copyto(out, o)
-        return out
+        return self._run(self.fx, self.C, out, self.D)
 
     def backward(self, c, out):
         """Unnormalised c2r of ``c`` (not modified) into ``out``."""
         if self.mode == "one":
             np.copyto(self.C, c)
-            o = out if self._fits(out, self.R) else self.R
-            self.b3.update_arrays(self.C, o)
-            self.b3.execute()
-            if o is not out:
-                np.copyto(out, o)
-            return out
-        i = c if self._fits(c, self.D) else None
-        if i is None:
-            np.copyto(self.D, c)
-            i = self.D
-        self.bx.update_arrays(i, self.C)
+            return self._run(self.b3, self.C, out, self.R)
+        self.bx.update_arrays(self._input(c, self.D), self.C)
         self.bx.execute()
         self.tx.backward(self.C, self.B)
         if self.mode == "slab":
-            o = out if self._fits(out, self.R) else self.R
-            self.byz.update_arrays(self.B, o)
-            self.byz.execute()
-            if o is not out:
-                np.copyto(out, o)
-            return out
+            return self._run(self.byz, self.B, out, self.R)
         self.by.execute()
         self.ty.backward(self.B, self.A)
-        o = out if self._fits(out, self.R) else self.R
-        self.bz.update_arrays(self.A, o)
-        self.bz.execute()
-        if o is not out:
-            np.copyto(out, o)
-        return out
+        return self._run(self.bz, self.A, out, self.R)
 
 
 class PencilGrid(Grid):
