@@ -17,7 +17,8 @@ def _g(x: float) -> str:
 def memory_estimate(cfg) -> float:
     """Peak bytes of the run: the figure the input check budgets with (config.py)."""
     from . import config
-    return config.memory_estimate(cfg.mesh, cfg.type, cfg.particles.count)
+    p = cfg.particles
+    return config.memory_estimate(cfg.mesh, cfg.type, p.count, p.A, p.A_XI)
 
 
 def _solvers(cfg) -> str:

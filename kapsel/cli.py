@@ -303,7 +303,7 @@ def describe_setup(cfg) -> str:
         kind = "chains" if p.object_type == "chain" else "rigid bodies"
         what = f" with {n} beads in {sum(s.number for s in p.species)} {kind}"
     return (f"{cfg.type} on a {nx} x {ny} x {nz} mesh{what}, about "
-            f"{_size(memory_estimate(cfg.mesh, cfg.type, n))} of memory")
+            f"{_size(memory_estimate(cfg.mesh, cfg.type, n, p.A, p.A_XI))} of memory")
 
 
 def build_model(cfg, args, doc, resumed: bool):

@@ -488,7 +488,8 @@ def from_document(doc: udf.UDFManager, input_path: str = "") -> RunConfig:
     count = sum(s.particles for s in species)
     if mesh is not None:
         with r.block():     # before anything else about the mesh: a typo may ask for TBs
-            check_memory(r, mesh, eq_type, count)
+            check_memory(r, mesh, eq_type, count, *((particles.A, particles.A_XI)
+                                                    if particles is not None else ()))
     if mesh is not None and particles is not None and count:
         with r.block():
             _check_particles_fit(r, mesh, particles)
@@ -926,10 +927,17 @@ def _field_output(r: _Reader, mesh: Mesh, eq_type: str = "") -> FieldOutput:
 # ---------------------------------------------------------------------------------------
 # Checks of the whole input, before anything is built or written.
 
-# Peak memory per mesh point, measured on 64^3 and 128^3 runs (fields, solver work arrays,
-# restart text) with a margin; and per particle (state, records, SPM profile bookkeeping).
-BYTES_PER_POINT = {"phase": 1200, "fluid": 600}
-BYTES_PER_PARTICLE = 4000
+# Peak memory of a run (fields, solver work arrays, restart writing), measured with
+# /usr/bin/time on Navier_Stokes runs of ex02's input at 128 x 128 x 256 (2026-11-29): 1.95 GB
+# without particles (476 B per mesh point), 3.07 GB with 400 and 3.25 GB with 1600 particles
+# of A = 5 DX (stencils of 1256 points): the dense fields of a run with particles add about
+# 270 B per point, and each particle about 120 B per stencil point (its profile, offsets,
+# sampled velocities).  With a margin of about 10 %; the phase types as measured earlier on
+# 64^3 and 128^3 runs.
+BYTES_PER_POINT = {"phase": 1200, "fluid": 520}
+BYTES_PER_POINT_WITH_PARTICLES = 300
+BYTES_PER_STENCIL_POINT = 130
+BYTES_PER_PARTICLE = 4000           # state and records, besides the stencil
 MEMORY_ENV = "KAPSEL_PY_MEMORY_LIMIT_GB"
 
 
@@ -958,23 +966,38 @@ def _size(nbytes: float) -> str:
     return f"{nbytes / 2 ** 10:.3g} kB"
 
 
-def memory_estimate(mesh: Mesh, eq_type: str, n_particles: int) -> float:
-    """Peak bytes of a run (BYTES_PER_POINT, BYTES_PER_PARTICLE)."""
+def memory_estimate(mesh: Mesh, eq_type: str, n_particles: int, A=None, xi=None) -> float:
+    """Peak bytes of a run (BYTES_PER_POINT and the per-particle figures above); ``A``,
+    ``xi``: the particles' radius and interface width (lengths), for their stencil size."""
     points = float(np.prod(mesh.shape, dtype=float))
-    return points * BYTES_PER_POINT["phase" if eq_type in PHASE_TYPES else "fluid"] \
-        + float(n_particles) * BYTES_PER_PARTICLE
+    per_point = BYTES_PER_POINT["phase" if eq_type in PHASE_TYPES else "fluid"]
+    if n_particles:
+        per_point += BYTES_PER_POINT_WITH_PARTICLES
+    return points * per_point + float(n_particles) * (
+        BYTES_PER_PARTICLE + BYTES_PER_STENCIL_POINT * _stencil_points(A, xi, mesh.DX))
 
 
-def check_memory(r: _Reader, mesh: Mesh, eq_type: str, n_particles: int) -> None:
+def _stencil_points(A, xi, dx) -> int:
+    """Grid points of one particle's profile stencil (kapsel.particles.profile.Stencil); a
+    typical 720 (A = 4, XI = 2 cells) when the particles are not known or not valid."""
+    if A is None or xi is None or not (A > 0.5 * xi > 0) or not dx or dx <= 0:
+        return 720
+    from .particles.profile import Stencil
+    return Stencil(A, xi, dx).size
+
+
+def check_memory(r: _Reader, mesh: Mesh, eq_type: str, n_particles: int, A=None,
+                 xi=None) -> None:
     """Refuse a mesh (or particle count) whose run would not fit in memory: a typo such as
     NPX = 12 must not start a run that swaps for hours."""
-    need = memory_estimate(mesh, eq_type, n_particles)
+    need = memory_estimate(mesh, eq_type, n_particles, A, xi)
     limit = memory_limit()
     if need > limit:
         nx, ny, nz = mesh.shape
         r.fail("mesh", [mesh.NPX, mesh.NPY, mesh.NPZ],
                f"a {nx} x {ny} x {nz} mesh" + (f" with {n_particles} particles"
-                                              if n_particles * BYTES_PER_PARTICLE > need / 2
+                                              if need - memory_estimate(mesh, eq_type, 0)
+                                              > need / 2
                                               else "")
                + f" needs about {_size(need)} of memory for {eq_type}, more than the "
                f"{_size(limit)} available (physical memory, or ${MEMORY_ENV})")
