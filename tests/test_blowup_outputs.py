@@ -96,3 +96,27 @@ def test_an_interrupt_just_after_a_blow_up_says_so_without_a_traceback(tmp_path,
     assert "interrupted at step 13, where the field u is not finite" in err, err[-600:]
     assert "holds the last good state (step 10)" in err
     assert "implicit_scheme" not in err
+
+
+def test_a_blow_up_is_named_without_numpys_warnings(tmp_path, capsys, monkeypatch):
+    """A step that overflows (u_hat set to 1e300 at step 12) stops the run with kapsel-py's
+    message only: numpy's RuntimeWarnings (overflow, invalid value), which used to fill the
+    screen before it, are not printed (simulation.advance)."""
+    d = tmp_path / "run"
+    make_input(d, "Navier_Stokes", particles=2, gts=5, nsnap=4, kBT=0.0)
+    from kapsel.models import spectral
+    advance = spectral.SpectralModel.advance
+
+    def poisoned(self):
+        advance(self)
+        if self.step_index == 12:
+            self.fluid.u_hat[:, 1, 2, 3] = 1e300
+    monkeypatch.setattr(spectral.SpectralModel, "advance", poisoned)
+    import warnings
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")          # a warning would now raise and fail the run
+        assert main([f"-I{d}/input.udf", f"-O{d}/output.udf", f"-D{d}/define.udf",
+                     f"-R{d}/restart.udf", "--seed", "11", "--quiet"]) == 1
+    err = capsys.readouterr().err
+    assert "RuntimeWarning" not in err and "Traceback" not in err
+    assert "the run stopped at step" in err and "not finite" in err
