@@ -928,14 +928,15 @@ def _field_output(r: _Reader, mesh: Mesh, eq_type: str = "") -> FieldOutput:
 # Checks of the whole input, before anything is built or written.
 
 # Peak memory of a run (fields, solver work arrays, restart writing), measured with
-# /usr/bin/time on Navier_Stokes runs of ex02's input at 128 x 128 x 256 (2026-11-29): 1.95 GB
-# without particles (476 B per mesh point), 3.07 GB with 400 and 3.25 GB with 1600 particles
-# of A = 5 DX (stencils of 1256 points): the dense fields of a run with particles add about
-# 270 B per point, and each particle about 120 B per stencil point (its profile, offsets,
-# sampled velocities).  With a margin of about 10 %; the phase types as measured earlier on
+# /usr/bin/time on Navier_Stokes runs of ex02's input at 128 x 128 x 256 (2026-11-29, after the
+# UDF writer formats large arrays in blocks): 1.54 GiB without particles (394 B per mesh
+# point), 2.14 GiB with 400 particles of A = 5 DX (stencils of 1256 points): the dense fields
+# of a run with particles add about 140 B per point; each particle about 120 B per stencil
+# point (its profile, offsets, sampled velocities: 1600 particles measured 0.18 GB more
+# than 400 before).  With a margin of about 10 %; the phase types as measured earlier on
 # 64^3 and 128^3 runs.
-BYTES_PER_POINT = {"phase": 1200, "fluid": 520}
-BYTES_PER_POINT_WITH_PARTICLES = 300
+BYTES_PER_POINT = {"phase": 1200, "fluid": 430}
+BYTES_PER_POINT_WITH_PARTICLES = 160
 BYTES_PER_STENCIL_POINT = 130
 BYTES_PER_PARTICLE = 4000           # state and records, besides the stencil
 MEMORY_ENV = "KAPSEL_PY_MEMORY_LIMIT_GB"

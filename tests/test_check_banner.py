@@ -159,7 +159,7 @@ def test_check_of_a_large_real_input_is_cheap(tmp_path, name, where):
     """--check builds the model as a run does (every check: placement, restart, output
     offers, define schema) but no field work: no FFT plans, no initial rigidity imposition,
     zeroed fields left untouched (calloc).  ex02 unchanged (256 x 256 x 512, 3204 particles,
-    a run of about 26 GB, checked as on a 64 GB machine) was 35 s and 7.6 GB RSS; now about
+    a run of about 19 GB, checked as on a 64 GB machine) was 35 s and 7.6 GB RSS; now about
     1 s and 94 MB (ex11: 128^3
     MAC shear with 4096 particles, 2.8 s and 312 MB; /usr/bin/time, 2026-11-29, shared
     2-core machine).  Asserted with room for a busy machine: < 500 MB and < 60 s."""
@@ -180,17 +180,16 @@ def test_check_of_a_large_real_input_is_cheap(tmp_path, name, where):
 
 
 def test_a_run_larger_than_the_machine_is_refused_by_the_check(tmp_path):
-    """ex02 needs about 26 GB (measured: 22.8 GB resident three steps into a run on this
-    24 GB VM, still growing; the estimate is calibrated on 128 x 128 x 256 runs of the same
-    input, config.BYTES_PER_POINT): with a 24 GB limit --check refuses it, exit 2, naming
+    """ex02 needs about 19 GB (the estimate is calibrated on 128 x 128 x 256 runs of the same
+    input, config.BYTES_PER_POINT): with a 16 GB limit --check refuses it, exit 2, naming
     the mesh, the need and the limit."""
     src = os.path.join(SAMPLES, "kapsel-udf", "ex02")
     for f in os.listdir(src):
         shutil.copy(os.path.join(src, f), tmp_path / f)
-    env = dict(os.environ, KAPSEL_PY_MEMORY_LIMIT_GB="24")
+    env = dict(os.environ, KAPSEL_PY_MEMORY_LIMIT_GB="16")
     r = subprocess.run([sys.executable, "-m", "kapsel.cli", "-Igravity.udf", "-Ooutput.udf",
                         "-Ddefine.udf", "-Rrestart.udf", "--check"], cwd=tmp_path,
                        capture_output=True, text=True, timeout=60, env=env)
     assert r.returncode == 2, r.stdout + r.stderr
-    assert "256 x 256 x 512 mesh needs about 26.1 GB of memory for Navier_Stokes" in r.stderr
+    assert "256 x 256 x 512 mesh needs about 18.9 GB of memory for Navier_Stokes" in r.stderr
     assert "Traceback" not in r.stderr

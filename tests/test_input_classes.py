@@ -119,7 +119,7 @@ def test_validate_builds_nothing_and_writes_nothing(tmp_path, monkeypatch):
 def test_radius_and_interface_are_in_units_of_dx(monkeypatch):
     """ex02: DX = 0.1, A = 5, A_XI = 2: radius 0.5, interface 0.2; 3204 particles in a
     25.6 x 25.6 x 51.2 box are a volume fraction of 0.05 (it was refused as 50).  (Read as
-    on a 64 GB machine: the run needs about 26 GB.)"""
+    on a 64 GB machine: the run needs about 19 GB.)"""
     monkeypatch.setenv("KAPSEL_PY_MEMORY_LIMIT_GB", "64")
     cfg = config.load(os.path.join(REAL, "ex02", "gravity.udf"))
     assert cfg.mesh.DX == 0.1 and tuple(cfg.mesh.box) == pytest.approx((25.6, 25.6, 51.2))
