@@ -23,6 +23,18 @@ def sample_input(d, eq, npx=4):
     return u
 
 
+def continue_input(d, num_snap=4) -> str:
+    """``d``/cont.udf: ``d``/restart.udf as the input of a continued run (output.Num_snap
+    raised to ``num_snap``), with the restart's state file beside it; returns its path."""
+    from kapsel.io.restart import state_path
+    rs = UDFManager(os.path.join(d, "restart.udf"))
+    rs.put(num_snap, "output.Num_snap")
+    cont = os.path.join(d, "cont.udf")
+    rs.write(cont)
+    shutil.copy(state_path(os.path.join(d, "restart.udf")), state_path(cont))
+    return cont
+
+
 def run_cli(d, inp, *extra, seed):
     """kapsel-py -I<inp> -Ooutput.udf -Ddefine.udf -Rrestart.udf --seed <seed> --quiet
     <extra> run in directory ``d``; returns the exit code."""

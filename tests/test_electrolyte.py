@@ -9,7 +9,7 @@ import pytest
 
 from kapsel import config
 from kapsel.cli import main
-from runs import run_cli
+from runs import continue_input, run_cli
 from kapsel.fluid.ions import Ions, bulk_densities, profile_slope
 from kapsel.grid import Grid
 from kapsel.io.restart import state_path
@@ -167,11 +167,7 @@ def test_continuation_is_bit_identical(tmp_path):
     assert cli(tmp_path / "one", one) == 0
     two = make_input(tmp_path / "two", nsnap=2, init="Poisson_Boltzmann")
     assert cli(tmp_path / "two", two) == 0
-    rs = UDFManager(str(tmp_path / "two" / "restart.udf"))
-    rs.put(4, "output.Num_snap")
-    rs.write(str(tmp_path / "two" / "cont.udf"))
-    shutil.copy(state_path(str(tmp_path / "two" / "restart.udf")),
-                state_path(str(tmp_path / "two" / "cont.udf")))
+    continue_input(tmp_path / "two")
     assert cli(tmp_path / "two", "cont.udf") == 0
     za = np.load(state_path(str(tmp_path / "one" / "restart.udf")))
     zb = np.load(state_path(str(tmp_path / "two" / "restart.udf")))

@@ -19,6 +19,7 @@ import sys
 import numpy as np
 import pytest
 
+from runs import continue_input
 from kapsel.fluid.spectral import SpectralNS
 from kapsel.grid import Grid
 from kapsel.particles.forces import pair_forces
@@ -292,17 +293,12 @@ def test_janus_run_records_slip_and_continues_bit_identically(tmp_path):
     """Squirmers, a tumbler and an obstacle with thermal noise (32^3): output.udf records
     carry f_slip / torque_slip; 2 + 2 snapshots through restart.udf (quaternions, slip
     forces) equal 4 in one run, bit for bit."""
-    from kapsel.io.restart import state_path
     from udf import UDFManager
     one = _janus_input(tmp_path / "one", nsnap=4)
     assert _cli(tmp_path / "one", one) == 0
     two = _janus_input(tmp_path / "two", nsnap=2)
     assert _cli(tmp_path / "two", two) == 0
-    rs = UDFManager(str(tmp_path / "two" / "restart.udf"))
-    rs.put(4, "output.Num_snap")
-    rs.write(str(tmp_path / "two" / "cont.udf"))
-    shutil.copy(state_path(str(tmp_path / "two" / "restart.udf")),
-                state_path(str(tmp_path / "two" / "cont.udf")))
+    continue_input(tmp_path / "two")
     assert _cli(tmp_path / "two", "cont.udf") == 0
     oa, ob = UDFManager(str(tmp_path / "one" / "output.udf")), \
         UDFManager(str(tmp_path / "two" / "output.udf"))

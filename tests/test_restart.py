@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from kapsel.cli import main
-from runs import SAMPLES, run_cli, sample_input
+from runs import SAMPLES, continue_input, run_cli, sample_input
 from kapsel.io.restart import state_path
 from udf import UDFManager
 
@@ -82,11 +82,7 @@ def test_continuation_is_bit_identical(tmp_path, eq, kw):
     two = make_input(tmp_path / "two", eq, nsnap=2, **kw)
     assert cli(tmp_path / "two", two) == 0
     # continue: the restart file is the input, with Num_snap raised to the full run
-    rs = UDFManager(str(tmp_path / "two" / "restart.udf"))
-    rs.put(4, "output.Num_snap")
-    rs.write(str(tmp_path / "two" / "cont.udf"))
-    shutil.copy(state_path(str(tmp_path / "two" / "restart.udf")),
-                state_path(str(tmp_path / "two" / "cont.udf")))
+    continue_input(tmp_path / "two")
     assert cli(tmp_path / "two", "cont.udf") == 0
     a = saved_data(str(tmp_path / "one" / "restart.udf"))
     b = saved_data(str(tmp_path / "two" / "restart.udf"))

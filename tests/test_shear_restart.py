@@ -1,11 +1,10 @@
 """Continuation of the sheared types: N steps + restart + M steps is bit-identical to N + M
 steps in one run (fields, particles, frame strain oblique.degree_oblique, shear log)."""
-import shutil
 
 import numpy as np
 import pytest
 
-from kapsel.io.restart import state_path
+from runs import continue_input
 from test_restart import records, saved_data
 from test_shear_fdm import fdm_input
 from test_shear_le import cli, make_input
@@ -39,11 +38,7 @@ def test_shear_continuation_is_bit_identical(tmp_path, eq, kw):
     assert cli(tmp_path / "one", one) == 0
     two = inp(tmp_path / "two", eq, 2, **kw)
     assert cli(tmp_path / "two", two) == 0
-    rs = UDFManager(str(tmp_path / "two" / "restart.udf"))
-    rs.put(4, "output.Num_snap")
-    rs.write(str(tmp_path / "two" / "cont.udf"))
-    shutil.copy(state_path(str(tmp_path / "two" / "restart.udf")),
-                state_path(str(tmp_path / "two" / "cont.udf")))
+    continue_input(tmp_path / "two")
     assert cli(tmp_path / "two", str(tmp_path / "two" / "cont.udf")) == 0
     a = saved_data(str(tmp_path / "one" / "restart.udf"))
     b = saved_data(str(tmp_path / "two" / "restart.udf"))
