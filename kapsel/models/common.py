@@ -222,6 +222,30 @@ def make_forces(cfg: RunConfig, particles: ParticleState, strain=None, wall=None
             F = F + Fe
         return F, T, ratio_min
     forces.virial = virial
+    forces.cutoff = 0.0             # reach of the pair forces (length), for halos
+    if pairs:
+        forces.cutoff = pf.interaction_range(inter.LJ_powers, inter.LJ_truncate) * (
+            2.0 * float(np.max(particles.radius)) if lj_dia is None else lj_dia)
+    forces.local = None
+    if bonds is None and electric is None and wall is None and group is None:
+        ratios = np.array([s.MASS_RATIO for s in cfg.particles.species])
+
+        def local(p, weight):
+            """``forces`` of a rank's table (owned + ghosts, kapsel.parallel.particles):
+            pair forces and gravity, the virial counting each pair once over the ranks
+            (``weight`` 1 owned, 0 ghost)."""
+            if pairs:
+                F, _, ratio_min = pf.pair_forces(
+                    p.R, box, p.radius, inter.LJ_powers, inter.EPSILON, inter.LJ_truncate,
+                    strain=strain() if strain is not None else 0.0, virial=virial,
+                    sigma=lj_dia, weight=weight)
+            else:
+                F, ratio_min = np.zeros((p.n, 3)), np.inf
+            if gravity:
+                F = F + pf.gravity_force(p.radius, ratios[p.species], cfg.fluid.RHO, inter.G,
+                                         inter.G_direction)
+            return F, np.zeros((p.n, 3)), ratio_min
+        forces.local = local
     return forces
 
 
@@ -245,14 +269,21 @@ def make_noise(cfg: RunConfig, particles: ParticleState, seed: int):
     return impulses
 
 
-def kinetic_energy(rho, dx, u, phi, particles, reduce=None) -> float:
+def kinetic_energy(rho, dx, u, phi, particles, reduce=None, owned=False) -> float:
     """E: fluid outside the particles, 1/2 RHO sum (1 - phi)|u|^2 dx^3, plus the particles'
     translational and rotational energy.  ``reduce``: sums the fluid part over the ranks of
-    a distributed run (u, phi are then this rank's blocks)."""
+    a distributed run (u, phi are then this rank's blocks); ``owned``: ``particles`` are
+    this rank's owned particles (kapsel.parallel.particles), their part summed alike."""
     w = 1.0 - np.clip(phi, 0.0, 1.0) if phi is not None else 1.0
     e = 0.5 * rho * dx ** 3 * float(np.sum(w * np.einsum("i...,i...->...", u, u)))
     if reduce is not None:
         e = reduce(e)
+    if owned:
+        ep = 0.0
+        if particles.n:
+            ep = 0.5 * float(np.sum(particles.mass * np.sum(particles.v ** 2, axis=1)))
+            ep += 0.5 * float(np.sum(particles.inertia * np.sum(particles.omega ** 2, axis=1)))
+        return e + reduce(ep)
     if particles is not None and particles.n:
         e += 0.5 * float(np.sum(particles.mass * np.sum(particles.v ** 2, axis=1)))
         e += 0.5 * float(np.sum(particles.inertia * np.sum(particles.omega ** 2, axis=1)))
@@ -265,13 +296,19 @@ def overlap_guard(forces, limit: float = 0.5):
     if forces is None:
         return None
 
-    def guarded(p):
-        F, T, ratio = forces(p)
+    def check(ratio):
         if ratio < limit:
             raise FloatingPointError(f"particles overlap deeply (closest pair at {ratio:.2f} "
                                      f"of the contact distance)")
+
+    def guarded(p):
+        F, T, ratio = forces(p)
+        check(ratio)
         return F, T
     guarded.virial = getattr(forces, "virial", None)
+    guarded.check = check           # a distributed run checks the smallest ratio of all ranks
+    guarded.local = getattr(forces, "local", None)
+    guarded.cutoff = getattr(forces, "cutoff", 0.0)
     return guarded
 
 
@@ -308,6 +345,8 @@ class Model:
             self.lockstep = Lockstep(self.dist)
             self.lockstep.register("source", self._gathered_source)
             self._local_sources = {}
+            self.lockstep.register("particles", lambda: self.spm.gather())
+            self._gathered_at = None
 
     def spm_radius(self) -> float:
         """The radius of the SPM profile: A, or with ``--spm-drag calibrated`` the radius
@@ -351,6 +390,7 @@ class Model:
         src.update(self.field_sources())
         if self.sheared:
             src["shear"] = self.shear_record
+        self.gather_particles()
         p = self.particles
         if p is not None and p.n:
             from ..particles.rigid import RigidBodies
@@ -363,6 +403,21 @@ class Model:
         return Snapshot(step=self.step_index, time=self.time, dt=self.dt,
                         shape=tuple(self.cfg.mesh.shape), dx=self.cfg.mesh.DX, particles=p,
                         strain=float(self.frame_strain()), sheared=self.sheared, sources=src)
+
+    def _owned(self):
+        """The SPM of a distributed run whose particles are owned by ranks, else None."""
+        spm = getattr(self, "spm", None)
+        return spm if getattr(spm, "owned", None) is not None else None
+
+    def gather_particles(self):
+        """Distributed run with owned particles: the particle table gathered into
+        ``self.particles`` on rank 0 (once per step), asked by rank 0 in a round of output
+        (a collective of the lockstep protocol; nothing to do elsewhere)."""
+        if self._owned() is None or not self.lockstep.leading:
+            return
+        if self._gathered_at != self.step_index:
+            self.lockstep.call("particles")
+            self._gathered_at = self.step_index
 
     def _gathered_source(self, name):
         """A snapshot source in a distributed run (every rank): a field of local blocks
@@ -391,10 +446,13 @@ class Model:
         particles, against ``cfl_limit``."""
         u = self.velocity_field()
         umax2 = float(np.max(np.einsum("i...,i...->...", u, u)))
+        local = self._owned()          # this rank's particles (owned + ghosts)
+        if local is not None and local.p.n:
+            umax2 = float(np.max([umax2, np.max(np.einsum("ij,ij->i", local.p.v, local.p.v))]))
         if self.dist is not None:
             umax2 = self.grid.max(umax2)
         p = self.particles
-        if p is not None and p.n:
+        if local is None and p is not None and p.n:
             umax2 = max(umax2, float(np.max(np.einsum("ij,ij->i", p.v, p.v))))
         cfl = np.sqrt(umax2) * self.dt / self.cfg.mesh.DX
         return cfl / self.cfl_limit, (f"the CFL number max|u| dt/DX = {cfl:.3g} exceeds "
@@ -432,6 +490,7 @@ class Model:
     def restart_state(self, checkpoint=False):
         """(kind, Saved_Data fields, exact state) of the current state (``checkpoint``: the
         fields of checkpoint_fields())."""
+        self.gather_particles()
         exact = dict(self.exact_state())
         fields = self.checkpoint_fields() if checkpoint else self.restart_fields()
         if self.particles is not None and self.particles.n:
@@ -473,6 +532,10 @@ class Model:
         p = self.particles
         if p is not None and p.n:
             from ..io.restart import particles_from_table
+            if self._owned() is not None:     # the whole table, then this rank's rows
+                from ..parallel.particles import restore
+                restore(p)
+                self._gathered_at = None
             if saved.particles is None:
                 raise ConfigError(f"the restart holds no particles, the input describes {p.n}",
                                   path=f"resume.{saved.kind}.Saved_Data.Particles[]", value=0)
