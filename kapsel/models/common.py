@@ -419,6 +419,18 @@ class Model:
             self.lockstep.call("particles")
             self._gathered_at = self.step_index
 
+    def whole_particles(self):
+        """The whole particle table on every rank: ``particles``, or in a distributed run
+        with owned particles gathered to every rank (a collective; the diagnosis of a
+        failed step, where every rank must take the same path)."""
+        spm = self._owned()
+        if spm is None:
+            return self.particles
+        from ..parallel.particles import restore
+        restore(self.particles)
+        spm.owned.gather(spm.p, self.particles, everyone=True)
+        return self.particles
+
     def _gathered_source(self, name):
         """A snapshot source in a distributed run (every rank): a field of local blocks
         gathered to rank 0 (None elsewhere); sources that gather or reduce themselves

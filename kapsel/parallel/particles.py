@@ -254,24 +254,32 @@ class Owned:
     def allmin(self, x: float) -> float:
         return float(self.comm.allreduce(float(x), op=self.MPI.MIN))
 
-    def gather(self, p: ParticleState, whole: ParticleState | None) -> None:
-        """The owned rows of every rank into ``whole`` on rank 0 (global-id order)."""
+    def gather(self, p: ParticleState, whole: ParticleState | None, everyone=False) -> None:
+        """The owned rows of every rank into ``whole`` on rank 0 (global-id order); with
+        ``everyone`` on every rank (``whole`` then full-sized everywhere)."""
         n = self.n_own
-        rec = pack(p, np.arange(n), self.gid[:n], self.me)
-        counts = self.comm.gather(n * WIDTH, root=0)
-        if self.me == 0:
-            buf = np.empty(sum(counts))
-            displ = np.concatenate([[0], np.cumsum(counts)[:-1]]).astype(int).tolist()
-            self.comm.Gatherv(rec.reshape(-1), [buf, (counts, displ), self.MPI.DOUBLE], root=0)
-            rec = buf.reshape(-1, WIDTH)
-            gid = rec[:, GID].astype(np.int64)
-            c = 0
-            for name, w in COLUMNS:
-                a = getattr(whole, name)
-                if name in ("species",):
-                    a[gid] = rec[:, c].astype(a.dtype)
-                else:
-                    a[gid] = rec[:, c:c + w].reshape((len(gid),) + a.shape[1:])
-                c += w
+        rec = pack(p, np.arange(n), self.gid[:n], self.me).reshape(-1)
+        D = self.MPI.DOUBLE
+        if everyone:
+            counts = self.comm.allgather(n * WIDTH)
         else:
-            self.comm.Gatherv(rec.reshape(-1), None, root=0)
+            counts = self.comm.gather(n * WIDTH, root=0)
+            if self.me != 0:
+                self.comm.Gatherv(rec, None, root=0)
+                return
+        buf = np.empty(sum(counts))
+        displ = np.concatenate([[0], np.cumsum(counts)[:-1]]).astype(int).tolist()
+        if everyone:
+            self.comm.Allgatherv(rec, [buf, (counts, displ), D])
+        else:
+            self.comm.Gatherv(rec, [buf, (counts, displ), D], root=0)
+        rec = buf.reshape(-1, WIDTH)
+        gid = rec[:, GID].astype(np.int64)
+        c = 0
+        for name, w in COLUMNS:
+            a = getattr(whole, name)
+            if name == "species":
+                a[gid] = rec[:, c].astype(a.dtype)
+            else:
+                a[gid] = rec[:, c:c + w].reshape((len(gid),) + a.shape[1:])
+            c += w
