@@ -222,18 +222,28 @@ def make_forces(cfg: RunConfig, particles: ParticleState, strain=None, wall=None
             F = F + Fe
         return F, T, ratio_min
     forces.virial = virial
-    forces.cutoff = 0.0             # reach of the pair forces (length), for halos
+    # a distributed run with particles owned by ranks (kapsel.parallel.particles): the
+    # reach of the forces (length) for the halos, and the forces of a rank's table
+    forces.cutoff = 0.0
     if pairs:
         forces.cutoff = pf.interaction_range(inter.LJ_powers, inter.LJ_truncate) * (
             2.0 * float(np.max(particles.radius)) if lj_dia is None else lj_dia)
+    if bonds is not None:           # a bond is shorter than R0 (the run stops before)
+        forces.cutoff = max(forces.cutoff,
+                            chains.FENE_R0 * 2.0 * float(np.max(particles.radius)))
     forces.local = None
-    if bonds is None and electric is None and wall is None and group is None:
+    if electric is None and wall is None and group is None:
         ratios = np.array([s.MASS_RATIO for s in cfg.particles.species])
+        starts = None
+        if bonds is not None:       # first bead of every chain (bead g bonds to g + 1)
+            per_chain = [s.beads for s in cfg.particles.species for _ in range(s.number)]
+            starts = np.concatenate([np.cumsum(per_chain), [0]])
 
-        def local(p, weight):
-            """``forces`` of a rank's table (owned + ghosts, kapsel.parallel.particles):
-            pair forces and gravity, the virial counting each pair once over the ranks
-            (``weight`` 1 owned, 0 ghost)."""
+        def local(p, weight, gid):
+            """``forces`` of a rank's table (owned + ghosts; ``gid`` the global ids):
+            pair forces, gravity and FENE bonds, the virial counting each pair once over
+            the ranks (``weight`` 1 owned, 0 ghost) -> (F, T, min pair ratio, max bond
+            stretch); complete on the owned rows."""
             if pairs:
                 F, _, ratio_min = pf.pair_forces(
                     p.R, box, p.radius, inter.LJ_powers, inter.EPSILON, inter.LJ_truncate,
@@ -244,7 +254,17 @@ def make_forces(cfg: RunConfig, particles: ParticleState, strain=None, wall=None
             if gravity:
                 F = F + pf.gravity_force(p.radius, ratios[p.species], cfg.fluid.RHO, inter.G,
                                          inter.G_direction)
-            return F, np.zeros((p.n, 3)), ratio_min
+            stretch = 0.0
+            if starts is not None:
+                order = np.argsort(gid)
+                sg = gid[order]
+                k = np.minimum(np.searchsorted(sg, gid + 1), max(len(sg) - 1, 0))
+                i = np.flatnonzero(~np.isin(gid + 1, starts) & (sg[k] == gid + 1))
+                Fb, stretch = chains.fene_forces(p.R, box, p.radius, i, order[k[i]],
+                                                 inter.EPSILON,
+                                                 strain=strain() if strain is not None else 0.0)
+                F = F + Fb
+            return F, np.zeros((p.n, 3)), ratio_min, stretch
         forces.local = local
     return forces
 
@@ -306,7 +326,13 @@ def overlap_guard(forces, limit: float = 0.5):
         check(ratio)
         return F, T
     guarded.virial = getattr(forces, "virial", None)
+    def check_bonds(stretch):
+        from ..particles import chains
+        if stretch >= chains.BOND_BREAK:
+            raise FloatingPointError(f"a chain bond stretched to {stretch:.3f} of the FENE "
+                                     f"maximum R0 = {chains.FENE_R0} (2 A)")
     guarded.check = check           # a distributed run checks the smallest ratio of all ranks
+    guarded.check_bonds = check_bonds
     guarded.local = getattr(forces, "local", None)
     guarded.cutoff = getattr(forces, "cutoff", 0.0)
     return guarded

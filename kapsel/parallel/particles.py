@@ -251,8 +251,12 @@ class Owned:
                                    self.ghost_counts, w)
             a[n:] = recv.reshape((-1,) + a.shape[1:])
 
-    def allmin(self, x: float) -> float:
-        return float(self.comm.allreduce(float(x), op=self.MPI.MIN))
+    def allmin(self, *x):
+        """The minima over the ranks of local floats (one collective)."""
+        a = np.array(x, dtype=float)
+        out = np.empty_like(a)
+        self.comm.Allreduce(a, out, op=self.MPI.MIN)
+        return tuple(float(v) for v in out)
 
     def gather(self, p: ParticleState, whole: ParticleState | None, everyone=False) -> None:
         """The owned rows of every rank into ``whole`` on rank 0 (global-id order); with

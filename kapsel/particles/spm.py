@@ -400,10 +400,11 @@ class SPM:
         F_H, T_H = FT[:, :3], FT[:, 3:]
         F_o = T_o = None
         if self.forces is not None:
-            F_o, T_o, ratio = self.forces.local(p, self._own_weight)
-            check = getattr(self.forces, "check", None)
-            if check is not None:
-                check(o.allmin(ratio))
+            F_o, T_o, ratio, stretch = self.forces.local(p, self._own_weight, o.gid)
+            ratio, stretch = o.allmin(ratio, -stretch)      # the same on every rank
+            if hasattr(self.forces, "check"):           # (overlap_guard)
+                self.forces.check_bonds(-stretch)
+                self.forces.check(ratio)
             virial = getattr(self.forces, "virial", None)
             if virial is not None:
                 virial[...] = self._reduce(virial)[0]
