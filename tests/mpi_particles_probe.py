@@ -45,6 +45,7 @@ def main():
         assert len(gid) == p.n and len(np.unique(gid)) == p.n, "duplicate rows"
         assert np.all(o.owner[:n] == o.me) and np.all(o.owner[n:] != o.me)
         assert np.all(np.diff(gid[:n]) > 0), "owned rows not in global-id order"
+        assert np.array_equal(spm._T[:n], np.arange(n)), "an owned row has no profile"
         # the whole table (every rank): owned rows gathered
         all_gid = np.concatenate(comm.allgather(gid[:n]))
         all_R = np.concatenate(comm.allgather(p.R[:n]))

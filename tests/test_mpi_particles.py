@@ -48,7 +48,7 @@ def test_owned_particles_agree_with_the_serial_run(tmp_path):
     assert max(again.values()) == 0.0, again
 
 
-def _drift_input(d, n=12):
+def _drift_input(d, n=12, x=None):
     """128 x 16 x 16, A = 2, XI = 1, WCA pairs (LJ_truncate ON), gravity along -X on
     heavier particles (MASS_RATIO 3) in a row along x, some just above a block boundary
     (x = 32, 64, 96 for 4 slabs), a few pairs close enough to interact."""
@@ -62,13 +62,14 @@ def _drift_input(d, n=12):
     u.put(3.0, "object_type.spherical_particle.Particle_spec[0].MASS_RATIO")
     u.put(0.5, "gravity.G")
     u.put("-X", "gravity.G_direction")
-    x = [32.3, 36.8, 64.2, 68.7, 96.4, 100.9, 8.0, 20.0, 45.0, 80.0, 112.0, 124.0][:n]
+    x = x or [32.3, 36.8, 64.2, 68.7, 96.4, 100.9, 8.0, 20.0, 45.0, 80.0, 112.0, 124.0][:n]
     rows = np.zeros((n, 13))
     rows[:, 0] = x
     rows[:, 1] = [4.0 + 8.0 * (k % 2) for k in range(n)]
     rows[:, 2] = [4.0 + 8.0 * ((k // 2) % 2) for k in range(n)]
-    rows[:, 1][[1, 3, 5]] = rows[:, 1][[0, 2, 4]]          # pairs 0-1, 2-3, 4-5: 4.5 apart
-    rows[:, 2][[1, 3, 5]] = rows[:, 2][[0, 2, 4]]
+    if n >= 6:
+        rows[:, 1][[1, 3, 5]] = rows[:, 1][[0, 2, 4]]      # pairs 0-1, 2-3, 4-5: 4.5 apart
+        rows[:, 2][[1, 3, 5]] = rows[:, 2][[0, 2, 4]]
     rows[:, 6] = 1.0
     u.put("user_specify", "switch.INIT_distribution.type")
     u.put(rows, "switch.INIT_distribution.user_specify.Particles[]")

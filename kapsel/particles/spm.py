@@ -196,7 +196,11 @@ class SPM:
             return self._profiles_distributed()
         p = self.p
         g, y0 = (self.fluid.frame_strain, self.fluid.y0) if self.oblique else (0.0, 0.0)
-        self.idx, self.phi_i, r = particle_profiles(p.R, self.stencil, self.shape, self.dx, g,
+        R = p.R
+        if self.owned is not None:     # the rows whose stencil meets the block (owned first)
+            self._T = self._near(p.R, g, y0)[0]
+            R = p.R[self._T]
+        self.idx, self.phi_i, r = particle_profiles(R, self.stencil, self.shape, self.dx, g,
                                                     y0)
         w = self.phi_i.sum(axis=1)
         self.grid_volume = w * self.dx ** 3
@@ -206,12 +210,13 @@ class SPM:
             r -= c[:, None, :]  # in place: keeps the component-major layout
         self.r = r
         if self.mass_mode == "grid":
-            self.mass = self.rho * self.grid_volume + self.excess_mass
+            self.mass = self.rho * self.grid_volume + self._sub(self.excess_mass)
             r2 = sum(np.einsum("ns,ns,ns->n", self.phi_i, r[..., k], r[..., k])
                      for k in range(3))
-            self.inertia = (2.0 / 3.0) * self.rho * self.dx ** 3 * r2 + self.excess_inertia
+            self.inertia = ((2.0 / 3.0) * self.rho * self.dx ** 3 * r2
+                            + self._sub(self.excess_inertia))
         else:
-            self.mass, self.inertia = p.mass, p.inertia
+            self.mass, self.inertia = self._sub(p.mass), self._sub(p.inertia)
         if self.owned is not None:
             self._localize()
 
@@ -394,9 +399,10 @@ class SPM:
             self._us = np.empty((3,) + self.idx.shape)
         us = sample(u, self.idx, out=self._us)
         v, shear = self._relative_velocity()
-        F_H, T_H = hydro_force_torque(u, self.idx, self.phi_i, self.r, v, p.omega, self.rho,
-                                      self.dx, self.dt, shear=shear, sampled=us)
-        FT = o.reverse_sum(np.concatenate([F_H, T_H], axis=1))
+        F_H, T_H = hydro_force_torque(u, self.idx, self.phi_i, self.r, self._sub(v),
+                                      self._sub(p.omega), self.rho, self.dx, self.dt,
+                                      shear=shear, sampled=us)
+        FT = o.reverse_sum(self._full(np.concatenate([F_H, T_H], axis=1)))
         F_H, T_H = FT[:, :3], FT[:, 3:]
         F_o = T_o = None
         if self.forces is not None:
@@ -418,7 +424,8 @@ class SPM:
                                       dP, dL, mass=self.mass[:n], inertia=self.inertia[:n])
         o.refresh(p.v, p.omega)
         v, shear = self._relative_velocity()
-        du = rigidity_increment(u, self.idx, self.phi_i, self.r, v, p.omega, self.fsize,
+        du = rigidity_increment(u, self.idx, self.phi_i, self.r, self._sub(v),
+                                self._sub(p.omega), self.fsize,
                                 out=self._du, shear=shear,
                                 moment=self.moment if self.oblique else None,
                                 sampled=us, zeroed=True)
