@@ -57,8 +57,10 @@ def main():
         T, own = spm._near(R, g, y0)
         assert set(T[own].tolist()) == set(gid[:n].tolist()), "owner is not the base point's"
         assert set(T.tolist()) <= set(gid.tolist()), "a particle meeting the block is missing"
-        if cutoff > 0:
-            i, j, _ = pairs_within(R, spm.box, cutoff * (1.0 + abs(g)))
+        if cutoff > 0:      # pairs as kapsel.particles.forces finds them (oblique x - g y)
+            Ro = R.copy()
+            Ro[:, 0] = np.mod(R[:, 0] - g * R[:, 1], spm.box[0])
+            i, j, _ = pairs_within(Ro, spm.box, cutoff * (1.0 + abs(g)))
             mine = np.zeros(N, dtype=bool)
             mine[gid[:n]] = True
             need = np.union1d(j[mine[i]], i[mine[j]])
@@ -70,13 +72,14 @@ def main():
         local_counts.append(comm.allgather(p.n))
         owned_counts.append(comm.allgather(n))
         ghost_counts.append(comm.allgather(p.n - n))
+    remaps = int(getattr(spm.fluid, "remaps", 0))
     whole = model.particles
     spm.gather()
     if o.me == 0:
         np.savez("probe.npz", R=whole.R, v=whole.v, omega=whole.omega, R_raw=whole.R_raw,
                  f_hydro=whole.f_hydro, owners=np.array(owners_of),
                  local=np.array(local_counts), owned=np.array(owned_counts),
-                 ghosts=np.array(ghost_counts), N=N)
+                 ghosts=np.array(ghost_counts), N=N, remaps=remaps)
 
 
 if __name__ == "__main__":
