@@ -4,7 +4,12 @@ point, the other ranks that need it (its profile meets their block, or it is a p
 of one of their particles) hold a ghost copy; particles migrate between ranks; the runs agree
 with the serial run to round-off and repeat bit for bit.
 
-Measured (2026-11-29, ``pytest -s tests/test_mpi_particles.py``): see the docstrings.
+Measured (2026-11-29, ``pytest -s tests/test_mpi_particles.py``): 32^3 with 12 interacting
+particles, max |distributed - serial| 7.1e-14 (particle table) / 4.1e-14 (u_hat) on 2
+ranks, 5.7e-14 / 4.6e-14 on 2 x 2, 0 on 1 rank; particles migrating through 4 slabs:
+|4 ranks - 1 rank| 0 in R, 1.1e-16 in v, 1.8e-14 in F_H; chains on 4 slabs 8.9e-16 in R,
+2.7e-14 in F_H; Lees-Edwards on 2 x 2 with a frame re-mapping 0 in R, 5.0e-14 in F_H.
+Each test takes 5-25 s on the busy 2-core machine.
 """
 import os
 import subprocess
