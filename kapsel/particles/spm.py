@@ -80,9 +80,11 @@ __all__ = ["SPM"]
 
 
 def _ownable(particles, forces) -> bool:
-    """Whether a distributed run keeps the particles owned by ranks (free or pinned
-    spheres whose forces have a local form: pair forces, gravity); chains, rigid bodies
-    and dipoles stay replicated on every rank (README "Distributed runs")."""
+    """Whether a distributed run keeps the particles owned by ranks: free or pinned
+    spheres and chain beads, whose forces have a local form (pair forces, gravity, FENE
+    bonds: make_forces ``local``); rigid bodies (a body would have to be owned with its
+    beads) and dipoles (Ewald sums over all particles) stay replicated on every rank
+    (README "Distributed runs")."""
     from .motion import Pinned
     c = getattr(particles, "constraints", None)
     if c is not None and not isinstance(c, Pinned):
@@ -180,7 +182,7 @@ class SPM:
                 self.mode != "spectral" or self.oblique):
             raise ValueError("squirmers need the spectral (rectangular) fluid")
         # distributed: particles owned by the rank holding their stencil's base point, with
-        # ghosts (kapsel.parallel.particles); else (chains, rigid bodies, dipoles) replicated
+        # ghosts (kapsel.parallel.particles); else (rigid bodies, dipoles) replicated
         self.owned = None
         if self.dist is not None and particles.n and _ownable(particles, forces):
             self._own(particles, smax)
