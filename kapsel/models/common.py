@@ -233,7 +233,8 @@ def make_forces(cfg: RunConfig, particles: ParticleState, strain=None, wall=None
                             chains.FENE_R0 * 2.0 * float(np.max(particles.radius)))
     forces.local = None
     if electric is None and wall is None and group is None:
-        ratios = np.array([s.MASS_RATIO for s in cfg.particles.species])
+        ratios = (np.array([s.MASS_RATIO for s in cfg.particles.species]) if gravity
+                  else None)
         starts = None
         if bonds is not None:       # first bead of every chain (bead g bonds to g + 1)
             per_chain = [s.beads for s in cfg.particles.species for _ in range(s.number)]
