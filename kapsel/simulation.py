@@ -73,7 +73,8 @@ def first_blow_up(model) -> str | None:
     """What went out of bounds first in a failed step, in the order of the step: the
     particle forces (pair, bond, gravity: EPSILON, G), the particle velocities, the fluid
     velocity; None if all are finite and within the step's reach."""
-    p = model.particles
+    whole = getattr(model, "whole_particles", None)     # (a collective when distributed)
+    p = whole() if whole is not None else model.particles
     dx, dt = model.cfg.mesh.DX, model.dt
     if p is not None and p.n:
         f = getattr(p, "f_r", None)

@@ -222,6 +222,51 @@ def make_forces(cfg: RunConfig, particles: ParticleState, strain=None, wall=None
             F = F + Fe
         return F, T, ratio_min
     forces.virial = virial
+    # a distributed run with particles owned by ranks (kapsel.parallel.particles): the
+    # reach of the forces (length) for the halos, and the forces of a rank's table
+    forces.cutoff = 0.0
+    if pairs:
+        forces.cutoff = pf.interaction_range(inter.LJ_powers, inter.LJ_truncate) * (
+            2.0 * float(np.max(particles.radius)) if lj_dia is None else lj_dia)
+    if bonds is not None:           # a bond is shorter than R0 (the run stops before)
+        forces.cutoff = max(forces.cutoff,
+                            chains.FENE_R0 * 2.0 * float(np.max(particles.radius)))
+    forces.local = None
+    if electric is None and wall is None and group is None:
+        ratios = (np.array([s.MASS_RATIO for s in cfg.particles.species]) if gravity
+                  else None)
+        starts = None
+        if bonds is not None:       # first bead of every chain (bead g bonds to g + 1)
+            per_chain = [s.beads for s in cfg.particles.species for _ in range(s.number)]
+            starts = np.concatenate([np.cumsum(per_chain), [0]])
+
+        def local(p, weight, gid):
+            """``forces`` of a rank's table (owned + ghosts; ``gid`` the global ids):
+            pair forces, gravity and FENE bonds, the virial counting each pair once over
+            the ranks (``weight`` 1 owned, 0 ghost) -> (F, T, min pair ratio, max bond
+            stretch); complete on the owned rows."""
+            if pairs:
+                F, _, ratio_min = pf.pair_forces(
+                    p.R, box, p.radius, inter.LJ_powers, inter.EPSILON, inter.LJ_truncate,
+                    strain=strain() if strain is not None else 0.0, virial=virial,
+                    sigma=lj_dia, weight=weight)
+            else:
+                F, ratio_min = np.zeros((p.n, 3)), np.inf
+            if gravity:
+                F = F + pf.gravity_force(p.radius, ratios[p.species], cfg.fluid.RHO, inter.G,
+                                         inter.G_direction)
+            stretch = 0.0
+            if starts is not None:
+                order = np.argsort(gid)
+                sg = gid[order]
+                k = np.minimum(np.searchsorted(sg, gid + 1), max(len(sg) - 1, 0))
+                i = np.flatnonzero(~np.isin(gid + 1, starts) & (sg[k] == gid + 1))
+                Fb, stretch = chains.fene_forces(p.R, box, p.radius, i, order[k[i]],
+                                                 inter.EPSILON,
+                                                 strain=strain() if strain is not None else 0.0)
+                F = F + Fb
+            return F, np.zeros((p.n, 3)), ratio_min, stretch
+        forces.local = local
     return forces
 
 
@@ -245,14 +290,21 @@ def make_noise(cfg: RunConfig, particles: ParticleState, seed: int):
     return impulses
 
 
-def kinetic_energy(rho, dx, u, phi, particles, reduce=None) -> float:
+def kinetic_energy(rho, dx, u, phi, particles, reduce=None, owned=False) -> float:
     """E: fluid outside the particles, 1/2 RHO sum (1 - phi)|u|^2 dx^3, plus the particles'
     translational and rotational energy.  ``reduce``: sums the fluid part over the ranks of
-    a distributed run (u, phi are then this rank's blocks)."""
+    a distributed run (u, phi are then this rank's blocks); ``owned``: ``particles`` are
+    this rank's owned particles (kapsel.parallel.particles), their part summed alike."""
     w = 1.0 - np.clip(phi, 0.0, 1.0) if phi is not None else 1.0
     e = 0.5 * rho * dx ** 3 * float(np.sum(w * np.einsum("i...,i...->...", u, u)))
     if reduce is not None:
         e = reduce(e)
+    if owned:
+        ep = 0.0
+        if particles.n:
+            ep = 0.5 * float(np.sum(particles.mass * np.sum(particles.v ** 2, axis=1)))
+            ep += 0.5 * float(np.sum(particles.inertia * np.sum(particles.omega ** 2, axis=1)))
+        return e + reduce(ep)
     if particles is not None and particles.n:
         e += 0.5 * float(np.sum(particles.mass * np.sum(particles.v ** 2, axis=1)))
         e += 0.5 * float(np.sum(particles.inertia * np.sum(particles.omega ** 2, axis=1)))
@@ -265,13 +317,25 @@ def overlap_guard(forces, limit: float = 0.5):
     if forces is None:
         return None
 
-    def guarded(p):
-        F, T, ratio = forces(p)
+    def check(ratio):
         if ratio < limit:
             raise FloatingPointError(f"particles overlap deeply (closest pair at {ratio:.2f} "
                                      f"of the contact distance)")
+
+    def guarded(p):
+        F, T, ratio = forces(p)
+        check(ratio)
         return F, T
     guarded.virial = getattr(forces, "virial", None)
+    def check_bonds(stretch):
+        from ..particles import chains
+        if stretch >= chains.BOND_BREAK:
+            raise FloatingPointError(f"a chain bond stretched to {stretch:.3f} of the FENE "
+                                     f"maximum R0 = {chains.FENE_R0} (2 A)")
+    guarded.check = check           # a distributed run checks the smallest ratio of all ranks
+    guarded.check_bonds = check_bonds
+    guarded.local = getattr(forces, "local", None)
+    guarded.cutoff = getattr(forces, "cutoff", 0.0)
     return guarded
 
 
@@ -308,6 +372,8 @@ class Model:
             self.lockstep = Lockstep(self.dist)
             self.lockstep.register("source", self._gathered_source)
             self._local_sources = {}
+            self.lockstep.register("particles", lambda: self.spm.gather())
+            self._gathered_at = None
 
     def spm_radius(self) -> float:
         """The radius of the SPM profile: A, or with ``--spm-drag calibrated`` the radius
@@ -351,6 +417,7 @@ class Model:
         src.update(self.field_sources())
         if self.sheared:
             src["shear"] = self.shear_record
+        self.gather_particles()
         p = self.particles
         if p is not None and p.n:
             from ..particles.rigid import RigidBodies
@@ -363,6 +430,33 @@ class Model:
         return Snapshot(step=self.step_index, time=self.time, dt=self.dt,
                         shape=tuple(self.cfg.mesh.shape), dx=self.cfg.mesh.DX, particles=p,
                         strain=float(self.frame_strain()), sheared=self.sheared, sources=src)
+
+    def _owned(self):
+        """The SPM of a distributed run whose particles are owned by ranks, else None."""
+        spm = getattr(self, "spm", None)
+        return spm if getattr(spm, "owned", None) is not None else None
+
+    def gather_particles(self):
+        """Distributed run with owned particles: the particle table gathered into
+        ``self.particles`` on rank 0 (once per step), asked by rank 0 in a round of output
+        (a collective of the lockstep protocol; nothing to do elsewhere)."""
+        if self._owned() is None or not self.lockstep.leading:
+            return
+        if self._gathered_at != self.step_index:
+            self.lockstep.call("particles")
+            self._gathered_at = self.step_index
+
+    def whole_particles(self):
+        """The whole particle table on every rank: ``particles``, or in a distributed run
+        with owned particles gathered to every rank (a collective; the diagnosis of a
+        failed step, where every rank must take the same path)."""
+        spm = self._owned()
+        if spm is None:
+            return self.particles
+        from ..parallel.particles import restore
+        restore(self.particles)
+        spm.owned.gather(spm.p, self.particles, everyone=True)
+        return self.particles
 
     def _gathered_source(self, name):
         """A snapshot source in a distributed run (every rank): a field of local blocks
@@ -391,10 +485,13 @@ class Model:
         particles, against ``cfl_limit``."""
         u = self.velocity_field()
         umax2 = float(np.max(np.einsum("i...,i...->...", u, u)))
+        local = self._owned()          # this rank's particles (owned + ghosts)
+        if local is not None and local.p.n:
+            umax2 = float(np.max([umax2, np.max(np.einsum("ij,ij->i", local.p.v, local.p.v))]))
         if self.dist is not None:
             umax2 = self.grid.max(umax2)
         p = self.particles
-        if p is not None and p.n:
+        if local is None and p is not None and p.n:
             umax2 = max(umax2, float(np.max(np.einsum("ij,ij->i", p.v, p.v))))
         cfl = np.sqrt(umax2) * self.dt / self.cfg.mesh.DX
         return cfl / self.cfl_limit, (f"the CFL number max|u| dt/DX = {cfl:.3g} exceeds "
@@ -432,6 +529,7 @@ class Model:
     def restart_state(self, checkpoint=False):
         """(kind, Saved_Data fields, exact state) of the current state (``checkpoint``: the
         fields of checkpoint_fields())."""
+        self.gather_particles()
         exact = dict(self.exact_state())
         fields = self.checkpoint_fields() if checkpoint else self.restart_fields()
         if self.particles is not None and self.particles.n:
@@ -473,6 +571,10 @@ class Model:
         p = self.particles
         if p is not None and p.n:
             from ..io.restart import particles_from_table
+            if self._owned() is not None:     # the whole table, then this rank's rows
+                from ..parallel.particles import restore
+                restore(p)
+                self._gathered_at = None
             if saved.particles is None:
                 raise ConfigError(f"the restart holds no particles, the input describes {p.n}",
                                   path=f"resume.{saved.kind}.Saved_Data.Particles[]", value=0)

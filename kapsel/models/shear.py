@@ -159,8 +159,10 @@ class ShearLEModel(SpectralModel):
         y = self.grid.coordinates()[1]
         u[0] += self.fluid.shear_rate_now * (y - self.fluid.y0)
         phi = self.spm.phi() if self.particles.n else None
-        return kinetic_energy(self.cfg.fluid.RHO, self.cfg.mesh.DX, u, phi, self.particles,
-                              reduce=self.grid.sum if self.dist is not None else None)
+        return kinetic_energy(self.cfg.fluid.RHO, self.cfg.mesh.DX, u, phi,
+                              self.spm.owned_particles(),
+                              reduce=self.grid.sum if self.dist is not None else None,
+                              owned=self._owned() is not None)
 
     sheared = True
 

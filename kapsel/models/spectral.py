@@ -61,8 +61,9 @@ class SpectralModel(Model):
     def kinetic_energy(self) -> float:
         phi = self.phi_total() if self.particles.n or self.wall is not None else None
         return kinetic_energy(self.cfg.fluid.RHO, self.cfg.mesh.DX, self.spm.velocity(), phi,
-                              self.particles,
-                              reduce=self.grid.sum if self.dist is not None else None)
+                              self.spm.owned_particles(),
+                              reduce=self.grid.sum if self.dist is not None else None,
+                              owned=self._owned() is not None)
 
     def global_u_hat(self):
         """The whole u_hat: gathered to rank 0 in a distributed run (None on the others)."""

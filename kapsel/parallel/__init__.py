@@ -8,17 +8,20 @@ given the original's ``-X`` / ``-Y`` process-grid flags with X Y > 1.
 Which types run distributed: ``DISTRIBUTED``.  Any other type is refused with more than one
 rank (``refuse``), never run serially on every rank writing the same files.
 
-Division of work (kapsel.parallel.pencil for the fields, kapsel.parallel.lockstep for the
-output): every rank holds its block of the fields and the state of all the particles
-(replicated: ~0.3 kB per particle, 32 MB for N = 10^5), moves all of them identically
-(pair forces, noise, motion) and computes the profiles of those whose stencil meets its
-block (kapsel.particles.spm, ``_profiles_distributed``), coupling them to its part of the
-fluid; the per-particle sums of the coupling (hydrodynamic force and torque) are summed
-over the ranks by MPI_Reduce to rank 0 + MPI_Bcast, so every rank gets the same bits and
-the particles stay identical everywhere.  Rank 0 writes output.udf, restart.udf and the
-field files with the fields gathered to it.  This replication instead of particles owned
-by one rank with halo exchange is the simpler design for N <= 10^5 particles; its limits
-are in the README ("Distributed runs").
+Division of work (kapsel.parallel.pencil for the fields, kapsel.parallel.particles for the
+particles, kapsel.parallel.lockstep for the output): every rank holds its block of the
+fields.  Spheres and chain beads are owned by the rank whose block holds their stencil's
+base point; a rank holds its owned particles and ghosts (copies of the particles owned
+elsewhere that its block needs: their profile meets it, or they are within the reach of
+the forces of its particles), couples them to its part of the fluid, sends the ghosts'
+partial coupling sums to their owners (added in rank order: bit-for-bit repeatable), moves
+its owned particles and exchanges them afterwards (migration and new halos)
+(kapsel.particles.spm ``_step_owned``).  Rigid bodies and dipolar particles keep the
+replicated state: every rank holds all the particles, moves them identically and computes
+the profiles of those whose stencil meets its block (``_profiles_distributed``), the
+per-particle sums of the coupling being summed over the ranks by MPI_Reduce to rank 0 +
+MPI_Bcast.  Rank 0 writes output.udf, restart.udf and the field files with the fields and
+the particle table gathered to it.  Limits: README ("Distributed runs").
 """
 from __future__ import annotations
 

@@ -193,7 +193,7 @@ def pair_dVdr(r, sigma, kind="12:6", epsilon=1.0, truncate="ON"):
 
 
 def pair_forces(R, box, radius, kind="12:6", epsilon=1.0, truncate="ON", group=None,
-                strain=0.0, virial=None, sigma=None):
+                strain=0.0, virial=None, sigma=None, weight=None):
     """Pair forces F_i^other (eq 9) -> (F (N, 3), U_total, min_ratio).
 
     kind is LJ_powers ('12:6', '24:12', '36:18', 'macro_vdw'), epsilon is EPSILON
@@ -211,6 +211,9 @@ def pair_forces(R, box, radius, kind="12:6", epsilon=1.0, truncate="ON", group=N
     ``virial``: a (3, 3) array set to sum over pairs of f_a dr_b (f the force on j), or None.
     ``sigma``: one LJ diameter for every pair instead of a_i + a_j (the sheared types'
     LJ_dia, ``sheared_lj_dia``).
+    ``weight`` (N,): the virial counts a pair with (weight_i + weight_j) / 2 (a distributed
+    run: 1 for the particles a rank owns, 0 for its ghosts, so that the ranks' virials add
+    up to every pair once).
     """
     if virial is not None:
         virial[...] = 0.0
@@ -249,7 +252,11 @@ def pair_forces(R, box, radius, kind="12:6", epsilon=1.0, truncate="ON", group=N
         f = (fmag / r)[:, None] * dr
     U = float(np.sum(V + _shift(p, epsilon, t, sigma)))
     if virial is not None:
-        virial[...] = f.T @ dr
+        if weight is None:
+            virial[...] = f.T @ dr
+        else:
+            w = np.asarray(weight, dtype=float)
+            virial[...] = (f * (0.5 * (w[i] + w[j]))[:, None]).T @ dr
     for k in range(3):
         F[:, k] = np.bincount(j, f[:, k], minlength=n) - np.bincount(i, f[:, k], minlength=n)
     return F, U, float(np.min(r / sigma))

@@ -79,6 +79,21 @@ from .profile import Stencil, particle_profiles, total_phi
 __all__ = ["SPM"]
 
 
+def _ownable(particles, forces) -> bool:
+    """Whether a distributed run keeps the particles owned by ranks: free or pinned
+    spheres and chain beads, whose forces have a local form (pair forces, gravity, FENE
+    bonds: make_forces ``local``); rigid bodies (a body would have to be owned with its
+    beads) and dipoles (Ewald sums over all particles) stay replicated on every rank
+    (README "Distributed runs")."""
+    from .motion import Pinned
+    c = getattr(particles, "constraints", None)
+    if c is not None and not isinstance(c, Pinned):
+        return False
+    if getattr(particles, "janus", None) is not None:
+        return False
+    return forces is None or getattr(forces, "local", None) is not None
+
+
 class SPM:
     """Fluid + particles by the SPM (see module docstring).  No I/O.
 
@@ -166,6 +181,11 @@ class SPM:
         if self.janus is not None and len(self.janus.squirmers) and (
                 self.mode != "spectral" or self.oblique):
             raise ValueError("squirmers need the spectral (rectangular) fluid")
+        # distributed: particles owned by the rank holding their stencil's base point, with
+        # ghosts (kapsel.parallel.particles); else (rigid bodies, dipoles) replicated
+        self.owned = None
+        if self.dist is not None and particles.n and _ownable(particles, forces):
+            self._own(particles, smax)
         if particles.n and not dry:
             self._profiles()
             if impose:
@@ -174,11 +194,15 @@ class SPM:
     # ------------------------------------------------------------------ profiles
     def _profiles(self):
         """phi_i, r at the current positions; grid volumes, centroid-corrected r, masses."""
-        if self.dist is not None:
+        if self.dist is not None and self.owned is None:
             return self._profiles_distributed()
         p = self.p
         g, y0 = (self.fluid.frame_strain, self.fluid.y0) if self.oblique else (0.0, 0.0)
-        self.idx, self.phi_i, r = particle_profiles(p.R, self.stencil, self.shape, self.dx, g,
+        R = p.R
+        if self.owned is not None:     # the rows whose stencil meets the block (owned first)
+            self._T = self._near(p.R, g, y0)[0]
+            R = p.R[self._T]
+        self.idx, self.phi_i, r = particle_profiles(R, self.stencil, self.shape, self.dx, g,
                                                     y0)
         w = self.phi_i.sum(axis=1)
         self.grid_volume = w * self.dx ** 3
@@ -188,12 +212,15 @@ class SPM:
             r -= c[:, None, :]  # in place: keeps the component-major layout
         self.r = r
         if self.mass_mode == "grid":
-            self.mass = self.rho * self.grid_volume + self.excess_mass
+            self.mass = self.rho * self.grid_volume + self._sub(self.excess_mass)
             r2 = sum(np.einsum("ns,ns,ns->n", self.phi_i, r[..., k], r[..., k])
                      for k in range(3))
-            self.inertia = (2.0 / 3.0) * self.rho * self.dx ** 3 * r2 + self.excess_inertia
+            self.inertia = ((2.0 / 3.0) * self.rho * self.dx ** 3 * r2
+                            + self._sub(self.excess_inertia))
         else:
-            self.mass, self.inertia = p.mass, p.inertia
+            self.mass, self.inertia = self._sub(p.mass), self._sub(p.inertia)
+        if self.owned is not None:
+            self._localize()
 
     # ------------------------------------------------------------------ distributed
     def _profiles_distributed(self):
@@ -296,9 +323,140 @@ class SPM:
             i += a.size
         return tuple(res)
 
+    # ------------------------------------------------------------------ owned particles
+    def _own(self, whole, strain_max):
+        """Distributed run: keep this rank's owned particles and ghosts of the whole table
+        ``whole`` (the model's, the same on every rank at the start; kapsel.parallel.
+        particles).  ``self.p`` is then the local table, owned rows first."""
+        from ..parallel.particles import Owned
+        f = self.forces
+        cutoff = float(getattr(f, "cutoff", 0.0) or 0.0) if f is not None else 0.0
+        frame = ((lambda: (self.fluid.frame_strain, self.fluid.y0)) if self.oblique
+                 else None)
+        self.owned = Owned(self.dist, self.stencil.offsets, self.dx, cutoff, frame,
+                           strain_max)
+        self.whole = whole
+        self.n_global = whole.n
+        self._pins = whole.constraints          # motion.Pinned (global ids) or None
+        self._released = False
+        self._take(self.owned.scatter(whole))
+
+    def _take(self, p):
+        """Make ``p`` (owned rows first, then ghosts) the local table."""
+        from ..parallel.particles import view
+        from .motion import Pinned
+        self.p = p
+        o = self.owned
+        n = o.n_own
+        self.p_own = view(p, n)                 # the owned rows (views: updates write through)
+        self.motion = _free_motion
+        if self._pins is not None:
+            gid = o.gid[:n]
+            self.p_own.constraints = self.motion = Pinned(
+                np.flatnonzero(np.isin(gid, self._pins.pin)),
+                np.flatnonzero(np.isin(gid, self._pins.pin_rot)))
+        a = np.asarray(p.radius, dtype=float)
+        vol = 4.0 / 3.0 * np.pi * a ** 3
+        self.excess_mass = p.mass - self.rho * vol
+        self.excess_inertia = p.inertia - 0.4 * self.rho * vol * a ** 2
+        self._own_weight = np.zeros(p.n)
+        self._own_weight[:n] = 1.0
+
+    def gather(self):
+        """Collective: the owned rows of every rank into the whole table on rank 0 (the
+        output writers and the restart read it there)."""
+        if self.owned is not None:
+            root = self.owned.me == 0
+            self.owned.gather(self.p, self.whole if root else None)
+
+    def owned_particles(self):
+        """The particles this rank accounts for in global sums (energies): its owned rows
+        in a distributed run with owned particles, else all."""
+        return self.p_own if self.owned is not None else self.p
+
+    def _exchange(self):
+        """Migration and new halos (kapsel.parallel.particles ``exchange``); the whole
+        table's rows are dropped on the ranks other than 0 from the first step on (a
+        restart read before fills them on every rank)."""
+        if not self._released:
+            self._released = True
+            if self.owned.me != 0:
+                from ..parallel.particles import release
+                release(self.whole)
+        self._take(self.owned.exchange(self.p))
+
+    def _step_owned(self):
+        """``step`` of a distributed run with owned particles: the same steps 1-5, the
+        coupling sums of the ghosts sent to their owners, the owners moving their
+        particles, the ghosts refreshed (velocities before the rigidity increment, the
+        whole record at the exchange)."""
+        o = self.owned
+        self._fluid_step()
+        if self.oblique:
+            self._exchange()                   # the frame moved: owners and halos in it
+            self._profiles()
+        p, n = self.p, o.n_own
+        u = self.u
+        if self._us is None or self._us.shape[1:] != self.idx.shape:
+            self._us = np.empty((3,) + self.idx.shape)
+        us = sample(u, self.idx, out=self._us)
+        v, shear = self._relative_velocity()
+        F_H, T_H = hydro_force_torque(u, self.idx, self.phi_i, self.r, self._sub(v),
+                                      self._sub(p.omega), self.rho, self.dx, self.dt,
+                                      shear=shear, sampled=us)
+        FT = o.reverse_sum(self._full(np.concatenate([F_H, T_H], axis=1)))
+        F_H, T_H = FT[:, :3], FT[:, 3:]
+        F_o = T_o = None
+        if self.forces is not None:
+            F_o, T_o, ratio, stretch = self.forces.local(p, self._own_weight, o.gid)
+            ratio, stretch = o.allmin(ratio, -stretch)      # the same on every rank
+            if hasattr(self.forces, "check"):           # (overlap_guard)
+                self.forces.check_bonds(-stretch)
+                self.forces.check(ratio)
+            virial = getattr(self.forces, "virial", None)
+            if virial is not None:
+                virial[...] = self._reduce(virial)[0]
+            F_o, T_o = F_o[:n], T_o[:n]
+        dP = dL = None
+        if self.noise is not None:             # the serial stream, this rank's rows
+            dP, dL = self.noise(self.n_global, self.dt)
+            gid = o.gid[:n]
+            dP, dL = dP[gid], dL[gid]
+        self.motion.update_velocities(self.p_own, F_H, T_H, F_o, T_o, self.dt, self.rotation,
+                                      dP, dL, mass=self.mass[:n], inertia=self.inertia[:n])
+        o.refresh(p.v, p.omega)
+        v, shear = self._relative_velocity()
+        du = rigidity_increment(u, self.idx, self.phi_i, self.r, self._sub(v),
+                                self._sub(p.omega), self.fsize,
+                                out=self._du, shear=shear,
+                                moment=self.moment if self.oblique else None,
+                                sampled=us, zeroed=True)
+        if self.oblique:
+            self.moment[...] = self._reduce(self.moment)[0]
+        self._add_solenoidal(du)
+        self._du_stepped = True
+        flat = self.idx.reshape(-1)
+        if self._du_points is None or self._du_points.shape[1] != flat.size:
+            self._du_points = np.empty((3, flat.size))
+        for c in range(3):
+            np.take(du[c].reshape(-1), flat, out=self._du_points[c])
+        clear_points(du, self.idx)
+        q = self.p_own
+        if self.oblique:                       # Lees-Edwards images instead of the wrap
+            R0, raw0 = q.R.copy(), q.R_raw.copy()
+        self.motion.update_positions(q, self.dt, self.box, self.rotation)
+        if self.oblique:
+            q.R[:] = R0 + (q.R_raw - raw0)
+            self.fluid.wrap_particles(q)
+        self._exchange()
+        self._profiles()
+        self.step_index += 1
+
     def refresh(self):
         """Recompute the profiles after the positions were set from outside (a restart)."""
-        if self.p.n:
+        if self.owned is not None:
+            self._take(self.owned.scatter(self.whole))
+        if self.p.n or self.owned is not None:
             self._profiles()
 
     def phi(self):
@@ -323,7 +481,7 @@ class SPM:
     def _fluid_step(self):
         if self.mode == "spectral":
             self.fluid.step()
-            if self.p.n:
+            if self.p.n or self.owned is not None:     # (a collective when distributed)
                 self.fluid.velocity(out=self.u)
         else:
             self.fluid.step(self.u)
@@ -360,7 +518,7 @@ class SPM:
     def impose_particle_velocity(self):
         """u <- u + P[sum_i phi_i (V_i + Omega_i x r) - phi u] (rigidity increment, eq 6);
         with walls the fluid in their solid is then held at rest."""
-        if not self.p.n:
+        if not self.p.n and self.owned is None:
             return
         u = self.fluid.velocity(out=self.u) if self.mode == "spectral" else self.u
         p = self.p
@@ -380,6 +538,8 @@ class SPM:
     # ------------------------------------------------------------------ step
     def step(self):
         """Advance fluid and particles by dt (steps 1-5 of the module docstring)."""
+        if self.owned is not None:
+            return self._step_owned()
         self._fluid_step()
         p = self.p
         if self.wall is not None and self.mode == "spectral" and not p.n:

@@ -1,0 +1,289 @@
+"""Particles owned by ranks: ownership, halos, migration, reverse sums, gather.
+
+A particle is *owned* by the rank whose real-space block (kapsel.parallel.pencil: x split
+over PX, y over PY, z whole) holds the base point of its profile stencil, floor(R / DX) (in
+the oblique coordinates (x - g (y - y0)) / DX of a sheared frame, as kapsel.particles.spm
+builds the stencil), so ownership is unambiguous.  Each rank holds its owned particles and
+*ghosts*: copies of particles owned elsewhere whose stencil, widened by the pair-force
+cutoff, meets its block.  The test is made for every rank, not only the neighbours, so
+blocks thinner than the halo work (a particle goes to every rank whose widened block holds
+it).  With lo..hi the stencil's offsets and h = ceil(r_c / DX) + 1 cells (r_c the pair
+cutoff, times 1 + |g_max| along x in a sheared frame), a particle goes to the ranks whose
+block meets [b + lo - h, b + hi + h] along x and y (b its base point): this holds every
+particle whose profile meets the block and every pair partner (|b_i - b_j| <= ceil(r_c /
+DX)) of every owned particle.
+
+The local table (one ``ParticleState``) keeps the owned rows first, in global-id order,
+then the ghosts by (owner, global id).  Per step (kapsel.particles.spm, ``SPM._step_owned``):
+
+* ``reverse_sum``: the ghosts' partial coupling sums (force, torque over this rank's part
+  of their stencils) go to their owners, which add the contributions of the ranks in rank
+  order (own included at its place): the run is bit-for-bit repeatable;
+* ``refresh``: the owners' new velocities go to the ghosts (the rigidity increment on a
+  rank's block needs them);
+* ``exchange``: after the motion each owner sends the whole record of each particle it
+  owned to every rank that holds it now (its new owner included): migration and the new
+  halo in one ``MPI_Alltoallv``.
+
+Records are rows of float64 (``COLUMNS``), packed and unpacked by whole-array numpy, sent by
+``Alltoallv`` / ``Gatherv`` on numpy buffers (no pickling, no loop over particles).
+``gather`` brings the owned rows to rank 0 in global-id order (the output writers and the
+restart see the table of a plain run); ``scatter`` keeps a rank's rows of a whole table
+held by every rank (the start of a run, a restart).
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..particles.state import VECTOR_FIELDS, ParticleState
+from .pencil import block
+
+__all__ = ["Owned", "COLUMNS", "pack", "unpack", "release", "restore"]
+
+COLUMNS = ([(name, 3) for name in VECTOR_FIELDS] + [("q", 4), ("q_old", 4)]
+           + [("species", 1), ("radius", 1), ("mass", 1), ("inertia", 1)])
+_WIDTH = sum(w for _, w in COLUMNS)
+GID, OWNER = _WIDTH, _WIDTH + 1            # global id and owner rank: the last two columns
+WIDTH = _WIDTH + 2
+
+
+def pack(p: ParticleState, rows, gid, owner) -> np.ndarray:
+    """Records (len(rows), WIDTH) of the rows of ``p``."""
+    out = np.empty((len(rows), WIDTH))
+    c = 0
+    for name, w in COLUMNS:
+        a = getattr(p, name)[rows]
+        out[:, c:c + w] = a.reshape(len(rows), w)
+        c += w
+    out[:, GID] = gid
+    out[:, OWNER] = owner
+    return out
+
+
+def unpack(rec: np.ndarray, constraints=None) -> tuple[ParticleState, np.ndarray, np.ndarray]:
+    """(ParticleState, global ids, owners) of records."""
+    kw, c = {}, 0
+    n = len(rec)
+    for name, w in COLUMNS:
+        a = rec[:, c:c + w]
+        if name == "species":
+            kw[name] = a[:, 0].astype(np.int64)
+        elif w == 1:
+            kw[name] = a[:, 0].copy()
+        else:
+            kw[name] = np.ascontiguousarray(a)
+        c += w
+    p = ParticleState(n=n, constraints=constraints, **kw)
+    return p, rec[:, GID].astype(np.int64), rec[:, OWNER].astype(np.int64)
+
+
+def view(p: ParticleState, n: int) -> ParticleState:
+    """The first n rows of ``p`` as a ParticleState of views (updates write through)."""
+    kw = {name: getattr(p, name)[:n] for name, _ in COLUMNS}
+    return ParticleState(n=n, **kw)
+
+
+def release(p: ParticleState) -> None:
+    """Drop the rows of a whole table a rank no longer needs (``n`` is kept: the particle
+    count of the run); ``restore`` gives them back (zeros) to read a restart into."""
+    for name, w in COLUMNS:
+        a = getattr(p, name)
+        setattr(p, name, np.empty((0,) + a.shape[1:], dtype=a.dtype))
+
+
+def restore(p: ParticleState) -> None:
+    for name, w in COLUMNS:
+        a = getattr(p, name)
+        if a.shape[0] != p.n:
+            shape = (p.n,) + a.shape[1:]
+            b = np.zeros(shape, dtype=a.dtype)
+            if name in ("q", "q_old"):
+                b[:, 0] = 1.0
+            setattr(p, name, b)
+
+
+def _meets(b, lo, width, blocks, n):
+    """(N, len(blocks)) bool: the periodic interval [b + lo, b + lo + width) meets block
+    [a0, a1) (the test of kapsel.particles.spm ``_near``)."""
+    if width >= n:
+        return np.ones((len(b), len(blocks)), dtype=bool)
+    start = np.mod(b + lo, n)[:, None]
+    a0, a1 = blocks[None, :, 0], blocks[None, :, 1]
+    return (np.mod(a0 - start, n) < width) | (np.mod(start - a0, n) < a1 - a0)
+
+
+class Owned:
+    """Ownership and halos of the particles on the blocks of ``grid`` (a PencilGrid or any
+    object with ``comm``, ``shape``, ``px``, ``py``), for a stencil ``offsets`` (S, 3) in
+    cells, a pair cutoff ``cutoff`` (DX units of length), ``frame()`` -> (strain, origin)
+    of an oblique grid (None: rectangular) whose strain never exceeds ``strain_max``."""
+
+    def __init__(self, grid, offsets, dx, cutoff=0.0, frame=None, strain_max=0.0):
+        from mpi4py import MPI
+        self.MPI = MPI
+        self.comm = grid.comm
+        self.me, self.P = self.comm.Get_rank(), self.comm.Get_size()
+        self.shape = tuple(grid.shape)
+        self.px, self.py = int(grid.px), int(grid.py)
+        self.dx = float(dx)
+        self.frame = frame
+        self.blocks = [np.array([block(self.shape[a], parts, i) for i in range(parts)])
+                       for a, parts in ((0, self.px), (1, self.py))]
+        self.lo, self.width = [], []
+        for axis in (0, 1):
+            o = np.asarray(offsets)[:, axis]
+            reach = cutoff * (1.0 + abs(strain_max) if axis == 0 else 1.0)
+            h = int(math.ceil(reach / self.dx)) + 1 if cutoff > 0 else 0
+            lo, hi = int(o.min()), int(o.max())
+            self.lo.append(lo - h)
+            self.width.append(hi - lo + 1 + 2 * h)
+        self.halo_cells = self.width
+        self.n_own = 0
+        self.gid = np.zeros(0, dtype=np.int64)
+        self.owner = np.zeros(0, dtype=np.int64)
+
+    # ------------------------------------------------------------------ geometry
+    def base(self, R):
+        """Base points (N, 2) (x, y cells, in [0, n)) of the stencils at R."""
+        s = np.asarray(R, dtype=float)[:, :2] / self.dx
+        if self.frame is not None:
+            g, y0 = self.frame()
+            if g:
+                s[:, 0] = (R[:, 0] - g * (R[:, 1] - y0)) / self.dx
+        with np.errstate(invalid="ignore"):
+            b = np.floor(s).astype(np.int64)
+        b[:, 0] = np.mod(b[:, 0], self.shape[0])
+        b[:, 1] = np.mod(b[:, 1], self.shape[1])
+        return b
+
+    def owners(self, b):
+        cx = np.searchsorted(self.blocks[0][:, 0], b[:, 0], side="right") - 1
+        cy = np.searchsorted(self.blocks[1][:, 0], b[:, 1], side="right") - 1
+        return cx * self.py + cy
+
+    def destinations(self, b):
+        """(N, P) bool: the ranks whose widened block holds each particle."""
+        mx = _meets(b[:, 0], self.lo[0], self.width[0], self.blocks[0], self.shape[0])
+        my = _meets(b[:, 1], self.lo[1], self.width[1], self.blocks[1], self.shape[1])
+        return (mx[:, :, None] & my[:, None, :]).reshape(len(b), self.P)
+
+    # ------------------------------------------------------------------ layout
+    def _arrange(self, rec, constraints=None):
+        """The local table of received records: owned by global id, then ghosts by
+        (owner, global id); send lists of the owned rows to the ranks holding them."""
+        gid, owner = rec[:, GID], rec[:, OWNER]
+        key = np.where(owner == self.me, -1.0, owner)
+        order = np.lexsort((gid, key))
+        p, self.gid, self.owner = unpack(rec[order], constraints)
+        self.n_own = int(np.count_nonzero(owner == self.me))
+        n = self.n_own
+        # where the owned rows are ghosts (the senders computed the same from the same bits)
+        dest = self.destinations(self.base(p.R[:n]))
+        dest[:, self.me] = False
+        r, i = np.nonzero(dest.T)                     # by rank, then row (global id)
+        self.send_rows = i
+        self.send_counts = np.bincount(r, minlength=self.P).astype(np.int64)
+        self.ghost_counts = np.bincount(self.owner[n:], minlength=self.P).astype(np.int64)
+        # the order of a reverse sum: the contributions of the ranks in rank order
+        starts = np.concatenate([[0], np.cumsum(self.send_counts)])
+        self._sum_rows = np.concatenate([self.send_rows[:starts[self.me]], np.arange(n),
+                                         self.send_rows[starts[self.me]:]])
+        self._own_at = int(starts[self.me])
+        return p
+
+    def scatter(self, whole: ParticleState, constraints=None) -> ParticleState:
+        """This rank's table (owned + ghosts) of a whole table held alike by every rank."""
+        b = self.base(whole.R)
+        owner = self.owners(b)
+        dest = self.destinations(b)
+        dest[np.arange(whole.n), owner] = True
+        rows = np.flatnonzero(dest[:, self.me])
+        return self._arrange(pack(whole, rows, rows, owner[rows]), constraints)
+
+    # ------------------------------------------------------------------ communication
+    def _alltoallv(self, send, scounts, rcounts, width):
+        sc = [int(c) * width for c in scounts]
+        rc = [int(c) * width for c in rcounts]
+        sd = np.concatenate([[0], np.cumsum(sc)[:-1]]).astype(int).tolist()
+        rd = np.concatenate([[0], np.cumsum(rc)[:-1]]).astype(int).tolist()
+        recv = np.empty((sum(rc) // width if width else 0, width))
+        D = self.MPI.DOUBLE
+        self.comm.Alltoallv([np.ascontiguousarray(send), (sc, sd), D], [recv, (rc, rd), D])
+        return recv
+
+    def exchange(self, p: ParticleState, constraints=None) -> ParticleState:
+        """Migration and new halos after the owners moved their particles: the new local
+        table (the ghosts of ``p`` are dropped, the owned rows sent to every rank that
+        holds them now)."""
+        n = self.n_own
+        b = self.base(p.R[:n])
+        owner = self.owners(b)
+        dest = self.destinations(b)
+        dest[np.arange(n), owner] = True
+        r, i = np.nonzero(dest.T)
+        rec = pack(p, i, self.gid[i], owner[i])
+        scounts = np.bincount(r, minlength=self.P).astype(np.int64)
+        rcounts = np.empty_like(scounts)
+        self.comm.Alltoall(scounts, rcounts)
+        return self._arrange(self._alltoallv(rec, scounts, rcounts, WIDTH), constraints)
+
+    def reverse_sum(self, values: np.ndarray) -> np.ndarray:
+        """Totals (n_own, k) of per-particle partial sums ``values`` (n_local, k) of every
+        rank: the ghosts' rows go to their owners, added in rank order."""
+        values = np.asarray(values, dtype=float)
+        k = values.shape[1]
+        n = self.n_own
+        recv = self._alltoallv(values[n:], self.ghost_counts, self.send_counts, k)
+        a = self._own_at
+        parts = np.concatenate([recv[:a], values[:n], recv[a:]])
+        total = np.zeros((n, k))
+        np.add.at(total, self._sum_rows, parts)
+        return total
+
+    def refresh(self, *arrays) -> None:
+        """The owners' rows of ``arrays`` (n_local, ...) copied into the ghost rows."""
+        n = self.n_own
+        for a in arrays:
+            w = int(np.prod(a.shape[1:]))
+            recv = self._alltoallv(a[self.send_rows].reshape(-1, w), self.send_counts,
+                                   self.ghost_counts, w)
+            a[n:] = recv.reshape((-1,) + a.shape[1:])
+
+    def allmin(self, *x):
+        """The minima over the ranks of local floats (one collective)."""
+        a = np.array(x, dtype=float)
+        out = np.empty_like(a)
+        self.comm.Allreduce(a, out, op=self.MPI.MIN)
+        return tuple(float(v) for v in out)
+
+    def gather(self, p: ParticleState, whole: ParticleState | None, everyone=False) -> None:
+        """The owned rows of every rank into ``whole`` on rank 0 (global-id order); with
+        ``everyone`` on every rank (``whole`` then full-sized everywhere)."""
+        n = self.n_own
+        rec = pack(p, np.arange(n), self.gid[:n], self.me).reshape(-1)
+        D = self.MPI.DOUBLE
+        if everyone:
+            counts = self.comm.allgather(n * WIDTH)
+        else:
+            counts = self.comm.gather(n * WIDTH, root=0)
+            if self.me != 0:
+                self.comm.Gatherv(rec, None, root=0)
+                return
+        buf = np.empty(sum(counts))
+        displ = np.concatenate([[0], np.cumsum(counts)[:-1]]).astype(int).tolist()
+        if everyone:
+            self.comm.Allgatherv(rec, [buf, (counts, displ), D])
+        else:
+            self.comm.Gatherv(rec, [buf, (counts, displ), D], root=0)
+        rec = buf.reshape(-1, WIDTH)
+        gid = rec[:, GID].astype(np.int64)
+        c = 0
+        for name, w in COLUMNS:
+            a = getattr(whole, name)
+            if name == "species":
+                a[gid] = rec[:, c].astype(a.dtype)
+            else:
+                a[gid] = rec[:, c:c + w].reshape((len(gid),) + a.shape[1:])
+            c += w
