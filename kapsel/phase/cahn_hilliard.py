@@ -442,7 +442,22 @@ class CahnHilliard:
 
     def total(self, psi):
         """sum psi DX^3 (conserved)."""
-        return float(np.sum(psi)) * self.dx ** 3
+        return self._sum(psi) * self.dx ** 3
+
+    # reductions over the mesh (DistributedCahnHilliard: over the ranks)
+    _dot = None
+
+    def _sum(self, a):
+        return float(np.sum(a))
+
+    def _mean(self, a):
+        return np.mean(a)
+
+    def _max(self, x):
+        return x
+
+    def _count(self, a):
+        return a.size
 
     # ------------------------------------------------------------------ stability
     def growth_rate(self, k2, fpp):
@@ -457,9 +472,9 @@ class CahnHilliard:
                 pts = np.array([self.params.composition_ratio])
             fpp = float(np.max(self.potential.d2f(pts)))
         else:
-            fpp = float(np.max(self.potential.d2f(psi)))
+            fpp = self._max(float(np.max(self.potential.d2f(psi))))
         if (phi is not None or self.wall is not None) and self.params.d > 0:
-            fpp += 2.0 * self.params.d * float(np.max(self._solids(phi)))
+            fpp += 2.0 * self.params.d * self._max(float(np.max(self._solids(phi))))
         return fpp
 
     def stable_dt(self, psi=None, phi=None):
@@ -612,12 +627,12 @@ class CahnHilliard:
                 g -= (2.0 * self.z) * self._div_coef_grad(s, guess)
         rhs += (dt * self.kappa) * self._lap(g, np.empty(self.shape))
         # mean of the solution is exact (column sums of A are c0); solve for the rest
-        m = float(np.sum(rhs)) / (c0 * n)
+        m = self._sum(rhs) / (c0 * self._count(rhs))
         shape = self.shape
         ones_img = self._apply(np.full(shape, m), c0, u, dphi, np.empty(shape))
         b = (rhs - ones_img).ravel()
         y0 = guess.ravel() - m
-        y0 -= np.mean(y0)
+        y0 -= self._mean(y0)
         tmp = np.empty(shape)
 
         def mv(v):
@@ -625,7 +640,7 @@ class CahnHilliard:
         A = LinearOperator((n, n), matvec=mv, dtype=np.float64)
         y = self._bicgstab(A, b, y0, c0, dphi)
         x = y.reshape(shape) + m
-        x += m - float(np.mean(x))          # round-off cleanup of the exact mean
+        x += m - float(self._mean(x))       # round-off cleanup of the exact mean
         psi[...] = x
 
     def _precond(self, c0, dphi, n):
@@ -642,14 +657,94 @@ class CahnHilliard:
         half = 1.0 / sym[:, :, : self.shape[2] // 2 + 1]
         key = (float(c0), self.dt)
         if getattr(self, "_fourier_key", None) != key:      # plans once, symbol per c0
-            from ..linalg import FourierDiagonal
-            self._fourier = FourierDiagonal(self.shape, half, self.threads)
+            self._fourier = self._fourier_diagonal(half)
             self._fourier_key = key
         return LinearOperator((n, n), matvec=self._fourier.solve, dtype=np.float64)
+
+    def _fourier_diagonal(self, half):
+        from ..linalg import FourierDiagonal
+        return FourierDiagonal(self.shape, half, self.threads)
 
     def _bicgstab(self, A, b, x0, c0, dphi):
         x, self.iterations, self.residual = solve_correction(
             A, b, x0, self.tolerance, self.maximum_iteration,
             M=self._precond(c0, dphi, b.size),
-            what="implicit Cahn-Hilliard solver (BiCGSTAB)")
+            what="implicit Cahn-Hilliard solver (BiCGSTAB)", dot=self._dot)
         return x
+
+
+class DistributedCahnHilliard(CahnHilliard):
+    """The Cahn-Hilliard solver on this rank's block of a distributed grid (kapsel.parallel.
+    pencil.PencilGrid; README "Distributed runs").  ``shape`` is the block, ``global_shape``
+    the mesh.  CahnHilliard's steps with its stencil operators (Laplacian, central
+    gradient, flux divergence, the z term) applied to the block widened by one ghost layer
+    (kapsel.parallel.halo; the same operations point by point as the serial run), sums,
+    means and maxima over the ranks in a fixed order, BiCGSTAB with those dot products and
+    the FFT preconditioner on the pencil FFTs.  Walls do not run distributed."""
+
+    def __init__(self, grid, dx, params, dt, threads=1, **kw):
+        from ..parallel.halo import Halo
+        if kw.get("wall") is not None:
+            raise ValueError("walls do not run distributed")
+        self.grid = grid
+        self.global_shape = tuple(grid.shape)
+        self.halo = Halo(grid, 1)
+        super().__init__(grid.local_shape, dx, params, dt, threads, **kw)
+        self._k2 = discrete_k2(self.global_shape, self.dx)
+
+    def initial_field(self, rng):
+        """The serial run's field (the same random numbers), this rank's block of it."""
+        p = self.params
+        psi = rng.uniform(-1.0, 1.0, size=self.global_shape)
+        psi *= p.initial_fluctuation
+        psi += p.composition_ratio
+        return np.ascontiguousarray(self.grid.local_real(psi))
+
+    # reductions
+    def _sum(self, a):
+        return self.grid.sum(float(np.sum(a)))
+
+    def _mean(self, a):
+        return self._sum(a) / self.grid.size
+
+    def _max(self, x):
+        return self.grid.max(x)
+
+    def _count(self, a):
+        return self.grid.size
+
+    def _dot(self, a, b):
+        return self.grid.sum(float(np.dot(a, b)))
+
+    def _fourier_diagonal(self, half):
+        from ..fluid.mac import PencilDiagonal
+        return PencilDiagonal(self.grid, half)
+
+    # stencils through the halo
+    def _lap(self, f, out):
+        h = self.halo
+        L = _lap(h.pad(f, key="ch"), self.dx, h.work(f.shape[:-3], "chlap"))
+        out[...] = h.interior(L)
+        return out
+
+    def _grad(self, f, out):
+        h = self.halo
+        G = _grad(h.pad(f, key="ch"), self.dx, h.work((3,), "chgrad"))
+        out[...] = h.interior(G)
+        return out
+
+    def _grad_sq(self, f):
+        g = self._grad(f, np.empty((3,) + f.shape))
+        return np.einsum("i...,i...->...", g, g)
+
+    def _div_flux(self, psi, u, out, work):
+        h = self.halo
+        D = _div_flux(h.pad(psi, key="chpsi"), h.pad(u, key="chu"), self.dx,
+                      h.work((), "chdiv"), h.work((), "chwork"))
+        out[...] = h.interior(D)
+        return out
+
+    def _div_coef_grad(self, c, f):
+        h = self.halo
+        D = div_coef_grad(h.pad(c, key="chc"), h.pad(f, key="chf"), self.dx)
+        return np.array(h.interior(D))
