@@ -54,6 +54,8 @@ def make_input(d, n, particles, eq="Navier_Stokes", ns=None, ch=None):
 
 def worker(steps):
     """In the run directory (under mpiexec or not): build the model, time ``steps`` steps."""
+    for var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+        os.environ.setdefault(var, "1")     # as kapsel-py does (kapsel.cli.single_threaded_blas)
     from kapsel.cli import build_parser, prepare
     from kapsel.parallel import start
     args = build_parser().parse_args(["-Iinput.udf", "-Ooutput.udf", "-Ddefine.udf",
