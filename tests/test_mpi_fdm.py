@@ -136,16 +136,69 @@ def test_fdm_restarts_interchange_between_distributed_and_serial_runs(tmp_path, 
         assert max(diff.values()) < 1e-11, (x.name, diff)
 
 
-@pytest.mark.parametrize("eq", ["Shear_Navier_Stokes_Lees_Edwards_FDM", "Shear_NS_LE_CH_FDM"])
-def test_sheared_fdm_types_are_refused_by_name(tmp_path, eq):
-    d = tmp_path / "le"
-    path = make_input(d, "Navier_Stokes", ns="explicit_scheme", ch="explicit_scheme")
+LE = "Shear_Navier_Stokes_Lees_Edwards_FDM"
+
+
+def le_input(d, eq, ns, rate, ch="explicit_scheme", **kw):
+    """The sample as a Lees-Edwards FDM type with DC shear ``rate`` and thermal noise."""
+    kw = {"particles": 4, "gts": 10, "nsnap": 5, **kw}
+    path = make_input(d, "Navier_Stokes", ns=ns, ch=ch, **kw)
     u = UDFManager(path)
     u.put(eq, "constitutive_eq.type")
     base = f"constitutive_eq.{eq}"
     u.put("DC", f"{base}.External_field.type")
-    u.put(0.05, f"{base}.External_field.DC.Shear_rate")
+    u.put(rate, f"{base}.External_field.DC.Shear_rate")
+    u.put(0.5, f"{base}.kBT")
+    u.put(ns, f"{base}.NS_solver.type")
     u.write(path)
+    return path
+
+
+def _le_table(d):
+    """The original's Lees-Edwards stress table (stdout of the run), one row per step."""
+    return np.loadtxt(os.path.join(d, "table.txt"), comments="#")
+
+
+@pytest.mark.parametrize("ns", ["explicit_scheme", "implicit_scheme"])
+def test_lees_edwards_fdm_distributed(tmp_path, ns):
+    """Shear_Navier_Stokes_Lees_Edwards_FDM on 2 (slab) and 4 (2 x 2) ranks against the
+    serial run: 50 steps, 4 particles, thermal noise, shear rate 0.25 (the frame re-maps
+    once: the row shift along the split x on the gathered rows); the restart data, the
+    records, the HDF5 field files (rectangular frame) and the stress table on stdout."""
+    import subprocess
+    from test_mpi import MPIEXEC as mpiexec
+    ser = le_input(tmp_path / "serial", LE, ns, 0.25)
+    r = subprocess.run([sys.executable, "-m", "kapsel.cli", f"-I{ser}", "-Ooutput.udf",
+                        "-Ddefine.udf", "-Rrestart.udf", "--seed", "11", "--quiet"],
+                       cwd=tmp_path / "serial", capture_output=True, text=True, timeout=600)
+    assert r.returncode == 0, r.stderr[-2000:]
+    (tmp_path / "serial" / "table.txt").write_text(r.stdout)
+    from kapsel.io.restart import state_path
+    with np.load(state_path(str(tmp_path / "serial" / "restart.udf"))) as z:
+        assert int(z["remaps"]) == 1
+    for n, grid in ((2, ()), (4, ("-X2", "-Y2"))):
+        d = tmp_path / f"p{n}"
+        le_input(d, LE, ns, 0.25)
+        r = subprocess.run([mpiexec, "-n", str(n), sys.executable, "-m", "kapsel.cli",
+                            "-Iinput.udf", "-Ooutput.udf", "-Ddefine.udf", "-Rrestart.udf",
+                            "--seed", "11", "--quiet", *grid],
+                           cwd=d, capture_output=True, text=True, timeout=600)
+        assert r.returncode == 0, r.stderr[-2000:]
+        (d / "table.txt").write_text(r.stdout)
+        diff = differences(str(tmp_path / "serial"), str(d))
+        diff["h5"] = field_differences(str(tmp_path / "serial"), str(d))
+        ta, tb = _le_table(str(tmp_path / "serial")), _le_table(str(d))
+        assert ta.shape == tb.shape and ta.shape[0] == 51
+        diff["table"] = float(np.abs(ta - tb).max())
+        print(f"{LE} {ns}, {n} ranks: max |distributed - serial| {diff}")
+        assert max(diff.values()) < 1e-11, diff
+        assert diff["Particles"] > 0 or diff["U"] > 0
+
+
+@pytest.mark.parametrize("eq", ["Shear_NS_LE_CH_FDM"])
+def test_sheared_fdm_types_are_refused_by_name(tmp_path, eq):
+    d = tmp_path / "le"
+    le_input(d, eq, "explicit_scheme", 0.05)
     r = mpirun(d, 2, "input.udf", check=False)
     assert r.returncode == 2, r.stderr[-2000:]
     assert f"{eq} does not run distributed" in r.stderr

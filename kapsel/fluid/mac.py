@@ -518,8 +518,8 @@ class _PoissonPencil:
 
     def __init__(self, grid, dx):
         self.grid = grid
-        inv = op.inverse_div_grad_b(grid.shape, dx)
-        self.inv = np.ascontiguousarray(grid.local_complex(inv)) / grid.size  # c2r's 1/N
+        inv = op.inverse_div_grad_b(grid.shape, dx, grid.spec_range)  # this rank's modes
+        self.inv = inv / grid.size                                      # c2r's 1/N folded in
         self.rhs = grid.empty_real(1)
         self._c = grid.empty_complex(1)
         self._o = grid.empty_real(1)
@@ -535,14 +535,15 @@ class _PoissonPencil:
 
 class PencilDiagonal:
     """``kapsel.linalg.FourierDiagonal`` on a distributed grid: v -> FFT^-1[m(k) FFT(v)] for
-    v holding one or more fields of this rank's block (flattened), ``m`` the whole half
-    spectrum (NX, NY, NZ//2 + 1) or broadcastable to it."""
+    v holding one or more fields of this rank's block (flattened), ``m`` on this rank's
+    Fourier block (``local=True``) or on the whole half spectrum (NX, NY, NZ//2 + 1)."""
 
-    def __init__(self, grid, m):
+    def __init__(self, grid, m, local=False):
         self.grid = grid
         self.lshape = tuple(grid.local_shape)
-        m = np.broadcast_to(m, grid.cshape)
-        self.m = np.ascontiguousarray(grid.local_complex(m)) / grid.size
+        if not local:
+            m = grid.local_complex(np.broadcast_to(m, grid.cshape))
+        self.m = np.ascontiguousarray(np.broadcast_to(m, grid.local_cshape)) / grid.size
         self._c = {}
 
     def solve(self, v):
@@ -667,9 +668,9 @@ class DistributedMAC(MACSolver):
         if self.preconditioner is None:
             return None
         if self._helmholtz is None:
-            lap = op.symbol_laplacian(self.shape, self.dx)
+            lap = op.symbol_laplacian(self.shape, self.dx, self.grid.spec_range)
             self._helmholtz = PencilDiagonal(self.grid, 1.0 / (1.0 - 0.5 * self.dt * self.nu
-                                                               * lap))
+                                                               * lap), local=True)
         return LinearOperator((n, n), matvec=self._helmholtz.solve, dtype=np.float64)
 
     def _operator(self, ustar, eta_field):
