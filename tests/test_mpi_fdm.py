@@ -1,8 +1,8 @@
 """Distributed runs of the finite-difference types (README "Distributed runs"):
-``mpiexec -n P kapsel-py`` on Navier_Stokes_FDM and Navier_Stokes_Cahn_Hilliard_FDM agrees
-with the serial run to round-off (restart data, output.udf records, the per-snapshot HDF5
-files), restarts interchange between distributed and serial runs, the types that do not run
-distributed are refused by name.
+``mpiexec -n P kapsel-py`` on Navier_Stokes_FDM, Navier_Stokes_Cahn_Hilliard_FDM and the
+Lees-Edwards FDM types agrees with the serial run to round-off (restart data, output.udf
+records, the per-snapshot HDF5 files, the stress table), restarts interchange between
+distributed and serial runs, a type that does not run distributed is refused by name.
 
 16^3, 4 particles with thermal noise, 50 steps (+ the one after the last snapshot), every
 scheme.  Measured (2026-11-29, ``pytest -s tests/test_mpi_fdm.py -k agree``): see the
@@ -136,10 +136,10 @@ def test_fdm_restarts_interchange_between_distributed_and_serial_runs(tmp_path, 
         assert max(diff.values()) < 1e-11, (x.name, diff)
 
 
-LE = "Shear_Navier_Stokes_Lees_Edwards_FDM"
+LE, LECH = "Shear_Navier_Stokes_Lees_Edwards_FDM", "Shear_NS_LE_CH_FDM"
 
 
-def le_input(d, eq, ns, rate, ch="explicit_scheme", **kw):
+def le_input(d, eq, ns, rate, ch="explicit_scheme", viscosity_change=False, **kw):
     """The sample as a Lees-Edwards FDM type with DC shear ``rate`` and thermal noise."""
     kw = {"particles": 4, "gts": 10, "nsnap": 5, **kw}
     path = make_input(d, "Navier_Stokes", ns=ns, ch=ch, **kw)
@@ -150,6 +150,13 @@ def le_input(d, eq, ns, rate, ch="explicit_scheme", **kw):
     u.put(rate, f"{base}.External_field.DC.Shear_rate")
     u.put(0.5, f"{base}.kBT")
     u.put(ns, f"{base}.NS_solver.type")
+    if eq == LECH:
+        u.put(ch, f"{base}.CH_solver.type")
+    if viscosity_change:
+        v = f"{base}.NS_solver.implicit_scheme"
+        u.put("ON", f"{v}.viscosity_change")
+        u.put(3.0, f"{v}.ON.ETA_A")
+        u.put(1.0, f"{v}.ON.ETA_B")
     u.write(path)
     return path
 
@@ -159,15 +166,28 @@ def _le_table(d):
     return np.loadtxt(os.path.join(d, "table.txt"), comments="#")
 
 
-@pytest.mark.parametrize("ns", ["explicit_scheme", "implicit_scheme"])
-def test_lees_edwards_fdm_distributed(tmp_path, ns):
-    """Shear_Navier_Stokes_Lees_Edwards_FDM on 2 (slab) and 4 (2 x 2) ranks against the
-    serial run: 50 steps, 4 particles, thermal noise, shear rate 0.25 (the frame re-maps
-    once: the row shift along the split x on the gathered rows); the restart data, the
-    records, the HDF5 field files (rectangular frame) and the stress table on stdout."""
+LE_CASES = [pytest.param(LE, "explicit_scheme", "explicit_scheme", False,
+                         marks=pytest.mark.slow),
+            (LE, "implicit_scheme", "explicit_scheme", False),
+            pytest.param(LECH, "explicit_scheme", "explicit_scheme", False,
+                         marks=pytest.mark.slow),
+            (LECH, "implicit_scheme", "implicit_scheme", True)]
+
+
+@pytest.mark.parametrize("eq,ns,ch,vc", LE_CASES)
+def test_lees_edwards_fdm_distributed(tmp_path, eq, ns, ch, vc):
+    """The Lees-Edwards FDM types on 2 (slab) and 4 (2 x 2) ranks against the serial run:
+    50 steps, 4 particles, thermal noise, shear rate 0.25 (the frame re-maps once: the row
+    shift along the split x on the gathered rows, psi and psi_old shifted alike); the
+    restart data, the records, the HDF5 field files (rectangular frame) and the stress
+    table on stdout.  The Cahn-Hilliard case with both implicit schemes and
+    viscosity_change (the oblique variable-viscosity term on a block widened by two
+    layers).  10-20 s each on the 2-core machine (35 s busy); the explicit cases (the same halo code
+    as the unsheared explicit types plus the metric terms the implicit operator uses too)
+    are marked slow."""
     import subprocess
     from test_mpi import MPIEXEC as mpiexec
-    ser = le_input(tmp_path / "serial", LE, ns, 0.25)
+    ser = le_input(tmp_path / "serial", eq, ns, 0.25, ch, vc)
     r = subprocess.run([sys.executable, "-m", "kapsel.cli", f"-I{ser}", "-Ooutput.udf",
                         "-Ddefine.udf", "-Rrestart.udf", "--seed", "11", "--quiet"],
                        cwd=tmp_path / "serial", capture_output=True, text=True, timeout=600)
@@ -178,7 +198,7 @@ def test_lees_edwards_fdm_distributed(tmp_path, ns):
         assert int(z["remaps"]) == 1
     for n, grid in ((2, ()), (4, ("-X2", "-Y2"))):
         d = tmp_path / f"p{n}"
-        le_input(d, LE, ns, 0.25)
+        le_input(d, eq, ns, 0.25, ch, vc)
         r = subprocess.run([mpiexec, "-n", str(n), sys.executable, "-m", "kapsel.cli",
                             "-Iinput.udf", "-Ooutput.udf", "-Ddefine.udf", "-Rrestart.udf",
                             "--seed", "11", "--quiet", *grid],
@@ -190,17 +210,19 @@ def test_lees_edwards_fdm_distributed(tmp_path, ns):
         ta, tb = _le_table(str(tmp_path / "serial")), _le_table(str(d))
         assert ta.shape == tb.shape and ta.shape[0] == 51
         diff["table"] = float(np.abs(ta - tb).max())
-        print(f"{LE} {ns}, {n} ranks: max |distributed - serial| {diff}")
+        print(f"{eq} NS {ns} CH {ch}{' eta(psi)' if vc else ''}, {n} ranks: "
+              f"max |distributed - serial| {diff}")
         assert max(diff.values()) < 1e-11, diff
         assert diff["Particles"] > 0 or diff["U"] > 0
 
 
-@pytest.mark.parametrize("eq", ["Shear_NS_LE_CH_FDM"])
-def test_sheared_fdm_types_are_refused_by_name(tmp_path, eq):
-    d = tmp_path / "le"
-    le_input(d, eq, "explicit_scheme", 0.05)
+def test_a_type_that_is_not_distributed_is_refused_by_name(tmp_path):
+    """Electrolyte (the one type left) is refused with more than one rank."""
+    from test_electrolyte import sample_el_input
+    d = tmp_path / "el"
+    sample_el_input(d)
     r = mpirun(d, 2, "input.udf", check=False)
     assert r.returncode == 2, r.stderr[-2000:]
-    assert f"{eq} does not run distributed" in r.stderr
+    assert "Electrolyte does not run distributed" in r.stderr
     assert r.stderr.count("does not run distributed") == 1          # rank 0 speaks
     assert not (d / "output.udf").exists() and not (d / "restart.udf").exists()

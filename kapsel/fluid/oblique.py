@@ -675,7 +675,7 @@ class ObliqueMAC(_ObliqueFrame, MACSolver):
         if eta_field is not None and rate:
             # the imposed flow is not force-free where eta varies: div(eta (grad U + grad U^T))
             # = gamma_dot (d_y eta, d_x eta, 0)
-            ge = oblique_gradient(eta_field, self.dx, g0, np.empty((3,) + self.shape))
+            ge = self._gradient(eta_field, g0)
             fu = np.zeros_like(w)
             fu[0] = ge[1]
             fu[1] = ge[0]
@@ -694,6 +694,10 @@ class ObliqueMAC(_ObliqueFrame, MACSolver):
         if n:
             self._remap(u, n)
         return u
+
+    def _gradient(self, f, g):
+        """The physical central gradient of a node field (``oblique_gradient``)."""
+        return oblique_gradient(f, self.dx, g, np.empty((3,) + f.shape))
 
     # ------------------------------------------------------------------ re-mapping
     def row_shift(self, n):
@@ -768,7 +772,8 @@ class DistributedObliqueMAC(ObliqueMAC, DistributedMAC):
     Fourier block, and the re-mapping's row shift along x on the rows gathered over the
     ranks of the x split (``shift_rows`` of the whole row, this block kept).  On the
     oblique grid the Lees-Edwards fields are plainly periodic, so the halo is the periodic
-    one.  viscosity_change (the Cahn-Hilliard type) does not run distributed."""
+    one.  With viscosity_change the full viscous term (reach 2) runs on a block widened
+    by two layers."""
 
     def __init__(self, grid, dx, rho, eta, dt, shear, **kw):
         from ..parallel.halo import Halo
@@ -806,9 +811,23 @@ class DistributedObliqueMAC(ObliqueMAC, DistributedMAC):
         gp[0] += t
         return gp
 
+    def _gradient(self, f, g):
+        h = self.halo
+        G = oblique_gradient(h.pad(f, key="ograd"), self.dx, g, h.work((3,), "ograd"))
+        return np.array(h.interior(G))
+
     def _viscous(self, u, eta_field, out):
-        if eta_field is not None:
-            raise ValueError("viscosity_change does not run distributed in the oblique frame")
+        if eta_field is not None:     # contravariant u -> Cartesian, div(eta (...)), back
+            from ..parallel.halo import Halo
+            if getattr(self, "halo2", None) is None:
+                self.halo2 = Halo(self.grid, 2)
+            h, g = self.halo2, self._g_op
+            U = h.pad(cartesian(u, g), key="u")
+            E = h.pad(eta_field, key="eta")
+            v = oblique_viscous_variable(U, E, self.dx, g)
+            contravariant(np.array(h.interior(v)), g, out=out)
+            out *= 1.0 / self.rho
+            return out
         DistributedMAC._viscous(self, u, None, out)
         g = self._g_op
         if g:
@@ -907,13 +926,62 @@ class ObliqueCahnHilliard:
         return _div_flux(psi, contravariant(u, self.frame()), self.dx, out, work)
 
 
-def make_oblique_cahn_hilliard(frame, *args, **kwargs):
+def make_oblique_cahn_hilliard(frame, *args, grid=None, **kwargs):
     """A CahnHilliard (kapsel.phase.cahn_hilliard) with the oblique operators; its stability
-    estimate uses the largest metric Laplacian of the frame (|g| <= s/2)."""
-    from ..phase.cahn_hilliard import CahnHilliard
+    estimate uses the largest metric Laplacian of the frame (|g| <= s/2).  ``grid``: a
+    distributed run's PencilGrid (args then start with the mesh spacing, not the shape):
+    the DistributedCahnHilliard with the oblique operators on the halo-widened block."""
+    from ..phase.cahn_hilliard import CahnHilliard, DistributedCahnHilliard
+    if grid is not None:
+        ch = _DistributedObliqueCH(grid, *args, **kwargs)
+        ch.frame = frame
+        return ch
 
     class _OCH(ObliqueCahnHilliard, CahnHilliard):
         pass
     ch = _OCH(*args, **kwargs)
     ch.frame = frame
     return ch
+
+
+def _distributed_oblique_ch():
+    from ..phase.cahn_hilliard import DistributedCahnHilliard
+
+    class DistributedObliqueCH(DistributedCahnHilliard):
+        """ObliqueCahnHilliard's operators (metric Laplacian, physical gradient, flux of the
+        contravariant velocity) on this rank's block widened by one ghost layer; the
+        implicit operator through them (no width-2 shortcut)."""
+
+        def __init__(self, *args, **kwargs):
+            super().__init__(*args, **kwargs)
+            self.halo2 = None
+
+        def _lap(self, f, out):
+            h = self.halo
+            lead = f.shape[:-3]
+            L = oblique_laplacian(h.pad(f, key="ch"), self.dx, self.frame(),
+                                  h.work(lead, "chlap"), work=h.work(lead, "chlapw"))
+            out[...] = h.interior(L)
+            return out
+
+        def _grad(self, f, out):
+            h = self.halo
+            G = oblique_gradient(h.pad(f, key="ch"), self.dx, self.frame(),
+                                 h.work((3,), "chgrad"))
+            out[...] = h.interior(G)
+            return out
+
+        def _div_coef_grad(self, c, f):
+            return ObliqueCahnHilliard._div_coef_grad(self, c, f)
+
+        def _z_density(self, s, psi):
+            return ObliqueCahnHilliard._z_density(self, s, psi)
+
+        def _div_flux(self, psi, u, out, work):
+            return DistributedCahnHilliard._div_flux(self, psi, contravariant(u, self.frame()),
+                                                     out, work)
+    return DistributedObliqueCH
+
+
+def _DistributedObliqueCH(*args, **kwargs):
+    return _distributed_oblique_ch()(*args, **kwargs)

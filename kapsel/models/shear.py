@@ -538,8 +538,12 @@ class ShearFDMModel(FDMModel):
     def _make_ch(self, dt):
         from ..fluid.oblique import make_oblique_cahn_hilliard
         mac = self.mac
-        ch = make_oblique_cahn_hilliard(lambda: mac.frame_strain, self.shape, self.dx,
-                                        self.cfg.phase, dt, **self.ch_kwargs)
+        if self.grid is not None:
+            ch = make_oblique_cahn_hilliard(lambda: mac.frame_strain, self.dx, self.cfg.phase,
+                                            dt, grid=self.grid, **self.ch_kwargs)
+        else:
+            ch = make_oblique_cahn_hilliard(lambda: mac.frame_strain, self.shape, self.dx,
+                                            self.cfg.phase, dt, **self.ch_kwargs)
         g = mac.max_frame_strain
         ch._k2 = ch._k2 * (1.0 + (4 * g * g + 2 * g) / 12.0)   # metric Laplacian bound
         return ch
@@ -652,10 +656,21 @@ class ShearFDMModel(FDMModel):
             src["u"] = on_root(self._u_rect, lambda: self.u)
             src["pressure"] = on_root(lambda p: self._rect(pressure_at_nodes(p)),
                                       self._pressure_cells)
-            src["tau"] = on_root(self._tau, lambda: self.u)
+            src["tau"] = (on_root(self._tau, lambda: self.u, lambda: self.eta_field)
+                          if self.eta_field is not None else on_root(self._tau, lambda: self.u))
             if self.particles.n:
                 src["phi"] = on_root(self._rect, lambda: self.phi)
+            if self.psi is not None:
+                src["psi"] = on_root(self._rect, lambda: self.psi)
+                src["psi_all"] = src["psi"]
         return src
+
+    def _gathered_source(self, name):
+        """The record's PSI in the rectangular frame, from the gathered psi."""
+        if name == "record" and self.psi is not None:
+            psi = self.grid.gather_real(self.psi)
+            return {"PSI": self._rect(psi) if self.dist.root else None}
+        return super()._gathered_source(name)
 
     def _u_rect(self, u=None):
         u = self._rect(self.u if u is None else u)
@@ -663,14 +678,14 @@ class ShearFDMModel(FDMModel):
         u[0] += self.mac.shear_rate_now * (y - self.mac.y0)
         return u
 
-    def _tau(self, u=None):
+    def _tau(self, u=None, eta=None):
         from ..fluid.diagnostics import stress_from_gradient, velocity_gradient_central
         from ..fluid.oblique import oblique_gradient
         g, dx = self.mac.frame_strain, self.dx
         grad = velocity_gradient_central(self.u if u is None else u, dx,
                                          gradient=lambda f, out: oblique_gradient(f, dx, g, out))
         grad[0, 1] += self.mac.shear_rate_now
-        tau = stress_from_gradient(grad, self._eta())
+        tau = stress_from_gradient(grad, self._eta() if eta is None else eta)
         return self._rect(tau)
 
     sheared = True
