@@ -113,12 +113,16 @@ def _grad_sq(f, dx):
     return np.einsum("i...,i...->...", g, g)
 
 
-def discrete_k2(shape, dx):
+def discrete_k2(shape, dx, block=None):
     """K^2 = sum_a (2/DX)^2 sin^2(k_a DX/2) of every mesh mode (full FFT order), -symbol of
-    the 7-point Laplacian; max 12/DX^2 for even N."""
+    the 7-point Laplacian; max 12/DX^2 for even N.  ``block``: ((x0, x1), (y0, y1), (z0,
+    z1)), the modes of a distributed run's Fourier block only (the same values, cut)."""
     parts = []
     for a, n in enumerate(shape):
         k = 2.0 * np.pi * np.fft.fftfreq(n, d=dx)
+        if block is not None:
+            k = k[block[a][0]:block[a][1]]
+        n = k.size
         s = (2.0 / dx) ** 2 * np.sin(0.5 * k * dx) ** 2
         sh = [1, 1, 1]
         sh[a] = n
@@ -695,7 +699,15 @@ class DistributedCahnHilliard(CahnHilliard):
             self.halo2 = None
         self._step_pads = None
         super().__init__(grid.local_shape, dx, params, dt, threads, **kw)
-        self._k2 = discrete_k2(self.global_shape, self.dx)
+        # the modes of this rank's Fourier block (of the half spectrum, which holds every
+        # value of K^2): the preconditioner's symbol, this rank's part of stable_dt
+        self._k2 = discrete_k2(self.global_shape, self.dx, grid.spec_range)
+
+    def stable_dt(self, psi=None, phi=None):
+        """CahnHilliard.stable_dt over every mode: the smallest of the ranks' limits over
+        their Fourier blocks (each an interval of stable dt)."""
+        lim = super().stable_dt(psi, phi)
+        return -self.grid.max(-lim)
 
     def initial_field(self, rng):
         """The serial run's field (the same random numbers), this rank's block of it."""
@@ -723,7 +735,7 @@ class DistributedCahnHilliard(CahnHilliard):
 
     def _fourier_diagonal(self, half):
         from ..fluid.mac import PencilDiagonal
-        return PencilDiagonal(self.grid, half)
+        return PencilDiagonal(self.grid, half, local=True)
 
     # the implicit operator: one exchange of width 2 per product
     def _step_implicit(self, psi, u, phi):
