@@ -112,23 +112,36 @@ def _continue(d, n, snaps, *grid):
         assert cli(d, "cont.udf") == 0
 
 
-@pytest.mark.parametrize("ns,ch", [("implicit_scheme", "implicit_scheme"),
-                                   ("explicit_scheme", "explicit_scheme")])
-def test_fdm_restarts_interchange_between_distributed_and_serial_runs(tmp_path, ns, ch):
-    """Navier_Stokes_Cahn_Hilliard_FDM: a restart written by a 2-rank run continues
-    serially (2 x 1 ranks), a serial one on 2 ranks (1 x 2: y split); both
-    end where a serial run of the whole length does (to round-off)."""
+@pytest.mark.parametrize("eq,ns,ch", [(NSCH, "implicit_scheme", "implicit_scheme"),
+                                      (NSCH, "explicit_scheme", "explicit_scheme"),
+                                      ("Shear_NS_LE_CH_FDM", "explicit_scheme",
+                                       "implicit_scheme")])
+def test_fdm_restarts_interchange_between_distributed_and_serial_runs(tmp_path, eq, ns, ch):
+    """A restart written by a 2-rank run continues serially (2 x 1 ranks), a serial one on
+    2 ranks (1 x 2: y split); both end where a serial run of the whole length does (to
+    round-off).  The Lees-Edwards case (shear rate 0.5) re-maps its frame once, in the
+    second half of the run."""
     kw = dict(particles=3, gts=5)
-    one = fdm_input(tmp_path / "one", NSCH, ns, ch, nsnap=4, **kw)
+
+    def make(d, nsnap):
+        if eq == NSCH:
+            return fdm_input(d, eq, ns, ch, nsnap=nsnap, **kw)
+        return le_input(d, eq, ns, 0.5, ch, nsnap=nsnap, **kw)
+    one = make(tmp_path / "one", 4)
     assert cli(tmp_path / "one", one) == 0
     d = tmp_path / "dist_then_serial"
-    fdm_input(d, NSCH, ns, ch, nsnap=2, **kw)
+    make(d, 2)
     mpirun(d, 2, "input.udf")
     _continue(d, 0, 4)
     e = tmp_path / "serial_then_dist"
-    inp = fdm_input(e, NSCH, ns, ch, nsnap=2, **kw)
+    inp = make(e, 2)
     assert cli(e, inp) == 0
     _continue(e, 2, 4, "-X1", "-Y2")
+    if eq != NSCH:                  # the re-mapping falls into the continued half
+        from kapsel.io.restart import state_path
+        for path, remaps in ((tmp_path / "one" / "restart.udf", 1), (d / "cont.udf", 0)):
+            with np.load(state_path(str(path))) as z:
+                assert int(z["remaps"]) == remaps, path
     for x in (d, e):
         assert saved_data(str(x / "restart.udf"))["jikan"][0] == 20
         diff = differences(str(tmp_path / "one"), str(x))
