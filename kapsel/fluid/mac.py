@@ -572,8 +572,8 @@ class DistributedMAC(MACSolver):
     * the Poisson equation and the FFT preconditioner by the pencil FFTs with the serial
       symbols cut to the local Fourier block;
     * sums, dot products and maxima over the ranks in a fixed order (``PencilGrid.sum`` /
-      ``max``: the same bits on every rank, run after run); BiCGSTAB with those dot
-      products (kapsel.linalg.bicgstab: scipy's iteration)."""
+      ``sums`` / ``max``: the same bits on every rank, run after run); BiCGSTAB with those
+      dot products (kapsel.linalg.bicgstab_dot: scipy's iteration)."""
 
     def __init__(self, grid, dx, rho, eta, dt, **kw):
         from ..parallel.halo import Halo
@@ -581,8 +581,7 @@ class DistributedMAC(MACSolver):
         self.fshape = tuple(grid.local_shape)
         self.halo = Halo(grid, 1)
         super().__init__(grid.shape, dx, rho, eta, dt, **kw)
-        self._eta_pad = None
-        self._us_pad = None
+        self._eta_pad = None        # eta_field widened (with _eta_faces of it)
 
     def _make_poisson(self, threads, fft):
         return _PoissonPencil(self.grid, self.dx)
@@ -638,9 +637,7 @@ class DistributedMAC(MACSolver):
         if eta_field is None:
             op.laplacian(U, self.dx, out=V)
             V *= self.nu
-        else:
-            if self._eta_faces is None:
-                self._eta_faces = self._face_viscosities(eta_field)
+        else:                       # _eta_faces, _eta_pad: set by the step
             op.viscous_variable(U, self._eta_pad, self.dx, out=V, work=h.work((2,), "w2"),
                                 eta_faces=self._eta_faces)
             V *= 1.0 / self.rho
@@ -680,7 +677,7 @@ class DistributedMAC(MACSolver):
         n3 = 3 * int(np.prod(self.fshape))
         shape = (3,) + self.fshape
         hdt = 0.5 * self.dt
-        self._us_pad = US = np.array(h.pad(ustar, key="ustar"))
+        US = np.array(h.pad(ustar, key="ustar"))
         if eta_field is None and _compiled.stencils is not None and self.linear == "sparse":
             a = hdt / (2 * self.dx)
             c = hdt * self.nu / self.dx ** 2

@@ -53,6 +53,7 @@ import math
 import numpy as np
 
 from ..grid import Grid
+from ..phase.cahn_hilliard import DistributedCahnHilliard
 from .mac import DistributedMAC, MACSolver
 from .spectral import SpectralNS, cross_in_place, phi1
 from .. import compiled as _compiled
@@ -780,7 +781,7 @@ class DistributedObliqueMAC(ObliqueMAC, DistributedMAC):
         self.grid = grid
         self.fshape = tuple(grid.local_shape)
         self.halo = Halo(grid, 1)
-        self._eta_pad = self._us_pad = None
+        self._eta_pad = None
         ObliqueMAC.__init__(self, grid.shape, dx, rho, eta, dt, shear, **kw)
         from . import operators as op
         S = op.symbol_div_b(self.shape, self.dx, grid.spec_range)
@@ -931,7 +932,7 @@ def make_oblique_cahn_hilliard(frame, *args, grid=None, **kwargs):
     estimate uses the largest metric Laplacian of the frame (|g| <= s/2).  ``grid``: a
     distributed run's PencilGrid (args then start with the mesh spacing, not the shape):
     the DistributedCahnHilliard with the oblique operators on the halo-widened block."""
-    from ..phase.cahn_hilliard import CahnHilliard, DistributedCahnHilliard
+    from ..phase.cahn_hilliard import CahnHilliard
     if grid is not None:
         ch = _DistributedObliqueCH(grid, *args, **kwargs)
         ch.frame = frame
@@ -944,44 +945,35 @@ def make_oblique_cahn_hilliard(frame, *args, grid=None, **kwargs):
     return ch
 
 
-def _distributed_oblique_ch():
-    from ..phase.cahn_hilliard import DistributedCahnHilliard
+class _DistributedObliqueCH(DistributedCahnHilliard):
+    """ObliqueCahnHilliard's operators (metric Laplacian, physical gradient, flux of the
+    contravariant velocity) on this rank's block widened by one ghost layer; the implicit
+    operator through them (no width-2 shortcut)."""
 
-    class DistributedObliqueCH(DistributedCahnHilliard):
-        """ObliqueCahnHilliard's operators (metric Laplacian, physical gradient, flux of the
-        contravariant velocity) on this rank's block widened by one ghost layer; the
-        implicit operator through them (no width-2 shortcut)."""
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        self.halo2 = None
 
-        def __init__(self, *args, **kwargs):
-            super().__init__(*args, **kwargs)
-            self.halo2 = None
+    def _lap(self, f, out):
+        h = self.halo
+        lead = f.shape[:-3]
+        L = oblique_laplacian(h.pad(f, key="ch"), self.dx, self.frame(),
+                              h.work(lead, "chlap"), work=h.work(lead, "chlapw"))
+        out[...] = h.interior(L)
+        return out
 
-        def _lap(self, f, out):
-            h = self.halo
-            lead = f.shape[:-3]
-            L = oblique_laplacian(h.pad(f, key="ch"), self.dx, self.frame(),
-                                  h.work(lead, "chlap"), work=h.work(lead, "chlapw"))
-            out[...] = h.interior(L)
-            return out
+    def _grad(self, f, out):
+        h = self.halo
+        G = oblique_gradient(h.pad(f, key="ch"), self.dx, self.frame(), h.work((3,), "chgrad"))
+        out[...] = h.interior(G)
+        return out
 
-        def _grad(self, f, out):
-            h = self.halo
-            G = oblique_gradient(h.pad(f, key="ch"), self.dx, self.frame(),
-                                 h.work((3,), "chgrad"))
-            out[...] = h.interior(G)
-            return out
+    def _div_coef_grad(self, c, f):
+        return ObliqueCahnHilliard._div_coef_grad(self, c, f)
 
-        def _div_coef_grad(self, c, f):
-            return ObliqueCahnHilliard._div_coef_grad(self, c, f)
+    def _z_density(self, s, psi):
+        return ObliqueCahnHilliard._z_density(self, s, psi)
 
-        def _z_density(self, s, psi):
-            return ObliqueCahnHilliard._z_density(self, s, psi)
-
-        def _div_flux(self, psi, u, out, work):
-            return DistributedCahnHilliard._div_flux(self, psi, contravariant(u, self.frame()),
-                                                     out, work)
-    return DistributedObliqueCH
-
-
-def _DistributedObliqueCH(*args, **kwargs):
-    return _distributed_oblique_ch()(*args, **kwargs)
+    def _div_flux(self, psi, u, out, work):
+        return DistributedCahnHilliard._div_flux(self, psi, contravariant(u, self.frame()),
+                                                 out, work)
