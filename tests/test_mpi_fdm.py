@@ -239,3 +239,14 @@ def test_a_type_that_is_not_distributed_is_refused_by_name(tmp_path):
     assert "Electrolyte does not run distributed" in r.stderr
     assert r.stderr.count("does not run distributed") == 1          # rank 0 speaks
     assert not (d / "output.udf").exists() and not (d / "restart.udf").exists()
+
+
+def test_oblique_viscosity_change_refuses_blocks_of_one_point(tmp_path):
+    """The oblique variable-viscosity term reaches 2 points: 4^3 on 4 slabs (blocks of one
+    x plane) is refused with a message naming the process grid, exit 2, nothing written."""
+    d = tmp_path / "thin"
+    le_input(d, LECH, "implicit_scheme", 0.25, "implicit_scheme", True, particles=0, npx=2)
+    r = mpirun(d, 4, "input.udf", "-X4", "-Y1", check=False)
+    assert r.returncode == 2, r.stderr[-2000:]
+    assert "viscosity_change in the oblique frame needs blocks of at least 2" in r.stderr
+    assert not (d / "output.udf").exists() and not (d / "restart.udf").exists()

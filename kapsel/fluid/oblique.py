@@ -781,6 +781,10 @@ class DistributedObliqueMAC(ObliqueMAC, DistributedMAC):
         self.grid = grid
         self.fshape = tuple(grid.local_shape)
         self.halo = Halo(grid, 1)
+        try:                          # the variable-viscosity term (reach 2)
+            self.halo2 = Halo(grid, 2)
+        except ValueError:            # blocks of one point: refused by the model
+            self.halo2 = None
         self._eta_pad = None
         ObliqueMAC.__init__(self, grid.shape, dx, rho, eta, dt, shear, **kw)
         from . import operators as op
@@ -819,9 +823,6 @@ class DistributedObliqueMAC(ObliqueMAC, DistributedMAC):
 
     def _viscous(self, u, eta_field, out):
         if eta_field is not None:     # contravariant u -> Cartesian, div(eta (...)), back
-            from ..parallel.halo import Halo
-            if getattr(self, "halo2", None) is None:
-                self.halo2 = Halo(self.grid, 2)
             h, g = self.halo2, self._g_op
             U = h.pad(cartesian(u, g), key="u")
             E = h.pad(eta_field, key="eta")

@@ -511,6 +511,11 @@ class ShearFDMModel(FDMModel):
     def __init__(self, cfg: RunConfig, args):
         self.interpolation = check_interpolation(cfg)
         super().__init__(cfg, args)
+        if self.grid is not None and cfg.fluid.viscosity_change and self.mac.halo2 is None:
+            raise ConfigError("viscosity_change in the oblique frame needs blocks of at "
+                              "least 2 mesh points along the split directions (its viscous "
+                              "term reaches 2 points): use fewer ranks along x or y (-X, -Y)",
+                              path="mesh", value="process grid")
         if start_with_flow(cfg, self.particles, self.mac) and not self.dry:
             self.u[...] = 0.0
             self.spm.impose_particle_velocity()
