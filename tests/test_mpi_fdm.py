@@ -8,7 +8,7 @@ distributed and serial runs, a type that does not run distributed is refused by 
 scheme.  Measured (2026-11-29, ``pytest -s tests/test_mpi_fdm.py -k agree``): see the
 ``print`` of each case; 1 rank is bit-identical for the explicit schemes (the same stencils;
 the implicit ones differ by the order of BiCGSTAB's dot products), 2 (slab) and 4 (2 x 2
-pencil) ranks differ by ~1e-16 in u, psi and ~1e-13 in the particle table (values ~10).
+pencil) ranks differ by ~1e-16 in u, psi and ~1e-13 in the particle table (values up to 83).
 """
 import glob
 import os
