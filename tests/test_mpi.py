@@ -147,16 +147,6 @@ def test_restarts_interchange_between_distributed_and_serial_runs(tmp_path):
         assert max(diff.values()) < 1e-11, (x.name, diff)
 
 
-def test_a_type_that_is_not_distributed_is_refused(tmp_path):
-    d = tmp_path / "fdm"
-    make_input(d, "Navier_Stokes_FDM", ns="explicit_scheme")
-    r = mpirun(d, 2, "input.udf", check=False)
-    assert r.returncode == 2
-    assert "Navier_Stokes_FDM does not run distributed" in r.stderr
-    assert r.stderr.count("does not run distributed") == 1          # rank 0 speaks
-    assert not (d / "output.udf").exists() and not (d / "restart.udf").exists()
-
-
 def test_process_grid_must_match_the_ranks(tmp_path):
     d = tmp_path / "grid"
     make_input(d, "Navier_Stokes")

@@ -139,18 +139,32 @@ class MACSolver:
         # FFT threads only from 64^3 on: below, the plan gains little (32^3 0.10 -> 0.08 ms)
         # and a second thread stalls whenever the other core is busy (seen: 30 ms spikes)
         fft_threads = self.threads if np.prod(self.shape) >= 64 ** 3 else 1
-        self._poisson = _PoissonFFT(self.shape, self.dx, fft_threads, fft)
-        vshape = (3,) + self.shape
-        self.pressure = np.zeros(self.shape)    # p^{n+1} at the cell centres
+        # the fields' shape: the whole mesh, or this rank's block (DistributedMAC)
+        self.fshape = getattr(self, "fshape", self.shape)
+        self._poisson = self._make_poisson(fft_threads, fft)
+        vshape = (3,) + self.fshape
+        self.pressure = np.zeros(self.fshape)    # p^{n+1} at the cell centres
         self._u_old = np.zeros(vshape)
         self._have_old = False
         self._v1 = np.empty(vshape)
         self._v2 = np.empty(vshape)
-        self._w2 = np.empty((2,) + self.shape)
-        self._s = np.empty(self.shape)
+        self._w2 = np.empty((2,) + self.fshape)
+        self._s = np.empty(self.fshape)
         self._pattern = None
         self._eta_faces = None
         self._thread_min_rows = 500_000        # threaded CSR matvec only above this size
+
+    def _make_poisson(self, threads, fft):
+        return _PoissonFFT(self.shape, self.dx, threads, fft)
+
+    # ------------------------------------------------------------------ reductions
+    # (over the whole mesh; DistributedMAC sums and maximises over the ranks)
+    def _max(self, x):
+        return x
+
+    def mean(self, a):
+        """The mean of a field over the mesh (switch.FIX_CELL)."""
+        return a.mean()
 
     # ------------------------------------------------------------------ state
     @property
@@ -168,10 +182,10 @@ class MACSolver:
         given, the advection-diffusion bound 2 nu / |u|^2_max; inf for implicit_scheme."""
         if self.scheme == "implicit_scheme":
             return np.inf
-        nu = self.nu if eta_field is None else float(np.max(eta_field)) / self.rho
+        nu = self.nu if eta_field is None else self._max(float(np.max(eta_field))) / self.rho
         lim = self.dx ** 2 / (6.0 * nu)
         if u is not None:
-            u2 = float(np.max(np.sum(u * u, axis=0)))
+            u2 = self._max(float(np.max(np.sum(u * u, axis=0))))
             if u2 > 0:
                 lim = min(lim, 2.0 * nu / u2)
         return lim
@@ -197,7 +211,7 @@ class MACSolver:
     # ------------------------------------------------------------------ projection
     def _solve_phi(self, u):
         """phi with D G phi = D u (phi = dt p / rho); internal buffer."""
-        op.div_b(u, self.dx, out=self._poisson.rhs, work=self._w2)
+        self._div(u, out=self._poisson.rhs)
         return self._poisson.solve()
 
     def _grad_p(self, phi):
@@ -219,6 +233,9 @@ class MACSolver:
 
     def divergence(self, u, out=None):
         """B-grid divergence of u at the cell centres."""
+        return self._div(u, out)
+
+    def _div(self, u, out=None):
         return op.div_b(u, self.dx, out=out, work=self._w2)
 
     # ------------------------------------------------------------------ step
@@ -231,8 +248,8 @@ class MACSolver:
         after the implicit one D u is O(dt x the AB extrapolation error) and is corrected at the
         next step by the D u^n term of eq 26.  Sets ``pressure`` (p^{n+1}, cell centres),
         ``iterations``; raises SolverDidNotConverge (implicit)."""
-        if u.shape != (3,) + self.shape or u.dtype != np.float64:
-            raise ValueError("u must be float64 of shape %s" % (((3,) + self.shape),))
+        if u.shape != (3,) + self.fshape or u.dtype != np.float64:
+            raise ValueError("u must be float64 of shape %s" % (((3,) + self.fshape),))
         if not self._have_old:
             self._u_old[...] = u
             self._have_old = True
@@ -253,11 +270,17 @@ class MACSolver:
             out *= 1.0 / self.rho
         return out
 
+    def _advection(self, u, out):
+        return op.advection(u, self.dx, out=out, work=self._s)
+
+    def _face_viscosities(self, eta_field):
+        return op.face_viscosities(eta_field)
+
     def _step_explicit(self, u, force, eta_field):
         """Eqs 20-21."""
         self._u_old[...] = u
-        self._eta_faces = None if eta_field is None else op.face_viscosities(eta_field)
-        rhs = op.advection(u, self.dx, out=self._v1, work=self._s)
+        self._eta_faces = None if eta_field is None else self._face_viscosities(eta_field)
+        rhs = self._advection(u, out=self._v1)
         np.negative(rhs, out=rhs)
         rhs += self._viscous(u, eta_field, self._v2)
         if force is not None:
@@ -301,8 +324,10 @@ class MACSolver:
     def _bicgstab(self, A, b, x0):
         x, self.iterations, self.residual = solve_correction(
             A, b, x0, self.tolerance, self.maximum_iteration, M=self._precond(b.size),
-            what="implicit Navier-Stokes solver (BiCGSTAB)")
+            what="implicit Navier-Stokes solver (BiCGSTAB)", dot=self._dot)
         return x
+
+    _dot = None         # global dot product of a distributed solve (None: BiCGSTAB's own)
 
     def _precond(self, n):
         """The FFT preconditioner, or None: M^-1 v = FFT^-1[FFT(v) / (1 + dt/2 nu 4/DX^2
@@ -349,7 +374,7 @@ class MACSolver:
         n3 = 3 * int(np.prod(self.shape))
         shape = (3,) + self.shape
         h = 0.5 * self.dt
-        self._eta_faces = None if eta_field is None else op.face_viscosities(eta_field)
+        self._eta_faces = None if eta_field is None else self._face_viscosities(eta_field)
         tmp = np.empty(shape)
 
         def mv(x):
@@ -484,3 +509,202 @@ class MACSolver:
             from concurrent.futures import ThreadPoolExecutor
             self._pool = ThreadPoolExecutor(self.threads)
         return self._pool
+
+
+# ---------------------------------------------------------------------- distributed
+class _PoissonPencil:
+    """``_PoissonFFT`` on a distributed grid (kapsel.parallel.pencil.PencilGrid): the same
+    B-grid inverse symbol cut to this rank's Fourier block, the pencil FFTs."""
+
+    def __init__(self, grid, dx):
+        self.grid = grid
+        inv = op.inverse_div_grad_b(grid.shape, dx, grid.spec_range)  # this rank's modes
+        self.inv = inv / grid.size                                      # c2r's 1/N folded in
+        self.rhs = grid.empty_real(1)
+        self._c = grid.empty_complex(1)
+        self._o = grid.empty_real(1)
+        self.rhs = self.rhs[0]
+
+    def solve(self):
+        g = self.grid
+        g.forward(self.rhs[None], self._c)
+        np.multiply(self._c[0], self.inv, out=self._c[0])
+        g.backward_raw(self._c, self._o)
+        return self._o[0]
+
+
+class PencilDiagonal:
+    """``kapsel.linalg.FourierDiagonal`` on a distributed grid: v -> FFT^-1[m(k) FFT(v)] for
+    v holding one or more fields of this rank's block (flattened), ``m`` on this rank's
+    Fourier block (``local=True``) or on the whole half spectrum (NX, NY, NZ//2 + 1)."""
+
+    def __init__(self, grid, m, local=False):
+        self.grid = grid
+        self.lshape = tuple(grid.local_shape)
+        if not local:
+            m = grid.local_complex(np.broadcast_to(m, grid.cshape))
+        self.m = np.ascontiguousarray(np.broadcast_to(m, grid.local_cshape)) / grid.size
+        self._c = {}
+
+    def solve(self, v):
+        g = self.grid
+        v = np.asarray(v).reshape((-1,) + self.lshape)
+        n = v.shape[0]
+        c = self._c.get(n)
+        if c is None:
+            c = self._c[n] = (g.empty_complex(n), g.empty_real(n))
+        ch, out = c
+        g.forward(np.ascontiguousarray(v), ch)
+        ch *= self.m
+        g.backward_raw(ch, out)
+        return out.reshape(-1).copy()
+
+
+class DistributedMAC(MACSolver):
+    """The MAC solver on this rank's block of a distributed grid (kapsel.parallel.pencil.
+    PencilGrid; README "Distributed runs").  ``shape`` is the whole mesh, ``fshape`` the
+    block; u, pressure, u_old are blocks.  The step is MACSolver's, with
+
+    * every stencil operator (advection, viscous term, B-grid divergence and gradient, the
+      implicit operator) applied to the block widened by one ghost layer from the
+      neighbour ranks (kapsel.parallel.halo), its interior kept: the same operations as the
+      serial run point by point;
+    * the Poisson equation and the FFT preconditioner by the pencil FFTs with the serial
+      symbols cut to the local Fourier block;
+    * sums, dot products and maxima over the ranks in a fixed order (``PencilGrid.sum`` /
+      ``sums`` / ``max``: the same bits on every rank, run after run); BiCGSTAB with those
+      dot products (kapsel.linalg.bicgstab_dot: scipy's iteration)."""
+
+    def __init__(self, grid, dx, rho, eta, dt, **kw):
+        from ..parallel.halo import Halo
+        self.grid = grid
+        self.fshape = tuple(grid.local_shape)
+        self.halo = Halo(grid, 1)
+        super().__init__(grid.shape, dx, rho, eta, dt, **kw)
+        self._eta_pad = None        # eta_field widened (with _eta_faces of it)
+
+    def _make_poisson(self, threads, fft):
+        return _PoissonPencil(self.grid, self.dx)
+
+    # reductions over the ranks
+    def _max(self, x):
+        return self.grid.max(x)
+
+    def mean(self, a):
+        return self.grid.sum(float(np.sum(a))) / self.grid.size
+
+    def _dot(self, *pairs):
+        return self.grid.sums([float(np.dot(a, b)) for a, b in pairs])
+
+    def kinetic_energy(self, u):
+        return 0.5 * self.rho * self.grid.sum(float(np.vdot(u, u))) * self.dx ** 3
+
+    def momentum(self, u):
+        s = u.sum(axis=(1, 2, 3))
+        return self.rho * np.array([self.grid.sum(x) for x in s]) * self.dx ** 3
+
+    # stencils through the halo
+    _u_pad = None           # (u, padded u) while the explicit step reads the same u twice
+
+    def _step_explicit(self, u, force, eta_field):
+        self._u_pad = (u, self.halo.pad(u, key="u"))     # advection and viscous term
+        try:
+            return super()._step_explicit(u, force, eta_field)
+        finally:
+            self._u_pad = None
+
+    def _padded(self, u, key):
+        if self._u_pad is not None and self._u_pad[0] is u:
+            return self._u_pad[1]
+        return self.halo.pad(u, key=key)
+
+    def _advection(self, u, out):
+        h = self.halo
+        U = self._padded(u, "pad")
+        A = op.advection(U, self.dx, out=h.work((3,), "adv"), work=h.work((), "s"))
+        out[...] = h.interior(A)
+        return out
+
+    def _face_viscosities(self, eta_field):
+        h = self.halo
+        self._eta_pad = np.array(h.pad(eta_field, key="eta"))
+        return op.face_viscosities(self._eta_pad)
+
+    def _viscous(self, u, eta_field, out):
+        h = self.halo
+        U = self._padded(u, "visc")
+        V = h.work((3,), "visc")
+        if eta_field is None:
+            op.laplacian(U, self.dx, out=V)
+            V *= self.nu
+        else:                       # _eta_faces, _eta_pad: set by the step
+            op.viscous_variable(U, self._eta_pad, self.dx, out=V, work=h.work((2,), "w2"),
+                                eta_faces=self._eta_faces)
+            V *= 1.0 / self.rho
+        out[...] = h.interior(V)
+        return out
+
+    def _div(self, u, out=None):
+        h = self.halo
+        U = h.pad(u)
+        D = op.div_b(U, self.dx, out=h.work((), "div"), work=h.work((2,), "w2"))
+        if out is None:
+            out = np.empty(self.fshape)
+        out[...] = h.interior(D)
+        return out
+
+    def _grad_p(self, phi):
+        h = self.halo
+        P = h.pad(phi, key="phi")
+        G = op.grad_b(P, self.dx, out=h.work((3,), "grad"), work=h.work((2,), "w2"))
+        self._v1[...] = h.interior(G)
+        return self._v1
+
+    # the implicit scheme
+    def _precond(self, n):
+        if self.preconditioner is None:
+            return None
+        if self._helmholtz is None:
+            lap = op.symbol_laplacian(self.shape, self.dx, self.grid.spec_range)
+            self._helmholtz = PencilDiagonal(self.grid, 1.0 / (1.0 - 0.5 * self.dt * self.nu
+                                                               * lap), local=True)
+        return LinearOperator((n, n), matvec=self._helmholtz.solve, dtype=np.float64)
+
+    def _operator(self, ustar, eta_field):
+        """A (I + dt/2 N(u*, .) - dt/2 V) on the block: the compiled stencil sweep for
+        constant viscosity, else the matrix-free stencils, on the padded block."""
+        h = self.halo
+        n3 = 3 * int(np.prod(self.fshape))
+        shape = (3,) + self.fshape
+        hdt = 0.5 * self.dt
+        US = np.array(h.pad(ustar, key="ustar"))
+        if eta_field is None and _compiled.stencils is not None and self.linear == "sparse":
+            a = hdt / (2 * self.dx)
+            c = hdt * self.nu / self.dx ** 2
+            kernel = _compiled.stencils.implicit_matvec
+            OUT = h.work((3,), "mv")
+
+            def mv(x):
+                X = h.pad(np.asarray(x).reshape(shape), key="mv")
+                kernel(X, US, a, c, OUT)
+                return np.array(h.interior(OUT)).reshape(-1)
+            return LinearOperator((n3, n3), matvec=mv, dtype=np.float64)
+        self._eta_faces = None if eta_field is None else self._face_viscosities(eta_field)
+        T = h.work((3,), "mvt")
+        O = h.work((3,), "mvo")
+
+        def mv(x):
+            X = h.pad(np.asarray(x).reshape(shape), key="mv")
+            op.advection_linear(US, X, self.dx, out=O, work=h.work((), "s"))
+            np.multiply(O, hdt, out=O)
+            np.add(O, X, out=O)
+            if eta_field is None:
+                op.laplacian(X, self.dx, out=T)
+                np.multiply(T, self.nu, out=T)
+            else:
+                op.viscous_variable(X, self._eta_pad, self.dx, out=T, work=h.work((2,), "w2"),
+                                    eta_faces=self._eta_faces)
+                np.multiply(T, 1.0 / self.rho, out=T)
+            np.subtract(O, hdt * T, out=O)
+            return np.array(h.interior(O)).reshape(-1)
+        return LinearOperator((n3, n3), matvec=mv, dtype=np.float64)

@@ -53,7 +53,8 @@ import math
 import numpy as np
 
 from ..grid import Grid
-from .mac import MACSolver
+from ..phase.cahn_hilliard import DistributedCahnHilliard
+from .mac import DistributedMAC, MACSolver
 from .spectral import SpectralNS, cross_in_place, phi1
 from .. import compiled as _compiled
 
@@ -675,7 +676,7 @@ class ObliqueMAC(_ObliqueFrame, MACSolver):
         if eta_field is not None and rate:
             # the imposed flow is not force-free where eta varies: div(eta (grad U + grad U^T))
             # = gamma_dot (d_y eta, d_x eta, 0)
-            ge = oblique_gradient(eta_field, self.dx, g0, np.empty((3,) + self.shape))
+            ge = self._gradient(eta_field, g0)
             fu = np.zeros_like(w)
             fu[0] = ge[1]
             fu[1] = ge[0]
@@ -694,6 +695,10 @@ class ObliqueMAC(_ObliqueFrame, MACSolver):
         if n:
             self._remap(u, n)
         return u
+
+    def _gradient(self, f, g):
+        """The physical central gradient of a node field (``oblique_gradient``)."""
+        return oblique_gradient(f, self.dx, g, np.empty((3,) + f.shape))
 
     # ------------------------------------------------------------------ re-mapping
     def row_shift(self, n):
@@ -760,6 +765,133 @@ def oblique_viscous_variable(u, eta, dx, g):
     return out
 
 
+class DistributedObliqueMAC(ObliqueMAC, DistributedMAC):
+    """ObliqueMAC on this rank's block of a distributed grid (README "Distributed runs"):
+    DistributedMAC's halo stencils, pencil Poisson solve and reductions, with the metric
+    pieces of the oblique frame on the widened block (the second and mixed differences of
+    the viscous term, the raised pressure gradient), the metric Poisson symbol on the local
+    Fourier block, and the re-mapping's row shift along x on the rows gathered over the
+    ranks of the x split (``shift_rows`` of the whole row, this block kept).  On the
+    oblique grid the Lees-Edwards fields are plainly periodic, so the halo is the periodic
+    one.  With viscosity_change the full viscous term (reach 2) runs on a block widened
+    by two layers."""
+
+    def __init__(self, grid, dx, rho, eta, dt, shear, **kw):
+        from ..parallel.halo import Halo
+        self.grid = grid
+        self.fshape = tuple(grid.local_shape)
+        self.halo = Halo(grid, 1)
+        try:                          # the variable-viscosity term (reach 2)
+            self.halo2 = Halo(grid, 2)
+        except ValueError:            # blocks of one point: refused by the model
+            self.halo2 = None
+        self._eta_pad = None
+        ObliqueMAC.__init__(self, grid.shape, dx, rho, eta, dt, shear, **kw)
+        from . import operators as op
+        S = op.symbol_div_b(self.shape, self.dx, grid.spec_range)
+        self._SS = {(a, b): np.real(S[a] * np.conj(S[b])) for a in range(3)
+                    for b in range(a, 3)}
+        self._null = op.b_grid_null_modes(self.shape, grid.spec_range)
+        self._w = np.empty((3,) + self.fshape)
+        self._t1 = np.empty(self.fshape)
+
+    def _poisson_inverse(self, g):
+        if self._g_inv == g:
+            return
+        SS = self._SS
+        sym = -((1 + g * g) * SS[0, 0] + SS[1, 1] + SS[2, 2] - 2 * g * SS[0, 1])
+        sym = np.where(self._null, 1.0, sym)
+        inv = 1.0 / sym
+        inv[self._null] = 0.0
+        self._poisson.inv = inv / self.grid.size        # the pencil c2r's 1/N folded in
+        self._g_inv = g
+
+    def _grad_p(self, phi):
+        gp = DistributedMAC._grad_p(self, phi)
+        g = self._g_op
+        t = self._t1
+        np.multiply(gp[1], -g, out=t)
+        gp[1] -= g * gp[0]
+        gp[0] *= 1 + g * g
+        gp[0] += t
+        return gp
+
+    def _gradient(self, f, g):
+        h = self.halo
+        G = oblique_gradient(h.pad(f, key="ograd"), self.dx, g, h.work((3,), "ograd"))
+        return np.array(h.interior(G))
+
+    def _viscous(self, u, eta_field, out):
+        if eta_field is not None:     # contravariant u -> Cartesian, div(eta (...)), back
+            h, g = self.halo2, self._g_op
+            U = h.pad(cartesian(u, g), key="u")
+            E = h.pad(eta_field, key="eta")
+            v = oblique_viscous_variable(U, E, self.dx, g)
+            contravariant(np.array(h.interior(v)), g, out=out)
+            out *= 1.0 / self.rho
+            return out
+        DistributedMAC._viscous(self, u, None, out)
+        g = self._g_op
+        if g:
+            h = self.halo
+            U = self._padded(u, "visc")
+            T = h.work((3,), "obl")
+            _d11(U, self.dx, T)
+            out += (self.nu * g * g) * h.interior(T)
+            _d12(U, self.dx, T, work=h.work((3,), "obl2"))
+            out -= (2.0 * self.nu * g) * h.interior(T)
+        return out
+
+    def _operator(self, ustar, eta_field):
+        """The implicit operator matrix-free (as ObliqueMAC): linearised advection on the
+        widened block, the oblique viscous term through ``_viscous``."""
+        from scipy.sparse.linalg import LinearOperator
+        from . import operators as op
+        h = self.halo
+        n3 = 3 * int(np.prod(self.fshape))
+        shape = (3,) + self.fshape
+        hdt = 0.5 * self.dt
+        US = np.array(h.pad(ustar, key="ustar"))
+        O = h.work((3,), "mvo")
+        tmp = np.empty(shape)
+
+        def mv(x):
+            w = np.asarray(x).reshape(shape)
+            X = h.pad(w, key="mv")
+            op.advection_linear(US, X, self.dx, out=O, work=h.work((), "s"))
+            out = np.array(h.interior(O))
+            out *= hdt
+            out += w
+            out -= hdt * self._viscous(w, eta_field, tmp)
+            return out.ravel()
+        return LinearOperator((n3, n3), matvec=mv, dtype=np.float64)
+
+    def _shift(self, f, shift):
+        """shift_rows of a block: the rows gathered along x over the column's ranks, shifted
+        whole, this block cut out; ``shift`` over the whole mesh's y."""
+        g = self.grid
+        (x0, x1), (y0, y1), _ = g.real_range
+        parts = g.comm_x.allgather(np.ascontiguousarray(f))
+        rows = np.concatenate(parts, axis=f.ndim - 3)
+        out = shift_rows(rows, np.asarray(shift)[y0:y1], self.interpolation)
+        return np.ascontiguousarray(out[..., x0:x1, :, :])
+
+    def shift_scalar(self, f, n):
+        return self._shift(f, self.row_shift(n))
+
+    def _remap(self, u, n):
+        g_old = self.frame_strain + n * self.s
+        g_new = self.frame_strain
+        sh = self.row_shift(n)
+        u[...] = self._shift(u, sh)
+        uo = cartesian(self._u_old, g_old)
+        self._u_old[...] = contravariant(self._shift(uo, sh), g_new)
+        self.pressure[...] = self._shift(self.pressure, sh + 0.5 * n * self.s)
+        self.remaps += n
+        self.remap_count += 1
+        self.remap_fields = n
+
+
 class ObliqueCahnHilliard:
     """Mixin of the Cahn-Hilliard solver in the oblique frame (eq 32):
     d_t psi + d^_i (xi^i psi) = kappa G^ij d^_i d^_j mu, xi^i the contravariant deviation
@@ -796,13 +928,53 @@ class ObliqueCahnHilliard:
         return _div_flux(psi, contravariant(u, self.frame()), self.dx, out, work)
 
 
-def make_oblique_cahn_hilliard(frame, *args, **kwargs):
+def make_oblique_cahn_hilliard(frame, *args, grid=None, **kwargs):
     """A CahnHilliard (kapsel.phase.cahn_hilliard) with the oblique operators; its stability
-    estimate uses the largest metric Laplacian of the frame (|g| <= s/2)."""
+    estimate uses the largest metric Laplacian of the frame (|g| <= s/2).  ``grid``: a
+    distributed run's PencilGrid (args then start with the mesh spacing, not the shape):
+    the DistributedCahnHilliard with the oblique operators on the halo-widened block."""
     from ..phase.cahn_hilliard import CahnHilliard
+    if grid is not None:
+        ch = _DistributedObliqueCH(grid, *args, **kwargs)
+        ch.frame = frame
+        return ch
 
     class _OCH(ObliqueCahnHilliard, CahnHilliard):
         pass
     ch = _OCH(*args, **kwargs)
     ch.frame = frame
     return ch
+
+
+class _DistributedObliqueCH(DistributedCahnHilliard):
+    """ObliqueCahnHilliard's operators (metric Laplacian, physical gradient, flux of the
+    contravariant velocity) on this rank's block widened by one ghost layer; the implicit
+    operator through them (no width-2 shortcut)."""
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        self.halo2 = None
+
+    def _lap(self, f, out):
+        h = self.halo
+        lead = f.shape[:-3]
+        L = oblique_laplacian(h.pad(f, key="ch"), self.dx, self.frame(),
+                              h.work(lead, "chlap"), work=h.work(lead, "chlapw"))
+        out[...] = h.interior(L)
+        return out
+
+    def _grad(self, f, out):
+        h = self.halo
+        G = oblique_gradient(h.pad(f, key="ch"), self.dx, self.frame(), h.work((3,), "chgrad"))
+        out[...] = h.interior(G)
+        return out
+
+    def _div_coef_grad(self, c, f):
+        return ObliqueCahnHilliard._div_coef_grad(self, c, f)
+
+    def _z_density(self, s, psi):
+        return ObliqueCahnHilliard._z_density(self, s, psi)
+
+    def _div_flux(self, psi, u, out, work):
+        return DistributedCahnHilliard._div_flux(self, psi, contravariant(u, self.frame()),
+                                                 out, work)

@@ -306,19 +306,22 @@ def viscous_variable(u, eta, dx, out=None, eta_faces=None, work=None):
 
 
 # --------------------------------------------------------------------------- Fourier symbols
-def wavenumbers(shape, dx):
-    """Broadcastable (kx, ky, kz) in rad per length for rfftn over (NX, NY, NZ)."""
+def wavenumbers(shape, dx, block=None):
+    """Broadcastable (kx, ky, kz) in rad per length for rfftn over (NX, NY, NZ); ``block``:
+    ((x0, x1), (y0, y1), (z0, z1)) of the half spectrum, the wavenumbers of that block only
+    (a distributed run's Fourier block: the same values as the whole array's, cut)."""
     nx, ny, nz = shape
-    kx = 2 * np.pi * np.fft.fftfreq(nx, d=dx)[:, None, None]
-    ky = 2 * np.pi * np.fft.fftfreq(ny, d=dx)[None, :, None]
-    kz = 2 * np.pi * np.fft.rfftfreq(nz, d=dx)[None, None, :]
-    return kx, ky, kz
+    k = [2 * np.pi * np.fft.fftfreq(nx, d=dx), 2 * np.pi * np.fft.fftfreq(ny, d=dx),
+         2 * np.pi * np.fft.rfftfreq(nz, d=dx)]
+    if block is not None:
+        k = [q[a:b] for q, (a, b) in zip(k, block)]
+    return k[0][:, None, None], k[1][None, :, None], k[2][None, None, :]
 
 
-def symbol_laplacian(shape, dx):
+def symbol_laplacian(shape, dx, block=None):
     """Symbol of the 7-point Laplacian: -(4/DX^2) sum_a sin^2(k_a DX/2)."""
     s = 0.0
-    for k in wavenumbers(shape, dx):
+    for k in wavenumbers(shape, dx, block):
         s = s + np.sin(0.5 * k * dx) ** 2
     return -4.0 / dx ** 2 * s
 
@@ -328,50 +331,52 @@ def symbol_central(shape, dx):
     return tuple(1j * np.sin(k * dx) / dx for k in wavenumbers(shape, dx))
 
 
-def symbol_div_grad_b(shape, dx):
+def symbol_div_grad_b(shape, dx, block=None):
     """Symbol of the B-grid D∘G (cell -> cell):
     -(4/DX^2)[s_x^2 c_y^2 c_z^2 + c_x^2 s_y^2 c_z^2 + c_x^2 c_y^2 s_z^2],
     s_a = sin(k_a DX/2), c_a = cos(k_a DX/2).  Zero at the null modes (b_grid_null_modes)."""
-    kx, ky, kz = wavenumbers(shape, dx)
+    kx, ky, kz = wavenumbers(shape, dx, block)
     sx, sy, sz = (np.sin(0.5 * k * dx) ** 2 for k in (kx, ky, kz))
     cx, cy, cz = 1 - sx, 1 - sy, 1 - sz
     return -4.0 / dx ** 2 * (sx * cy * cz + cx * sy * cz + cx * cy * sz)
 
 
-def b_grid_null_modes(shape):
+def b_grid_null_modes(shape, block=None):
     """Boolean rfftn-shaped mask of the null space of G (and of D∘G): k = 0 and, for even N,
     every mode with at least two of (k_x, k_y, k_z) at the Nyquist value pi/DX (the B-grid
     checkerboard pressure modes, e.g. p ~ (-1)^(i+j) for any k_z)."""
     nx, ny, nz = shape
-    ix = np.arange(nx)[:, None, None]
-    iy = np.arange(ny)[None, :, None]
-    iz = np.arange(nz // 2 + 1)[None, None, :]
+    if block is None:
+        block = ((0, nx), (0, ny), (0, nz // 2 + 1))
+    ix = np.arange(*block[0])[:, None, None]
+    iy = np.arange(*block[1])[None, :, None]
+    iz = np.arange(*block[2])[None, None, :]
     qx = (nx % 2 == 0) & (ix == nx // 2)
     qy = (ny % 2 == 0) & (iy == ny // 2)
     qz = (nz % 2 == 0) & (iz == nz // 2)
     n = qx.astype(int) + qy.astype(int) + qz.astype(int)
     zero = (ix == 0) & (iy == 0) & (iz == 0)
-    return np.broadcast_to((n >= 2) | zero, (nx, ny, nz // 2 + 1)).copy()
+    return np.broadcast_to((n >= 2) | zero, tuple(b - a for a, b in block)).copy()
 
 
-def inverse_div_grad_b(shape, dx):
+def inverse_div_grad_b(shape, dx, block=None):
     """1 / symbol_div_grad_b, set to 0 on the null modes.
 
     Choosing zero pressure there is a gauge choice: D u has no component on these modes (the
     symbol of D vanishes there too) and G annihilates them, so the projected velocity is the
     same for any value.  The result is used to solve D G phi = D u by FFT."""
-    s = symbol_div_grad_b(shape, dx)
-    mask = b_grid_null_modes(shape)
+    s = symbol_div_grad_b(shape, dx, block)
+    mask = b_grid_null_modes(shape, block)
     s = np.where(mask, 1.0, s)
     inv = 1.0 / s
     inv[mask] = 0.0
     return inv
 
 
-def symbol_div_b(shape, dx):
+def symbol_div_b(shape, dx, block=None):
     """Symbols (per component) of div_b (node array -> cell array, index convention):
     (e^{i k_a DX} - 1)/DX * prod_{b != a} (1 + e^{i k_b DX})/2."""
-    k = wavenumbers(shape, dx)
+    k = wavenumbers(shape, dx, block)
     e = [np.exp(1j * q * dx) for q in k]
     h = [(1 + q) / 2 for q in e]
     return ((e[0] - 1) / dx * h[1] * h[2], (e[1] - 1) / dx * h[0] * h[2],

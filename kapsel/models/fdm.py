@@ -39,7 +39,7 @@ class _ModelH_SPM(SPM):
         self.fluid.step(self.u, force=self.fluid_force, eta_field=self.eta_field)
         for c, on in enumerate(self.fix_cell):
             if on:
-                self.u[c] -= self.u[c].mean()
+                self.u[c] -= self.fluid.mean(self.u[c])
 
 
 class FDMModel(Model):
@@ -50,6 +50,7 @@ class FDMModel(Model):
         shape, dx = cfg.mesh.shape, cfg.mesh.DX
         f = cfg.fluid
         self.rho, self.dx, self.shape = f.RHO, dx, shape
+        self.grid = self._make_grid(cfg) if self.dist is not None else None
         self.mac = self._make_fluid(cfg)
         try:
             self.mac.check_stability()
@@ -98,21 +99,39 @@ class FDMModel(Model):
                 pot = make_potential(ph)
                 lo, hi = sorted(pot.equilibrium())
                 self.comp_range = (lo, hi)
-                self.eta_field = np.empty(shape)
+                self.eta_field = np.empty(self.psi.shape)
                 self._update_viscosity()
 
+    def _make_grid(self, cfg):
+        """A distributed run: this rank's blocks of the mesh (kapsel.parallel.pencil), the
+        collectives rank 0's writers call (the whole fields of the restart)."""
+        from ..parallel.pencil import PencilGrid
+        try:
+            grid = PencilGrid(cfg.mesh.shape, cfg.mesh.DX, self.dist.comm, self.dist.dims)
+        except ValueError as e:
+            raise ConfigError(str(e), path="mesh", value="process grid") from None
+        self.lockstep.register("whole", lambda name: grid.gather_real(self._restart_field(name)))
+        return grid
+
     def _make_fluid(self, cfg):
-        """The MAC solver of the type (the sheared types: kapsel.fluid.oblique.ObliqueMAC)."""
-        from ..fluid.mac import MACSolver
+        """The MAC solver of the type (the sheared types: kapsel.fluid.oblique.ObliqueMAC;
+        a distributed run: kapsel.fluid.mac.DistributedMAC on this rank's block)."""
+        from ..fluid.mac import DistributedMAC, MACSolver
         f = cfg.fluid
-        return MACSolver(cfg.mesh.shape, cfg.mesh.DX, f.RHO, f.ETA, self.dt, scheme=f.ns_solver,
-                         tolerance=f.tolerance, maximum_iteration=f.maximum_iteration,
-                         threads=self.threads)
+        kw = dict(scheme=f.ns_solver, tolerance=f.tolerance,
+                  maximum_iteration=f.maximum_iteration, threads=self.threads)
+        if self.grid is not None:
+            return DistributedMAC(self.grid, cfg.mesh.DX, f.RHO, f.ETA, self.dt, **kw)
+        return MACSolver(cfg.mesh.shape, cfg.mesh.DX, f.RHO, f.ETA, self.dt, **kw)
 
     def _make_ch(self, dt):
         """The Cahn-Hilliard solver of the type with time step dt."""
         from ..phase import CahnHilliard
+        from ..phase.cahn_hilliard import DistributedCahnHilliard
         try:
+            if self.grid is not None:
+                return DistributedCahnHilliard(self.grid, self.dx, self.cfg.phase, dt,
+                                               wall=self.wall, **self.ch_kwargs)
             return CahnHilliard(self.shape, self.dx, self.cfg.phase, dt, wall=self.wall,
                                 **self.ch_kwargs)
         except ValueError as e:
@@ -144,14 +163,18 @@ class FDMModel(Model):
         fp = ch.particle_force(self.psi, self.phi, self.rho)
         flat = fp.reshape(3, -1)
         nodes = np.flatnonzero(np.any(flat != 0.0, axis=0))
-        if not nodes.size:
+        if not nodes.size and self.grid is None:
             return force
         owner = self._nearest_particle(nodes)
         F = np.zeros((p.n, 3))
         for c in range(3):
             F[:, c] = np.bincount(owner, weights=flat[c, nodes], minlength=p.n)
         spm = self.spm
-        w = spm.phi_i / spm.phi_i.sum(axis=1)[:, None]          # (N, S), rows sum to 1
+        if self.grid is None:
+            w = spm.phi_i / spm.phi_i.sum(axis=1)[:, None]      # (N, S), rows sum to 1
+        else:         # the forces summed over the ranks; the particles this rank couples
+            F = spm._reduce(F)[0][spm._T]
+            w = spm.phi_i / (spm.grid_volume[spm._T] / self.dx ** 3)[:, None]
         react = force.reshape(3, -1)
         for c in range(3):
             np.add.at(react[c], spm.idx.ravel(), -(w * F[:, c:c + 1]).ravel())
@@ -160,7 +183,9 @@ class FDMModel(Model):
     def _nearest_particle(self, nodes):
         """Index of the particle nearest to each flat grid node (minimum image)."""
         shape = np.array(self.shape)
-        ijk = np.stack(np.unravel_index(nodes, self.shape), axis=1).astype(float)
+        ijk = np.stack(np.unravel_index(nodes, self.psi.shape), axis=1).astype(float)
+        if self.grid is not None:                    # the block's offset in the mesh
+            ijk += np.array([r[0] for r in self.grid.real_range], dtype=float)
         R = self.particles.R / self.dx
         g = getattr(self.mac, "frame_strain", 0.0) if getattr(self.mac, "oblique", False) \
             else 0.0
@@ -236,10 +261,43 @@ class FDMModel(Model):
         return np.minimum(self.phi + self.wall.phi, 1.0)
 
     def kinetic_energy(self) -> float:
-        return kinetic_energy(self.rho, self.dx, self.u, self.phi_total(), self.particles)
+        return kinetic_energy(self.rho, self.dx, self.u, self.phi_total(), self.particles,
+                              reduce=self.grid.sum if self.grid is not None else None)
 
     def record_items(self) -> dict:
         return {"PSI": self.psi} if self.psi is not None else {}
+
+    def _gathered_source(self, name):
+        """Model._gathered_source; the record's PSI gathered too."""
+        if name == "record" and self.psi is not None:
+            return {"PSI": self.grid.gather_real(self.psi)}
+        return super()._gathered_source(name)
+
+    # ------------------------------------------------------------------ whole fields
+    def _restart_field(self, name):
+        """This rank's block of a field of the restart (all of it in a plain run)."""
+        if name == "U":
+            return self.u
+        if name == "U_OLD":
+            return self.mac.u_old
+        if name == "PSI":
+            return self.psi
+        if name == "PSI_OLD":
+            return self.ch.psi_old if self.ch.psi_old is not None else self.psi
+        if name == "STRESS_OLD":
+            return self.last_force if self.last_force is not None else np.zeros_like(self.u)
+        raise KeyError(name)
+
+    def _whole(self, name):
+        """The whole field ``name`` (_restart_field): in a distributed run gathered to rank
+        0 (a collective rank 0's writers call)."""
+        if self.grid is None:
+            return self._restart_field(name)
+        return self.lockstep.call("whole", name)
+
+    def _local(self, a):
+        """This rank's block of a whole field (itself in a plain run)."""
+        return a if self.grid is None else np.ascontiguousarray(self.grid.local_real(a))
 
     @property
     def restart_kind(self):
@@ -248,11 +306,11 @@ class FDMModel(Model):
     def restart_fields(self) -> dict:
         """Saved_Data fields: U, U_OLD (+ PSI, PSI_OLD, STRESS_OLD with a phase field)."""
         from ..io.restart import vector_field
-        fields = {"U": vector_field(self.u), "U_OLD": vector_field(self.mac.u_old)}
+        w = self._whole
+        fields = {"U": vector_field(w("U")), "U_OLD": vector_field(w("U_OLD"))}
         if self.ch is not None:
-            psi_old = self.ch.psi_old if self.ch.psi_old is not None else self.psi
-            force = self.last_force if self.last_force is not None else np.zeros_like(self.u)
-            fields.update(PSI=self.psi, PSI_OLD=psi_old, STRESS_OLD=vector_field(force))
+            fields.update(PSI=w("PSI"), PSI_OLD=w("PSI_OLD"),
+                          STRESS_OLD=vector_field(w("STRESS_OLD")))
         return fields
 
     def exact_state(self) -> dict:
@@ -271,9 +329,10 @@ class FDMModel(Model):
                 got = fields[name].shape if name in fields else "nothing"
                 raise ConfigError(f"{name} of the restart has shape {got}, the mesh needs "
                                   f"{want}", path=f"{base}.{name}[]", value=got)
-        self.u[...] = component_field(fields["U"])
+        local = self._local
+        self.u[...] = local(component_field(fields["U"]))
         if exact.get("have_u_old", self.step_index > 0):
-            self.mac.u_old = component_field(fields["U_OLD"])
+            self.mac.u_old = local(component_field(fields["U_OLD"]))
         if self.particles.n:
             self.spm.refresh()
             self.phi = self.spm.phi()
@@ -282,9 +341,9 @@ class FDMModel(Model):
             if subs != self.substeps:
                 self.substeps = subs
                 self.ch = self._make_ch(self.dt / subs)
-            self.psi[...] = fields["PSI"]
+            self.psi[...] = local(fields["PSI"])
             if exact.get("have_psi_old", self.step_index > 0):
-                self.ch.psi_old = fields["PSI_OLD"].copy()
+                self.ch.psi_old = local(fields["PSI_OLD"]).copy()
             if self.eta_field is not None:
                 self._update_viscosity()
 
@@ -298,6 +357,23 @@ class FDMModel(Model):
             src["phi"] = self.phi_total
         if self.psi is not None:
             src.update(psi=lambda: self.psi, psi_all=lambda: self.psi, flux=self._flux)
+        if self.grid is not None:   # pressure, tau: from the gathered fields, on rank 0
+            from ..parallel.pencil import Gathered
+            g, root = self.grid, self.dist.root
+
+            def pressure():
+                from ..fluid.diagnostics import pressure_at_nodes
+                p = g.gather_real(self._pressure_cells())
+                return Gathered(pressure_at_nodes(p) if root else None)
+
+            def tau():
+                from ..fluid.diagnostics import stress_from_gradient, velocity_gradient_central
+                u = g.gather_real(self.u)
+                eta = (g.gather_real(self.eta_field) if self.eta_field is not None
+                       else self.cfg.fluid.ETA)
+                return Gathered(stress_from_gradient(velocity_gradient_central(u, self.dx), eta)
+                                if root else None)
+            src.update(pressure=pressure, tau=tau)
         return src
 
     def _pressure_cells(self):
@@ -322,7 +398,7 @@ class FDMModel(Model):
     def _flux(self):
         """Order-parameter flux psi u - kappa grad mu of the current state (eq 16)."""
         mu = self.ch.chemical_potential(self.psi, self.phi)
-        flux = np.empty((3,) + self.shape)
+        flux = np.empty((3,) + self.psi.shape)
         self.ch._grad(mu, flux)
         flux *= -self.ch.kappa
         flux += self.psi * self.u

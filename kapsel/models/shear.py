@@ -513,6 +513,11 @@ class ShearFDMModel(FDMModel):
     def __init__(self, cfg: RunConfig, args):
         self.interpolation = check_interpolation(cfg)
         super().__init__(cfg, args)
+        if self.grid is not None and cfg.fluid.viscosity_change and self.mac.halo2 is None:
+            raise ConfigError("viscosity_change in the oblique frame needs blocks of at "
+                              "least 2 mesh points along the split directions (its viscous "
+                              "term reaches 2 points): use fewer ranks along x or y (-X, -Y)",
+                              path="mesh", value="process grid")
         if start_with_flow(cfg, self.particles, self.mac) and not self.dry:
             self.u[...] = 0.0
             self.spm.impose_particle_velocity()
@@ -521,12 +526,16 @@ class ShearFDMModel(FDMModel):
         self.field_stress_sum = 0.0
 
     def _make_fluid(self, cfg):
-        from ..fluid.oblique import ObliqueMAC
+        from ..fluid.oblique import DistributedObliqueMAC, ObliqueMAC
         f = cfg.fluid
+        kw = dict(scheme=f.ns_solver, tolerance=f.tolerance,
+                  maximum_iteration=f.maximum_iteration, threads=self.threads,
+                  interpolation=self.interpolation)
+        if self.grid is not None:     # a distributed run: this rank's block
+            return DistributedObliqueMAC(self.grid, cfg.mesh.DX, f.RHO, f.ETA, self.dt,
+                                         shear_flow(cfg), **kw)
         return ObliqueMAC(cfg.mesh.shape, cfg.mesh.DX, f.RHO, f.ETA, self.dt, shear_flow(cfg),
-                          scheme=f.ns_solver, tolerance=f.tolerance,
-                          maximum_iteration=f.maximum_iteration, threads=self.threads,
-                          interpolation=self.interpolation)
+                          **kw)
 
     def _fix_cell(self, cfg):
         """The original forces FIX_CELL.y ON for the sheared types (PHYSICS-EXTRA §1.2)."""
@@ -536,8 +545,12 @@ class ShearFDMModel(FDMModel):
     def _make_ch(self, dt):
         from ..fluid.oblique import make_oblique_cahn_hilliard
         mac = self.mac
-        ch = make_oblique_cahn_hilliard(lambda: mac.frame_strain, self.shape, self.dx,
-                                        self.cfg.phase, dt, **self.ch_kwargs)
+        if self.grid is not None:
+            ch = make_oblique_cahn_hilliard(lambda: mac.frame_strain, self.dx, self.cfg.phase,
+                                            dt, grid=self.grid, **self.ch_kwargs)
+        else:
+            ch = make_oblique_cahn_hilliard(lambda: mac.frame_strain, self.shape, self.dx,
+                                            self.cfg.phase, dt, **self.ch_kwargs)
         g = mac.max_frame_strain
         ch._k2 = ch._k2 * (1.0 + (4 * g * g + 2 * g) / 12.0)   # metric Laplacian bound
         return ch
@@ -563,7 +576,7 @@ class ShearFDMModel(FDMModel):
         """This step's row of the original's table (FORMAT-OUTPUT.md §1.4)."""
         mac = self.mac
         viscous, interfacial = getattr(self, "_last_fields", None) or self._field_stresses()
-        reynolds = -self.rho * float(np.mean(self.u[0] * self.u[1]))
+        reynolds = -self.rho * float(self.mac.mean(self.u[0] * self.u[1]))
         return le_table_row(self.time, mac.shear.rate(self.time - self.dt), mac.frame_strain,
                             mac.applied_strain,
                             lj_stress_xy(self.spm.forces, float(np.prod(self.cfg.mesh.box))),
@@ -574,23 +587,34 @@ class ShearFDMModel(FDMModel):
 
     def _field_stresses(self) -> tuple:
         """(viscous, interfacial) sigma_xy of the current fields (module docstring)."""
-        from ..fluid.oblique import oblique_gradient
-        mac, dx = self.mac, self.dx
+        mac = self.mac
         g = mac.frame_strain
         rate = mac.shear_rate_now
-        gr = np.empty((3,) + self.shape)
-        oblique_gradient(self.u[0], dx, g, gr)
+        gr = np.empty((3,) + self.u.shape[1:])
+        grad = self._oblique_gradient
+        grad(self.u[0], g, gr)
         s = gr[1].copy()                                  # d_y u_x
-        oblique_gradient(self.u[1], dx, g, gr)
+        grad(self.u[1], g, gr)
         s += gr[0]                                        # + d_x u_y
         s += rate                                         # + gamma_dot (imposed flow)
         eta = self.eta_field if self.eta_field is not None else self.cfg.fluid.ETA
-        sig = float(np.mean(eta * s))
+        sig = float(mac.mean(eta * s))
         inter = 0.0
         if self.psi is not None:
-            oblique_gradient(self.psi, dx, g, gr)
-            inter = -self.cfg.phase.alpha * float(np.mean(gr[0] * gr[1]))
+            grad(self.psi, g, gr)
+            inter = -self.cfg.phase.alpha * float(mac.mean(gr[0] * gr[1]))
         return sig, inter
+
+    def _oblique_gradient(self, f, g, out):
+        """kapsel.fluid.oblique.oblique_gradient of a field (of this rank's block: on the
+        block widened by the halo)."""
+        from ..fluid.oblique import oblique_gradient
+        if self.grid is None:
+            return oblique_gradient(f, self.dx, g, out)
+        h = self.mac.halo
+        G = oblique_gradient(h.pad(f, key="stress"), self.dx, g, h.work((3,), "stress"))
+        out[...] = h.interior(G)
+        return out
 
     def shear_record(self) -> dict:
         rate = self.mac.shear_rate_now
@@ -627,22 +651,48 @@ class ShearFDMModel(FDMModel):
         if self.psi is not None:
             src["psi"] = lambda: self._rect(self.psi)
             src["psi_all"] = src["psi"]
+        if self.grid is not None:     # from the fields gathered to rank 0, computed there
+            from ..parallel.pencil import Gathered
+            g, root = self.grid, self.dist.root
+
+            def on_root(fn, *parts):
+                def gathered():
+                    whole = [g.gather_real(p()) for p in parts]
+                    return Gathered(fn(*whole) if root else None)
+                return gathered
+            src["u"] = on_root(self._u_rect, lambda: self.u)
+            src["pressure"] = on_root(lambda p: self._rect(pressure_at_nodes(p)),
+                                      self._pressure_cells)
+            src["tau"] = (on_root(self._tau, lambda: self.u, lambda: self.eta_field)
+                          if self.eta_field is not None else on_root(self._tau, lambda: self.u))
+            if self.particles.n:
+                src["phi"] = on_root(self._rect, lambda: self.phi)
+            if self.psi is not None:
+                src["psi"] = on_root(self._rect, lambda: self.psi)
+                src["psi_all"] = src["psi"]
         return src
 
-    def _u_rect(self):
-        u = self._rect(self.u)
+    def _gathered_source(self, name):
+        """The record's PSI in the rectangular frame, from the gathered psi."""
+        if name == "record" and self.psi is not None:
+            psi = self.grid.gather_real(self.psi)
+            return {"PSI": self._rect(psi) if self.dist.root else None}
+        return super()._gathered_source(name)
+
+    def _u_rect(self, u=None):
+        u = self._rect(self.u if u is None else u)
         y = (np.arange(self.shape[1]) * self.dx)[None, :, None]
         u[0] += self.mac.shear_rate_now * (y - self.mac.y0)
         return u
 
-    def _tau(self):
+    def _tau(self, u=None, eta=None):
         from ..fluid.diagnostics import stress_from_gradient, velocity_gradient_central
         from ..fluid.oblique import oblique_gradient
         g, dx = self.mac.frame_strain, self.dx
-        grad = velocity_gradient_central(self.u, dx,
+        grad = velocity_gradient_central(self.u if u is None else u, dx,
                                          gradient=lambda f, out: oblique_gradient(f, dx, g, out))
         grad[0, 1] += self.mac.shear_rate_now
-        tau = stress_from_gradient(grad, self._eta())
+        tau = stress_from_gradient(grad, self._eta() if eta is None else eta)
         return self._rect(tau)
 
     sheared = True
@@ -653,9 +703,13 @@ class ShearFDMModel(FDMModel):
     def kinetic_energy(self) -> float:
         from .common import kinetic_energy
         u = self.u.copy()
-        y = (np.arange(self.shape[1]) * self.dx)[None, :, None]
+        if self.grid is None:
+            y = (np.arange(self.shape[1]) * self.dx)[None, :, None]
+        else:                         # this rank's rows
+            y = (np.arange(*self.grid.real_range[1]) * self.dx)[None, :, None]
         u[0] += self.mac.shear_rate_now * (y - self.mac.y0)
-        return kinetic_energy(self.rho, self.dx, u, self.phi, self.particles)
+        return kinetic_energy(self.rho, self.dx, u, self.phi, self.particles,
+                              reduce=self.grid.sum if self.grid is not None else None)
 
     # ------------------------------------------------------------------ restart
     def restart_fields(self) -> dict:

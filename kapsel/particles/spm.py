@@ -126,8 +126,9 @@ class SPM:
         elif hasattr(fluid, "project"):
             self.mode = "mac"
             self.shape = tuple(fluid.shape)
-            self.u = np.zeros((3,) + self.shape) if u is None else np.asarray(u, dtype=float)
-            if self.u.shape != (3,) + self.shape:
+            ushape = (3,) + tuple(getattr(fluid, "fshape", self.shape))   # a rank's block
+            self.u = np.zeros(ushape) if u is None else np.asarray(u, dtype=float)
+            if self.u.shape != ushape:
                 raise ValueError("u must have shape (3, NX, NY, NZ)")
         else:
             raise TypeError("fluid must be a SpectralNS or a MACSolver")
@@ -155,7 +156,7 @@ class SPM:
         self._du = None
         if particles.n or wall is not None:   # spectral: FFT-aligned, transformed in place
             self._du = (fluid.grid.zeros_real() if self.mode == "spectral"
-                        else np.zeros((3,) + self.shape))
+                        else np.zeros((3,) + self.fshape))
         self._us = None         # u* at the stencil points, sampled once a step
         self._du_points = None  # du at the stencil points of the last step (last_increment)
         self._du_stepped = False

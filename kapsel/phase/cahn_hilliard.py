@@ -113,12 +113,16 @@ def _grad_sq(f, dx):
     return np.einsum("i...,i...->...", g, g)
 
 
-def discrete_k2(shape, dx):
+def discrete_k2(shape, dx, block=None):
     """K^2 = sum_a (2/DX)^2 sin^2(k_a DX/2) of every mesh mode (full FFT order), -symbol of
-    the 7-point Laplacian; max 12/DX^2 for even N."""
+    the 7-point Laplacian; max 12/DX^2 for even N.  ``block``: ((x0, x1), (y0, y1), (z0,
+    z1)), the modes of a distributed run's Fourier block only (the same values, cut)."""
     parts = []
     for a, n in enumerate(shape):
         k = 2.0 * np.pi * np.fft.fftfreq(n, d=dx)
+        if block is not None:
+            k = k[block[a][0]:block[a][1]]
+        n = k.size
         s = (2.0 / dx) ** 2 * np.sin(0.5 * k * dx) ** 2
         sh = [1, 1, 1]
         sh[a] = n
@@ -442,7 +446,22 @@ class CahnHilliard:
 
     def total(self, psi):
         """sum psi DX^3 (conserved)."""
-        return float(np.sum(psi)) * self.dx ** 3
+        return self._sum(psi) * self.dx ** 3
+
+    # reductions over the mesh (DistributedCahnHilliard: over the ranks)
+    _dot = None
+
+    def _sum(self, a):
+        return float(np.sum(a))
+
+    def _mean(self, a):
+        return np.mean(a)
+
+    def _max(self, x):
+        return x
+
+    def _count(self, a):
+        return a.size
 
     # ------------------------------------------------------------------ stability
     def growth_rate(self, k2, fpp):
@@ -457,9 +476,9 @@ class CahnHilliard:
                 pts = np.array([self.params.composition_ratio])
             fpp = float(np.max(self.potential.d2f(pts)))
         else:
-            fpp = float(np.max(self.potential.d2f(psi)))
+            fpp = self._max(float(np.max(self.potential.d2f(psi))))
         if (phi is not None or self.wall is not None) and self.params.d > 0:
-            fpp += 2.0 * self.params.d * float(np.max(self._solids(phi)))
+            fpp += 2.0 * self.params.d * self._max(float(np.max(self._solids(phi))))
         return fpp
 
     def stable_dt(self, psi=None, phi=None):
@@ -612,12 +631,12 @@ class CahnHilliard:
                 g -= (2.0 * self.z) * self._div_coef_grad(s, guess)
         rhs += (dt * self.kappa) * self._lap(g, np.empty(self.shape))
         # mean of the solution is exact (column sums of A are c0); solve for the rest
-        m = float(np.sum(rhs)) / (c0 * n)
+        m = self._sum(rhs) / (c0 * self._count(rhs))
         shape = self.shape
         ones_img = self._apply(np.full(shape, m), c0, u, dphi, np.empty(shape))
         b = (rhs - ones_img).ravel()
         y0 = guess.ravel() - m
-        y0 -= np.mean(y0)
+        y0 -= self._mean(y0)
         tmp = np.empty(shape)
 
         def mv(v):
@@ -625,7 +644,7 @@ class CahnHilliard:
         A = LinearOperator((n, n), matvec=mv, dtype=np.float64)
         y = self._bicgstab(A, b, y0, c0, dphi)
         x = y.reshape(shape) + m
-        x += m - float(np.mean(x))          # round-off cleanup of the exact mean
+        x += m - float(self._mean(x))       # round-off cleanup of the exact mean
         psi[...] = x
 
     def _precond(self, c0, dphi, n):
@@ -642,14 +661,153 @@ class CahnHilliard:
         half = 1.0 / sym[:, :, : self.shape[2] // 2 + 1]
         key = (float(c0), self.dt)
         if getattr(self, "_fourier_key", None) != key:      # plans once, symbol per c0
-            from ..linalg import FourierDiagonal
-            self._fourier = FourierDiagonal(self.shape, half, self.threads)
+            self._fourier = self._fourier_diagonal(half)
             self._fourier_key = key
         return LinearOperator((n, n), matvec=self._fourier.solve, dtype=np.float64)
+
+    def _fourier_diagonal(self, half):
+        from ..linalg import FourierDiagonal
+        return FourierDiagonal(self.shape, half, self.threads)
 
     def _bicgstab(self, A, b, x0, c0, dphi):
         x, self.iterations, self.residual = solve_correction(
             A, b, x0, self.tolerance, self.maximum_iteration,
             M=self._precond(c0, dphi, b.size),
-            what="implicit Cahn-Hilliard solver (BiCGSTAB)")
+            what="implicit Cahn-Hilliard solver (BiCGSTAB)", dot=self._dot)
         return x
+
+
+class DistributedCahnHilliard(CahnHilliard):
+    """The Cahn-Hilliard solver on this rank's block of a distributed grid (kapsel.parallel.
+    pencil.PencilGrid; README "Distributed runs").  ``shape`` is the block, ``global_shape``
+    the mesh.  CahnHilliard's steps with its stencil operators (Laplacian, central
+    gradient, flux divergence, the z term) applied to the block widened by one ghost layer
+    (kapsel.parallel.halo; the same operations point by point as the serial run), sums,
+    means and maxima over the ranks in a fixed order, BiCGSTAB with those dot products and
+    the FFT preconditioner on the pencil FFTs.  Walls do not run distributed."""
+
+    def __init__(self, grid, dx, params, dt, threads=1, **kw):
+        from ..parallel.halo import Halo
+        if kw.get("wall") is not None:
+            raise ValueError("walls do not run distributed")
+        self.grid = grid
+        self.global_shape = tuple(grid.shape)
+        self.halo = Halo(grid, 1)
+        try:                  # the implicit operator in one exchange (reach 2), if it fits
+            self.halo2 = Halo(grid, 2)
+        except ValueError:
+            self.halo2 = None
+        self._step_pads = None
+        super().__init__(grid.local_shape, dx, params, dt, threads, **kw)
+        # the modes of this rank's Fourier block (of the half spectrum, which holds every
+        # value of K^2): the preconditioner's symbol, this rank's part of stable_dt
+        self._k2 = discrete_k2(self.global_shape, self.dx, grid.spec_range)
+
+    def stable_dt(self, psi=None, phi=None):
+        """CahnHilliard.stable_dt over every mode: the smallest of the ranks' limits over
+        their Fourier blocks (each an interval of stable dt)."""
+        lim = super().stable_dt(psi, phi)
+        return -self.grid.max(-lim)
+
+    def initial_field(self, rng):
+        """The serial run's field (the same random numbers), this rank's block of it."""
+        p = self.params
+        psi = rng.uniform(-1.0, 1.0, size=self.global_shape)
+        psi *= p.initial_fluctuation
+        psi += p.composition_ratio
+        return np.ascontiguousarray(self.grid.local_real(psi))
+
+    # reductions
+    def _sum(self, a):
+        return self.grid.sum(float(np.sum(a)))
+
+    def _mean(self, a):
+        return self._sum(a) / self.grid.size
+
+    def _max(self, x):
+        return self.grid.max(x)
+
+    def _count(self, a):
+        return self.grid.size
+
+    def _dot(self, *pairs):
+        return self.grid.sums([float(np.dot(a, b)) for a, b in pairs])
+
+    def _fourier_diagonal(self, half):
+        from ..fluid.mac import PencilDiagonal
+        return PencilDiagonal(self.grid, half, local=True)
+
+    # the implicit operator: one exchange of width 2 per product
+    def _step_implicit(self, psi, u, phi):
+        if self.halo2 is None:
+            return super()._step_implicit(psi, u, phi)
+        h = self.halo2
+        # u and the particle term padded once for the solve (kept with their source)
+        self._step_pads = {"u": None if u is None else np.array(h.pad(u, key="u")),
+                           "dphi": (None, None)}
+        try:
+            return super()._step_implicit(psi, u, phi)
+        finally:
+            self._step_pads = None
+
+    def _apply(self, x, c0, u, dphi, out):
+        """CahnHilliard._apply on x widened by two ghost layers (the Laplacian of the
+        Laplacian has reach 2): the same operations point by point, one exchange."""
+        pads = self._step_pads
+        if pads is None:
+            return super()._apply(x, c0, u, dphi, out)
+        h = self.halo2
+        X = h.pad(x, key="x")
+        la = _lap(X, self.dx, h.work((), "la"))
+        o = h.work((), "o")
+        if dphi is not None:
+            src, D = pads["dphi"]
+            if src is not dphi:
+                D = np.array(h.pad(dphi, key="dphi"))
+                pads["dphi"] = (dphi, D)
+            t = np.multiply(D, X, out=h.work((), "t"))
+            la *= self.alpha
+            la -= t
+            _lap(la, self.dx, o)
+        else:
+            _lap(la, self.dx, o)
+            o *= self.alpha
+        o *= self.dt * self.kappa
+        if c0 == 1.0:
+            o += X
+        else:
+            o += c0 * X
+        if u is not None:
+            o += self.dt * _div_flux(X, pads["u"], self.dx, h.work((), "df"),
+                                     h.work((), "dfw"))
+        out[...] = h.interior(o)
+        return out
+
+    # stencils through the halo
+    def _lap(self, f, out):
+        h = self.halo
+        L = _lap(h.pad(f, key="ch"), self.dx, h.work(f.shape[:-3], "chlap"))
+        out[...] = h.interior(L)
+        return out
+
+    def _grad(self, f, out):
+        h = self.halo
+        G = _grad(h.pad(f, key="ch"), self.dx, h.work((3,), "chgrad"))
+        out[...] = h.interior(G)
+        return out
+
+    def _grad_sq(self, f):
+        g = self._grad(f, np.empty((3,) + f.shape))
+        return np.einsum("i...,i...->...", g, g)
+
+    def _div_flux(self, psi, u, out, work):
+        h = self.halo
+        D = _div_flux(h.pad(psi, key="chpsi"), h.pad(u, key="chu"), self.dx,
+                      h.work((), "chdiv"), h.work((), "chwork"))
+        out[...] = h.interior(D)
+        return out
+
+    def _div_coef_grad(self, c, f):
+        h = self.halo
+        D = div_coef_grad(h.pad(c, key="chc"), h.pad(f, key="chf"), self.dx)
+        return np.array(h.interior(D))
