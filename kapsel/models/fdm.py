@@ -165,13 +165,21 @@ class FDMModel(Model):
         nodes = np.flatnonzero(np.any(flat != 0.0, axis=0))
         if not nodes.size and self.grid is None:
             return force
-        owner = self._nearest_particle(nodes)
+        spm = self.spm
+        if spm.owned is not None:    # particles owned by ranks: this rank's table
+            p = spm.p
+        owner = self._nearest_particle(nodes, p.R)
         F = np.zeros((p.n, 3))
         for c in range(3):
             F[:, c] = np.bincount(owner, weights=flat[c, nodes], minlength=p.n)
-        spm = self.spm
         if self.grid is None:
             w = spm.phi_i / spm.phi_i.sum(axis=1)[:, None]      # (N, S), rows sum to 1
+        elif spm.owned is not None:  # the owners' totals, then copied to the ghosts
+            total = np.zeros_like(F)
+            total[:spm.owned.n_own] = spm.owned.reverse_sum(F)
+            spm.owned.refresh(total)
+            F = total[spm._T]
+            w = spm.phi_i / (spm.grid_volume / self.dx ** 3)[:, None]
         else:         # the forces summed over the ranks; the particles this rank couples
             F = spm._reduce(F)[0][spm._T]
             w = spm.phi_i / (spm.grid_volume[spm._T] / self.dx ** 3)[:, None]
@@ -180,13 +188,14 @@ class FDMModel(Model):
             np.add.at(react[c], spm.idx.ravel(), -(w * F[:, c:c + 1]).ravel())
         return force
 
-    def _nearest_particle(self, nodes):
-        """Index of the particle nearest to each flat grid node (minimum image)."""
+    def _nearest_particle(self, nodes, R):
+        """Index of the particle (of positions ``R``) nearest to each flat grid node
+        (minimum image)."""
         shape = np.array(self.shape)
         ijk = np.stack(np.unravel_index(nodes, self.psi.shape), axis=1).astype(float)
         if self.grid is not None:                    # the block's offset in the mesh
             ijk += np.array([r[0] for r in self.grid.real_range], dtype=float)
-        R = self.particles.R / self.dx
+        R = R / self.dx
         g = getattr(self.mac, "frame_strain", 0.0) if getattr(self.mac, "oblique", False) \
             else 0.0
         if g:
@@ -261,8 +270,10 @@ class FDMModel(Model):
         return np.minimum(self.phi + self.wall.phi, 1.0)
 
     def kinetic_energy(self) -> float:
-        return kinetic_energy(self.rho, self.dx, self.u, self.phi_total(), self.particles,
-                              reduce=self.grid.sum if self.grid is not None else None)
+        return kinetic_energy(self.rho, self.dx, self.u, self.phi_total(),
+                              self.spm.owned_particles(),
+                              reduce=self.grid.sum if self.grid is not None else None,
+                              owned=self._owned() is not None)
 
     def record_items(self) -> dict:
         return {"PSI": self.psi} if self.psi is not None else {}

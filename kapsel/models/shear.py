@@ -519,6 +519,8 @@ class ShearFDMModel(FDMModel):
                               "term reaches 2 points): use fewer ranks along x or y (-X, -Y)",
                               path="mesh", value="process grid")
         if start_with_flow(cfg, self.particles, self.mac) and not self.dry:
+            if self.spm.owned is not None:     # the ranks' tables take the new velocities
+                self.spm.refresh()
             self.u[...] = 0.0
             self.spm.impose_particle_velocity()
         self.stress = ShearStress(float(np.prod(cfg.mesh.box)), cfg.fluid.RHO, cfg.mesh.DX,
@@ -708,8 +710,9 @@ class ShearFDMModel(FDMModel):
         else:                         # this rank's rows
             y = (np.arange(*self.grid.real_range[1]) * self.dx)[None, :, None]
         u[0] += self.mac.shear_rate_now * (y - self.mac.y0)
-        return kinetic_energy(self.rho, self.dx, u, self.phi, self.particles,
-                              reduce=self.grid.sum if self.grid is not None else None)
+        return kinetic_energy(self.rho, self.dx, u, self.phi, self.spm.owned_particles(),
+                              reduce=self.grid.sum if self.grid is not None else None,
+                              owned=self._owned() is not None)
 
     # ------------------------------------------------------------------ restart
     def restart_fields(self) -> dict:
