@@ -52,8 +52,9 @@ def make_input(d, n, particles, eq="Navier_Stokes", ns=None, ch=None):
     u.write(os.path.join(d, "input.udf"))
 
 
-def worker(steps):
-    """In the run directory (under mpiexec or not): build the model, time ``steps`` steps."""
+def prepared_model():
+    """(model, MPI communicator or None) of the input in the working directory, built as
+    ``kapsel-py`` builds it (under mpiexec or not), BLAS on one thread as kapsel-py runs."""
     for var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
         os.environ.setdefault(var, "1")     # as kapsel-py does (kapsel.cli.single_threaded_blas)
     from kapsel.cli import build_parser, prepare
@@ -64,8 +65,12 @@ def worker(steps):
     prepared = prepare(args)
     if isinstance(prepared, int):
         raise SystemExit(prepared)
-    model = prepared[2]
-    comm = args.dist.comm if args.dist is not None else None
+    return prepared[2], (args.dist.comm if args.dist is not None else None)
+
+
+def worker(steps):
+    """In the run directory (under mpiexec or not): build the model, time ``steps`` steps."""
+    model, comm = prepared_model()
     for _ in range(2):
         model.advance()
     if comm is not None:

@@ -47,15 +47,8 @@ def make_input(d, n, particles):
 
 
 def worker(steps):
-    from kapsel.cli import build_parser, prepare
-    from kapsel.parallel import start
-    args = build_parser().parse_args(["-Iinput.udf", "-Ooutput.udf", "-Ddefine.udf",
-                                      "-Rrestart.udf", "--seed", "1", "--quiet", "--overwrite"])
-    args.dist = start(args)
-    prepared = prepare(args)
-    if isinstance(prepared, int):
-        raise SystemExit(prepared)
-    model = prepared[2]
+    import bench_mpi                           # (this directory is on sys.path)
+    model, comm = bench_mpi.prepared_model()
     spm = model.spm
     spent = [0.0]
 
@@ -69,7 +62,6 @@ def worker(steps):
         return run
     spm._fluid_step = timed(spm._fluid_step)
     spm._add_solenoidal = timed(spm._add_solenoidal)
-    comm = args.dist.comm
     for _ in range(2):
         model.advance()
     comm.Barrier()
@@ -81,16 +73,11 @@ def worker(steps):
     part = (t_own - spent[0]) / steps
     comm.Barrier()
     t = (time.perf_counter() - t0) / steps
-    part = comm.allreduce(part, op=_max())
+    part = comm.allreduce(part, op=bench_mpi._max())
     rss = comm.gather(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0, root=0)
     rows = comm.gather(int(spm.p.n), root=0)
     if comm.Get_rank() == 0:
         sys.__stdout__.write(f"{t:.6f} {part:.6f} {max(rss):.1f} {max(rows)}\n")
-
-
-def _max():
-    from mpi4py import MPI
-    return MPI.MAX
 
 
 def run(d, tree, ranks, steps):

@@ -608,8 +608,12 @@ class ObliqueMAC(_ObliqueFrame, MACSolver):
         sym = np.where(self._null, 1.0, sym)
         inv = 1.0 / sym
         inv[self._null] = 0.0
-        self._poisson.inv = inv
+        self._poisson.inv = self._scaled_inverse(inv)
         self._g_inv = g
+
+    def _scaled_inverse(self, inv):
+        """The Poisson symbol's inverse as the transform pair wants it."""
+        return inv
 
     def _solve_phi(self, u):
         self._poisson_inverse(self._g_op)
@@ -795,16 +799,8 @@ class DistributedObliqueMAC(ObliqueMAC, DistributedMAC):
         self._w = np.empty((3,) + self.fshape)
         self._t1 = np.empty(self.fshape)
 
-    def _poisson_inverse(self, g):
-        if self._g_inv == g:
-            return
-        SS = self._SS
-        sym = -((1 + g * g) * SS[0, 0] + SS[1, 1] + SS[2, 2] - 2 * g * SS[0, 1])
-        sym = np.where(self._null, 1.0, sym)
-        inv = 1.0 / sym
-        inv[self._null] = 0.0
-        self._poisson.inv = inv / self.grid.size        # the pencil c2r's 1/N folded in
-        self._g_inv = g
+    def _scaled_inverse(self, inv):
+        return inv / self.grid.size        # the pencil c2r's 1/N folded in
 
     def _grad_p(self, phi):
         gp = DistributedMAC._grad_p(self, phi)
