@@ -232,7 +232,7 @@ def make_forces(cfg: RunConfig, particles: ParticleState, strain=None, wall=None
         forces.cutoff = max(forces.cutoff,
                             chains.FENE_R0 * 2.0 * float(np.max(particles.radius)))
     forces.local = None
-    if electric is None and wall is None and group is None:
+    if electric is None and wall is None:
         ratios = (np.array([s.MASS_RATIO for s in cfg.particles.species]) if gravity
                   else None)
         starts = None
@@ -242,12 +242,13 @@ def make_forces(cfg: RunConfig, particles: ParticleState, strain=None, wall=None
 
         def local(p, weight, gid):
             """``forces`` of a rank's table (owned + ghosts; ``gid`` the global ids):
-            pair forces, gravity and FENE bonds, the virial counting each pair once over
-            the ranks (``weight`` 1 owned, 0 ghost) -> (F, T, min pair ratio, max bond
-            stretch); complete on the owned rows."""
+            pair forces (not between beads of one rigid body), gravity and FENE bonds, the
+            virial counting each pair once over the ranks (``weight`` 1 owned, 0 ghost)
+            -> (F, T, min pair ratio, max bond stretch); complete on the owned rows."""
             if pairs:
                 F, _, ratio_min = pf.pair_forces(
                     p.R, box, p.radius, inter.LJ_powers, inter.EPSILON, inter.LJ_truncate,
+                    group=None if group is None else group[gid],
                     strain=strain() if strain is not None else 0.0, virial=virial,
                     sigma=lj_dia, weight=weight)
             else:

@@ -11,13 +11,13 @@ rank (``refuse``), never run serially on every rank writing the same files.
 Division of work (kapsel.parallel.pencil for the fields, kapsel.parallel.particles for the
 particles, kapsel.parallel.lockstep for the output): every rank holds its block of the
 fields.  Spheres and chain beads are owned by the rank whose block holds their stencil's
+base point, rigid bodies (whole, with all their beads) by the owner of their first bead's
 base point; a rank holds its owned particles and ghosts (copies of the particles owned
 elsewhere that its block needs: their profile meets it, or they are within the reach of
 the forces of its particles), couples them to its part of the fluid, sends the ghosts'
 partial coupling sums to their owners (added in rank order: bit-for-bit repeatable), moves
 its owned particles and exchanges them afterwards (migration and new halos)
-(kapsel.particles.spm ``_step_owned``).  Rigid bodies and dipolar particles keep the
-replicated state: every rank holds all the particles, moves them identically and computes
+(kapsel.particles.spm ``_step_owned``).  Dipolar particles keep the replicated state: every rank holds all the particles, moves them identically and computes
 the profiles of those whose stencil meets its block (``_profiles_distributed``), the
 per-particle sums of the coupling being summed over the ranks by MPI_Reduce to rank 0 +
 MPI_Bcast.  Rank 0 writes output.udf, restart.udf and the field files with the fields and
