@@ -345,3 +345,47 @@ def test_rigid_body_restarts_interchange_between_distributed_and_serial_runs(tmp
               f"{max(diff.values()):.3g} ({max(diff, key=diff.get)})")
         assert "state:rigid_q" in diff            # the bodies' state went through
         assert max(diff.values()) < 1e-10, (x.name, diff)
+
+
+# ---------------------------------------------------------------- dipoles, Quincke rollers
+@pytest.mark.parametrize("case", ["quincke", "fixed_lees_edwards"])
+def test_dipoles_agree_with_the_serial_run(tmp_path, case):
+    """Dipoles by the distributed Ewald sum (kapsel.particles.ewald ``dipolar_ewald_owned``:
+    real-space part over owned + ghosts, structure sums of the owned particles summed over
+    the ranks): ex12 without walls (6 Quincke rollers, one-bead rigid bodies with QUINCKE
+    dipoles and the constraint torque, 16^3), and FIXED dipoles on 6 spheres under
+    Lees-Edwards shear; noise on, 50 + 1 steps on 1, 2 and 4 (2 x 2) ranks against the
+    serial run."""
+    from test_dipoles import _nowall
+    if case == "quincke":
+        eq = "Navier_Stokes"
+        puts = {}
+    else:
+        eq = "Shear_Navier_Stokes_Lees_Edwards"
+        puts = dict(switch__quincke__type="OFF", switch__free_rigid__type="NO",
+                    object_type__type="spherical_particle",
+                    switch__multipole__ON__Dipole__ON__type="FIXED", gravity__G=0.0,
+                    **{"object_type__spherical_particle__Particle_spec[]":
+                       [[6, 1.5, 0.0, "NONE", "OFF", [0.0, 0, 0], [0.0, 0, 0], 0.0, 0.0, 0.0,
+                         0.0]],
+                       f"constitutive_eq__{eq}__External_field__DC__Shear_rate": 0.05})
+    puts.update({"constitutive_eq__type": eq, f"constitutive_eq__{eq}__kBT": 0.2,
+                 "output__GTS": 10, "output__Num_snap": 5, "output__AVS": "OFF",
+                 "switch__INIT_orientation": "random"})
+    dirs = {}
+    for name in ("serial", "p1", "p2", "p4"):
+        d = tmp_path / name
+        d.mkdir()
+        _nowall(d, name="input.udf", **puts)
+        dirs[name] = d
+    assert cli(dirs["serial"], "input.udf") == 0
+    for n, grid in ((1, ()), (2, ()), (4, ("-X2", "-Y2"))):
+        d = dirs[f"p{n}"]
+        mpirun(d, n, "input.udf", *grid)
+        diff = differences(str(dirs["serial"]), str(d))
+        print(f"dipoles ({case}), {n} rank(s): max |distributed - serial| "
+              f"{max(diff.values()):.3g} ({max(diff, key=diff.get)})")
+        if n == 1:
+            assert max(diff.values()) == 0.0, diff
+        else:
+            assert 0 < max(diff.values()) < 1e-10, diff

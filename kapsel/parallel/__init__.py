@@ -17,10 +17,14 @@ elsewhere that its block needs: their profile meets it, or they are within the r
 the forces of its particles), couples them to its part of the fluid, sends the ghosts'
 partial coupling sums to their owners (added in rank order: bit-for-bit repeatable), moves
 its owned particles and exchanges them afterwards (migration and new halos)
-(kapsel.particles.spm ``_step_owned``).  Dipolar particles keep the replicated state: every rank holds all the particles, moves them identically and computes
-the profiles of those whose stencil meets its block (``_profiles_distributed``), the
-per-particle sums of the coupling being summed over the ranks by MPI_Reduce to rank 0 +
-MPI_Bcast.  Rank 0 writes output.udf, restart.udf and the field files with the fields and
+(kapsel.particles.spm ``_step_owned``).  Dipoles (and Quincke rollers) are owned alike,
+their Ewald sum distributed (kapsel.particles.ewald ``dipolar_ewald_owned``: the real-space
+part over owned + ghosts, the halo widened to its cutoff; the structure sums of the owned
+particles summed over the ranks by MPI_Reduce to rank 0 + MPI_Bcast).  The replicated
+path (every rank holds all the particles, moves them identically and couples those whose
+stencil meets its block, ``_profiles_distributed``) is left for particles without a local
+form of their forces (self-propelled particles, walls: refused with more than one rank).
+Rank 0 writes output.udf, restart.udf and the field files with the fields and
 the particle table gathered to it.  Limits: README ("Distributed runs").
 """
 from __future__ import annotations

@@ -82,9 +82,8 @@ __all__ = ["SPM"]
 def _ownable(particles, forces) -> bool:
     """Whether a distributed run keeps the particles owned by ranks: free or pinned
     spheres, chain beads and rigid bodies (each owned whole, with its beads), whose forces
-    have a local form (pair forces, gravity, FENE bonds: make_forces ``local``); dipoles
-    (Ewald sums over all particles) stay replicated on every rank (README "Distributed
-    runs")."""
+    have a local form (make_forces ``local``: pair forces, gravity, FENE bonds, dipoles by
+    a distributed Ewald sum, the Quincke constraint)."""
     from .motion import Pinned
     from .rigid import RigidBodies
     c = getattr(particles, "constraints", None)
@@ -184,7 +183,7 @@ class SPM:
             raise ValueError("squirmers need the spectral (rectangular) fluid")
         # distributed: particles owned by the rank holding their stencil's base point (rigid
         # bodies: that of their first bead), with ghosts (kapsel.parallel.particles); else
-        # (dipoles) replicated
+        # (self-propelled particles, walls: refused with more than one rank) replicated
         self.owned = None
         self._bodies = None
         if self.dist is not None and particles.n and _ownable(particles, forces):
@@ -438,7 +437,8 @@ class SPM:
         F_H, T_H = FT[:, :3], FT[:, 3:]
         F_o = T_o = None
         if self.forces is not None:
-            F_o, T_o, ratio, stretch = self.forces.local(p, self._own_weight, o.gid)
+            F_o, T_o, ratio, stretch = self.forces.local(
+                p, self._own_weight, o.gid, reduce=lambda a: self._reduce(a)[0])
             ratio, stretch = o.allmin(ratio, -stretch)      # the same on every rank
             if hasattr(self.forces, "check"):           # (overlap_guard)
                 self.forces.check_bonds(-stretch)
