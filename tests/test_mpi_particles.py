@@ -389,3 +389,36 @@ def test_dipoles_agree_with_the_serial_run(tmp_path, case):
             assert max(diff.values()) == 0.0, diff
         else:
             assert 0 < max(diff.values()) < 1e-10, diff
+
+
+# ---------------------------------------------------------------- self-propelled particles
+@pytest.mark.parametrize("eq", ["Navier_Stokes", "Shear_Navier_Stokes"])
+def test_self_propelled_particles_agree_with_the_serial_run(tmp_path, eq):
+    """2 squirmers (pushers), a tumbler and an obstacle (tests/test_janus.py's input in
+    32 x 32 x 16, noise, the slip iteration to SLIP_tol 1e-3 or 3 passes), 50 + 1 steps on 1, 2 and 4
+    (2 x 2) ranks against the serial run: the squirmers' stencil sums and slip forces summed
+    on their owners, the iterates sent to the ghosts, the passes decided over all ranks."""
+    from test_janus import _janus_input
+    from udf import UDFManager
+    dirs = {}
+    for name in ("serial", "p1", "p2", "p4"):
+        d = tmp_path / name
+        path = _janus_input(d, eq=eq, nsnap=5)
+        u = UDFManager(path)
+        u.put(10, "output.GTS")
+        u.put(4, "mesh.NPZ")                    # 32 x 32 x 16
+        if eq != "Navier_Stokes":
+            u.put(0.5, f"constitutive_eq.{eq}.kBT")
+        u.write(path)
+        dirs[name] = d
+    assert cli(dirs["serial"], "input.udf") == 0
+    for n, grid in ((1, ()), (2, ()), (4, ("-X2", "-Y2"))):
+        d = dirs[f"p{n}"]
+        mpirun(d, n, "input.udf", *grid)
+        diff = differences(str(dirs["serial"]), str(d))
+        print(f"self-propelled ({eq}), {n} rank(s): max |distributed - serial| "
+              f"{max(diff.values()):.3g} ({max(diff, key=diff.get)})")
+        if n == 1:
+            assert max(diff.values()) == 0.0, diff
+        else:
+            assert 0 < max(diff.values()) < 1e-10, diff

@@ -23,7 +23,8 @@ part over owned + ghosts, the halo widened to its cutoff; the structure sums of 
 particles summed over the ranks by MPI_Reduce to rank 0 + MPI_Bcast).  The replicated
 path (every rank holds all the particles, moves them identically and couples those whose
 stencil meets its block, ``_profiles_distributed``) is left for particles without a local
-form of their forces (self-propelled particles, walls: refused with more than one rank).
+form of their forces (with flat walls, refused with more than one rank).  Self-propelled
+particles are owned too (kapsel.particles.janus ``update_velocities_owned``).
 Rank 0 writes output.udf, restart.udf and the field files with the fields and
 the particle table gathered to it.  Limits: README ("Distributed runs").
 """
@@ -145,10 +146,4 @@ def refuse(dist, cfg) -> str | None:
     if getattr(cfg.switches, "wall", None) is not None:
         return ("switch.wall (flat walls) does not run distributed: run this input on one "
                 "process (without mpirun, or mpirun -n 1)")
-    if cfg.particles.object_type == "spherical_particle" and any(
-            getattr(s, "janus", None) is not None and s.janus.propulsion != "OFF"
-            for s in cfg.particles.species):
-        return ("self-propelled particles (Particle_spec[].janus_axis / janus_propulsion) do "
-                "not run distributed: run this input on one process (without mpirun, or "
-                "mpirun -n 1)")
     return None

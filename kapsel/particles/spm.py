@@ -81,15 +81,14 @@ __all__ = ["SPM"]
 
 def _ownable(particles, forces) -> bool:
     """Whether a distributed run keeps the particles owned by ranks: free or pinned
-    spheres, chain beads and rigid bodies (each owned whole, with its beads), whose forces
-    have a local form (make_forces ``local``: pair forces, gravity, FENE bonds, dipoles by
-    a distributed Ewald sum, the Quincke constraint)."""
+    spheres (self-propelled ones included), chain beads and rigid bodies (each owned
+    whole, with its beads), whose forces have a local form (make_forces ``local``: pair
+    forces, gravity, FENE bonds, dipoles by a distributed Ewald sum, the Quincke
+    constraint)."""
     from .motion import Pinned
     from .rigid import RigidBodies
     c = getattr(particles, "constraints", None)
     if c is not None and not isinstance(c, (Pinned, RigidBodies)):
-        return False
-    if getattr(particles, "janus", None) is not None:
         return False
     return forces is None or getattr(forces, "local", None) is not None
 
@@ -138,9 +137,8 @@ class SPM:
         # coupling are summed over the ranks (_reduce)
         g = getattr(fluid, "grid", None)
         self.dist = g if hasattr(g, "comm") else None
-        if self.dist is not None and (wall is not None or getattr(particles, "janus", None)
-                                      is not None):
-            raise ValueError("walls and self-propelled particles do not run distributed")
+        if self.dist is not None and wall is not None:
+            raise ValueError("walls do not run distributed")
         self.fshape = tuple(g.local_shape) if self.dist is not None else self.shape
         self.fsize = int(np.prod(self.fshape))
         self._T = None          # distributed: the particles whose stencil meets the block
@@ -183,7 +181,7 @@ class SPM:
             raise ValueError("squirmers need the spectral (rectangular) fluid")
         # distributed: particles owned by the rank holding their stencil's base point (rigid
         # bodies: that of their first bead), with ghosts (kapsel.parallel.particles); else
-        # (self-propelled particles, walls: refused with more than one rank) replicated
+        # (walls: refused with more than one rank) replicated
         self.owned = None
         self._bodies = None
         if self.dist is not None and particles.n and _ownable(particles, forces):
@@ -310,6 +308,7 @@ class SPM:
         ix += iz
         self.idx = np.where(on, ix, 0)
         self.phi_i = np.where(on, self.phi_i, 0.0)
+        self._on = on
 
     def _reduce(self, *arrays):
         """Sum of per-particle arrays over the ranks, the same bits on every rank (MPI
@@ -355,6 +354,7 @@ class SPM:
                            strain_max, bodies=bodies, extra_width=width)
         self.whole = whole
         self.n_global = whole.n
+        self._janus_whole = whole.janus             # janus.Janus of all particles, or None
         self._released = False
         self._take(self.owned.scatter(whole, extra=extra))
 
@@ -381,6 +381,8 @@ class SPM:
         self.excess_inertia = p.inertia - 0.4 * self.rho * vol * a ** 2
         self._own_weight = np.zeros(p.n)
         self._own_weight[:n] = 1.0
+        if self._janus_whole is not None:       # the self-propulsion of the table's rows
+            self.janus = self._janus_whole.subset(o.gid)
 
     def gather(self):
         """Collective: the owned rows of every rank into the whole table on rank 0 (the
@@ -452,8 +454,12 @@ class SPM:
             dP, dL = self.noise(self.n_global, self.dt)
             gid = o.gid[:n]
             dP, dL = dP[gid], dL[gid]
-        self.motion.update_velocities(self.p_own, F_H, T_H, F_o, T_o, self.dt, self.rotation,
-                                      dP, dL, mass=self.mass[:n], inertia=self.inertia[:n])
+        if self.janus is not None and self._janus_whole.active:  # self force, slip
+            self.janus.update_velocities_owned(self, F_H, T_H, F_o, T_o, dP, dL)
+        else:
+            self.motion.update_velocities(self.p_own, F_H, T_H, F_o, T_o, self.dt,
+                                          self.rotation, dP, dL, mass=self.mass[:n],
+                                          inertia=self.inertia[:n])
         o.refresh(p.v, p.omega)
         v, shear = self._relative_velocity()
         du = rigidity_increment(u, self.idx, self.phi_i, self.r, self._sub(v),
