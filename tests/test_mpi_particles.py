@@ -9,6 +9,13 @@ particles, max |distributed - serial| 7.1e-14 (particle table) / 4.1e-14 (u_hat)
 ranks, 5.7e-14 / 4.6e-14 on 2 x 2, 0 on 1 rank; particles migrating through 4 slabs:
 |4 ranks - 1 rank| 0 in R, 1.1e-16 in v, 1.8e-14 in F_H; chains on 4 slabs 8.9e-16 in R,
 2.7e-14 in F_H; Lees-Edwards on 2 x 2 with a frame re-mapping 0 in R, 5.0e-14 in F_H.
+Rigid bodies (owned whole by the owner of their first bead), 50 steps, 2 / 2 x 2 ranks:
+5.7e-14 / 5.9e-14 (Navier_Stokes), 8.5e-14 / 7.1e-14 (Shear_Navier_Stokes), 5.7e-14 /
+2.5e-13 (Lees-Edwards), 0 on 1 rank; falling through 4 slabs 2.1e-14 in F_H, 0 in the
+bodies' R; restarts interchanged 6.4e-14 / 3.3e-13; dipoles (distributed Ewald): Quincke
+rollers 1.4e-14 / 7.1e-15, FIXED dipoles under Lees-Edwards 9.9e-15 / 7.8e-15;
+self-propelled (squirmers, tumbler, obstacle) 7.8e-14 / 1.6e-13 (Navier_Stokes), 2.1e-13 /
+1.9e-13 (Shear_Navier_Stokes).
 Each test takes 5-25 s on the busy 2-core machine.
 """
 import os
