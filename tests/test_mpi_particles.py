@@ -14,8 +14,8 @@ Rigid bodies (owned whole by the owner of their first bead), 50 steps, 2 / 2 x 2
 2.5e-13 (Lees-Edwards), 0 on 1 rank; falling through 4 slabs 2.1e-14 in F_H, 0 in the
 bodies' R; restarts interchanged 6.4e-14 / 3.3e-13; dipoles (distributed Ewald): Quincke
 rollers 1.4e-14 / 7.1e-15, FIXED dipoles under Lees-Edwards 9.9e-15 / 7.8e-15;
-self-propelled (squirmers, tumbler, obstacle) 7.8e-14 / 1.6e-13 (Navier_Stokes), 2.1e-13 /
-1.9e-13 (Shear_Navier_Stokes).
+self-propelled (squirmers, tumbler, obstacle) 6.4e-14 / 2.1e-13 (Navier_Stokes), 1.4e-13 /
+1.6e-13 (Shear_Navier_Stokes).
 Each test takes 5-25 s on the busy 2-core machine.
 """
 import os
