@@ -7,7 +7,9 @@ says; writes probe.npz (rank 0) with the gathered final particle table and the s
 
 Checks, every step, on every rank (failures raise, which ends every rank):
 * each particle is owned by exactly one rank, the owned counts add up to N, the owner is
-  the rank whose block holds the stencil's base point (spm ``_near``'s ``own``);
+  the rank whose block holds the stencil's base point (spm ``_near``'s ``own``); for rigid
+  bodies that of the body's first bead, every body whole on its owner (all its beads
+  owned there, its state in the owner's local bodies);
 * a rank holds its owned particles and ghosts only: the owned rows first, no duplicates;
 * every particle whose stencil meets the rank's block (spm ``_near``, independent of the
   halo code) and every pair partner (within the pair cutoff, kapsel.particles.cells) of an
@@ -55,12 +57,28 @@ def main():
         R[all_gid] = all_R
         g, y0 = ((spm.fluid.frame_strain, spm.fluid.y0) if spm.oblique else (0.0, 0.0))
         T, own = spm._near(R, g, y0)
-        assert set(T[own].tolist()) == set(gid[:n].tolist()), "owner is not the base point's"
         assert set(T.tolist()) <= set(gid.tolist()), "a particle meeting the block is missing"
+        bodies = spm._bodies
+        if bodies is not None:           # owned with their first bead, whole
+            lead = bodies.first_beads()
+            Tl, own_l = spm._near(R[lead], g, y0)
+            mine_b = Tl[own_l]
+            assert set(mine_b.tolist()) == set(bodies.body[gid[:n]].tolist()), \
+                "a body is not owned by the owner of its first bead"
+            assert np.array_equal(np.sort(np.flatnonzero(np.isin(bodies.body, mine_b))),
+                                  gid[:n]), "a body is not whole on its owner"
+            assert np.array_equal(spm.motion.global_bodies, np.sort(mine_b))
+            assert spm.motion.state.n == len(mine_b)
+        else:
+            assert set(T[own].tolist()) == set(gid[:n].tolist()), \
+                "owner is not the base point's"
         if cutoff > 0:      # pairs as kapsel.particles.forces finds them (oblique x - g y)
             Ro = R.copy()
             Ro[:, 0] = np.mod(R[:, 0] - g * R[:, 1], spm.box[0])
             i, j, _ = pairs_within(Ro, spm.box, cutoff * (1.0 + abs(g)))
+            if bodies is not None:                 # no pair forces within a body
+                keep = bodies.body[i] != bodies.body[j]
+                i, j = i[keep], j[keep]
             mine = np.zeros(N, dtype=bool)
             mine[gid[:n]] = True
             need = np.union1d(j[mine[i]], i[mine[j]])
@@ -75,8 +93,12 @@ def main():
     remaps = int(getattr(spm.fluid, "remaps", 0))
     whole = model.particles
     spm.gather()
+    extra = {}
+    if spm._bodies is not None:
+        st = spm._bodies.state
+        extra = {f"body_{k}": getattr(st, k).copy() for k in ("R", "R_raw", "v", "omega", "q")}
     if o.me == 0:
-        np.savez("probe.npz", R=whole.R, v=whole.v, omega=whole.omega, R_raw=whole.R_raw,
+        np.savez("probe.npz", **extra, R=whole.R, v=whole.v, omega=whole.omega, R_raw=whole.R_raw,
                  f_hydro=whole.f_hydro, owners=np.array(owners_of),
                  local=np.array(local_counts), owned=np.array(owned_counts),
                  ghosts=np.array(ghost_counts), N=N, remaps=remaps)

@@ -232,3 +232,53 @@ def test_sheared_lattice_forces_fields_and_the_bare_law():
     assert abs(U - U0) < 0.01 * abs(U0)
     assert np.linalg.norm(F[0] - F0) < 0.01 * np.linalg.norm(F0)
     assert np.linalg.norm(E[0] - E0) < 0.01 * np.linalg.norm(E0)
+
+
+@pytest.mark.parametrize("strain, mirror", [(0.0, None), (0.0, 2.5), (0.3, None)])
+def test_owned_sum_of_two_ranks_is_the_serial_sum(strain, mirror):
+    """The distributed Ewald sum (kapsel.particles.dipoles ``dipole_forces_owned``) of two
+    "ranks" splitting a 64 x 32 x 32 box at x = 32 (in the oblique coordinate x - g y of a
+    sheared lattice, as kapsel.parallel.particles), each with its owned particles and the
+    ghosts within r_cut (1 + |g|) of its half (a proper subset), the structure sums and total
+    moment of the owned particles added over the ranks: forces and torques of every particle
+    as the serial sum, to round-off (mirror images, Lees-Edwards lattice included)."""
+    from kapsel.particles import dipoles as dp
+    box = np.array([64.0, 32.0, 32.0])
+    L = box[0]
+    n = 16
+    R = _random(n, box, 3)[0]
+    R[:, 2] = 4.0 + 0.75 * R[:, 2]                 # above the electrode plane z = 2.5
+    q = np.random.default_rng(4).normal(size=(n, 4))
+    q /= np.linalg.norm(q, axis=1, keepdims=True)
+    quincke = dp.Quincke((0.0, 0.0, 1.0), (1.0, 0.0, 0.0), 50.0)
+    dip = dp.Dipoles("QUINCKE", 6.0, pz_factor=3.0, mirror_z=mirror, epsilon_surface=2.0)
+    s = ew.splitting_s(1e-10)
+    params = ew.EwaldParameters(alpha=s / 8.0, r_cut=8.0, k_cut=2 * s * s / 8.0)
+    F0, T0 = dp.dipole_forces(R, q, box, dip, quincke, params, strain=strain)
+    xo = np.mod(R[:, 0] - strain * R[:, 1], L)
+    halves = [xo < L / 2, xo >= L / 2]
+
+    def table(h):
+        x0 = 0.0 if h == 0 else L / 2
+        d = np.mod(xo - x0, L)                # distance from the half [x0, x0 + L/2)
+        dist = np.minimum(np.where(d < L / 2, 0.0, d - L / 2), L - d)
+        ghost = ~halves[h] & (dist < params.r_cut * (1 + abs(strain)))
+        rows = np.concatenate([np.flatnonzero(halves[h]), np.flatnonzero(ghost)])
+        return rows, int(np.count_nonzero(halves[h]))
+    parts = [[], []]                          # what each rank hands to the reduction
+    for h in (0, 1):
+        rows, k = table(h)
+        assert len(rows) < n
+        dp.dipole_forces_owned(R[rows], q[rows], k, box, dip, quincke, params,
+                               lambda a, h=h: parts[h].append(np.array(a)) or a,
+                               strain=strain)
+    totals = [a + b for a, b in zip(*parts)]
+    F, T = np.zeros_like(F0), np.zeros_like(T0)
+    for h in (0, 1):
+        rows, k = table(h)
+        it = iter(totals)
+        Fh, Th = dp.dipole_forces_owned(R[rows], q[rows], k, box, dip, quincke, params,
+                                        lambda a: next(it), strain=strain)
+        F[rows[:k]], T[rows[:k]] = Fh, Th
+    np.testing.assert_allclose(F, F0, rtol=0, atol=1e-12 * np.abs(F0).max())
+    np.testing.assert_allclose(T, T0, rtol=0, atol=1e-12 * np.abs(T0).max())

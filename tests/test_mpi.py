@@ -256,8 +256,8 @@ def test_walls_are_refused_with_more_than_one_rank(tmp_path):
 def test_chains_and_rigid_bodies_distributed(tmp_path, kind):
     """Chains (with noise) and rigid bodies (one free, one with a fixed velocity, gravity)
     on 2 ranks against the serial run, 20 steps: chain beads are owned by ranks (their
-    bonds across ranks through ghosts); the rigid bodies' motion is replicated, only their
-    coupling is distributed."""
+    bonds across ranks through ghosts); rigid bodies are owned whole, with their beads, by
+    the owner of their first bead (tests/test_mpi_particles.py)."""
     if kind == "chains":
         from test_chains import chain_input as make
         args = dict(specs=((4, 2), (3, 1)), output__GTS=10, output__Num_snap=2,

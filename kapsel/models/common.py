@@ -231,8 +231,10 @@ def make_forces(cfg: RunConfig, particles: ParticleState, strain=None, wall=None
     if bonds is not None:           # a bond is shorter than R0 (the run stops before)
         forces.cutoff = max(forces.cutoff,
                             chains.FENE_R0 * 2.0 * float(np.max(particles.radius)))
+    if electric is not None:        # the Ewald sum's real-space reach (dipoles)
+        forces.cutoff = max(forces.cutoff, float(electric.reach))
     forces.local = None
-    if electric is None and wall is None and group is None:
+    if wall is None:
         ratios = (np.array([s.MASS_RATIO for s in cfg.particles.species]) if gravity
                   else None)
         starts = None
@@ -240,14 +242,17 @@ def make_forces(cfg: RunConfig, particles: ParticleState, strain=None, wall=None
             per_chain = [s.beads for s in cfg.particles.species for _ in range(s.number)]
             starts = np.concatenate([np.cumsum(per_chain), [0]])
 
-        def local(p, weight, gid):
+        def local(p, weight, gid, reduce=None):
             """``forces`` of a rank's table (owned + ghosts; ``gid`` the global ids):
-            pair forces, gravity and FENE bonds, the virial counting each pair once over
-            the ranks (``weight`` 1 owned, 0 ghost) -> (F, T, min pair ratio, max bond
-            stretch); complete on the owned rows."""
+            pair forces (not between beads of one rigid body), gravity, FENE bonds, dipoles
+            and the Quincke constraint (``reduce``: sum over the ranks, for the Ewald sum),
+            the virial counting each pair once over the ranks (``weight`` 1 owned, 0
+            ghost) -> (F, T, min pair ratio, max bond stretch); complete on the owned
+            rows."""
             if pairs:
                 F, _, ratio_min = pf.pair_forces(
                     p.R, box, p.radius, inter.LJ_powers, inter.EPSILON, inter.LJ_truncate,
+                    group=None if group is None else group[gid],
                     strain=strain() if strain is not None else 0.0, virial=virial,
                     sigma=lj_dia, weight=weight)
             else:
@@ -265,7 +270,11 @@ def make_forces(cfg: RunConfig, particles: ParticleState, strain=None, wall=None
                                                  inter.EPSILON,
                                                  strain=strain() if strain is not None else 0.0)
                 F = F + Fb
-            return F, np.zeros((p.n, 3)), ratio_min, stretch
+            T = np.zeros((p.n, 3))
+            if electric is not None:
+                Fe, T = electric.local(p, int(np.count_nonzero(weight)), reduce)
+                F = F + Fe
+            return F, T, ratio_min, stretch
         forces.local = local
     return forces
 

@@ -11,16 +11,21 @@ rank (``refuse``), never run serially on every rank writing the same files.
 Division of work (kapsel.parallel.pencil for the fields, kapsel.parallel.particles for the
 particles, kapsel.parallel.lockstep for the output): every rank holds its block of the
 fields.  Spheres and chain beads are owned by the rank whose block holds their stencil's
+base point, rigid bodies (whole, with all their beads) by the owner of their first bead's
 base point; a rank holds its owned particles and ghosts (copies of the particles owned
 elsewhere that its block needs: their profile meets it, or they are within the reach of
 the forces of its particles), couples them to its part of the fluid, sends the ghosts'
 partial coupling sums to their owners (added in rank order: bit-for-bit repeatable), moves
 its owned particles and exchanges them afterwards (migration and new halos)
-(kapsel.particles.spm ``_step_owned``).  Rigid bodies and dipolar particles keep the
-replicated state: every rank holds all the particles, moves them identically and computes
-the profiles of those whose stencil meets its block (``_profiles_distributed``), the
-per-particle sums of the coupling being summed over the ranks by MPI_Reduce to rank 0 +
-MPI_Bcast.  Rank 0 writes output.udf, restart.udf and the field files with the fields and
+(kapsel.particles.spm ``_step_owned``).  Dipoles (and Quincke rollers) are owned alike,
+their Ewald sum distributed (kapsel.particles.ewald ``dipolar_ewald_owned``: the real-space
+part over owned + ghosts, the halo widened to its cutoff; the structure sums of the owned
+particles summed over the ranks by MPI_Reduce to rank 0 + MPI_Bcast).  The replicated
+path (every rank holds all the particles, moves them identically and couples those whose
+stencil meets its block, ``_profiles_distributed``) is left for particles without a local
+form of their forces (with flat walls, refused with more than one rank).  Self-propelled
+particles are owned too (kapsel.particles.janus ``update_velocities_owned``).
+Rank 0 writes output.udf, restart.udf and the field files with the fields and
 the particle table gathered to it.  Limits: README ("Distributed runs").
 """
 from __future__ import annotations
@@ -143,10 +148,4 @@ def refuse(dist, cfg) -> str | None:
     if getattr(cfg.switches, "wall", None) is not None:
         return ("switch.wall (flat walls) does not run distributed: run this input on one "
                 "process (without mpirun, or mpirun -n 1)")
-    if cfg.particles.object_type == "spherical_particle" and any(
-            getattr(s, "janus", None) is not None and s.janus.propulsion != "OFF"
-            for s in cfg.particles.species):
-        return ("self-propelled particles (Particle_spec[].janus_axis / janus_propulsion) do "
-                "not run distributed: run this input on one process (without mpirun, or "
-                "mpirun -n 1)")
     return None

@@ -13,6 +13,16 @@ block meets [b + lo - h, b + hi + h] along x and y (b its base point): this hold
 particle whose profile meets the block and every pair partner (|b_i - b_j| <= ceil(r_c /
 DX)) of every owned particle.
 
+Rigid bodies (``bodies``: the body of every bead, the first bead of every body) are owned
+whole: all the beads of a body by the owner of its first bead's base point (one point per
+body, as unambiguous as a sphere's; the body migrates at once, with all its beads, when that
+point crosses a block boundary); the body's state (kapsel.particles.rigid
+``bead_records``: centre, velocities, quaternion, summed forces, and the bead's
+Lees-Edwards image count) travels as ``extra`` columns of its beads' records.  A bead's
+ghosts go to the ranks its own widened stencil meets, as for any particle; the pair cutoff
+of the halo is widened by the largest distance of a bead from its body's first bead
+(``span``), so the pair partners of every bead of a body reach the body's owner.
+
 The local table (one ``ParticleState``) keeps the owned rows first, in global-id order,
 then the ghosts by (owner, global id).  Per step (kapsel.particles.spm, ``SPM._step_owned``):
 
@@ -49,9 +59,11 @@ GID, OWNER = _WIDTH, _WIDTH + 1            # global id and owner rank: the last 
 WIDTH = _WIDTH + 2
 
 
-def pack(p: ParticleState, rows, gid, owner) -> np.ndarray:
-    """Records (len(rows), WIDTH) of the rows of ``p``."""
-    out = np.empty((len(rows), WIDTH))
+def pack(p: ParticleState, rows, gid, owner, extra=None) -> np.ndarray:
+    """Records (len(rows), WIDTH + k) of the rows of ``p`` (``extra`` (len(rows), k): more
+    columns carried along, e.g. the state of a rigid body with each of its beads)."""
+    k = 0 if extra is None else extra.shape[1]
+    out = np.empty((len(rows), WIDTH + k))
     c = 0
     for name, w in COLUMNS:
         a = getattr(p, name)[rows]
@@ -59,6 +71,8 @@ def pack(p: ParticleState, rows, gid, owner) -> np.ndarray:
         c += w
     out[:, GID] = gid
     out[:, OWNER] = owner
+    if k:
+        out[:, WIDTH:] = extra
     return out
 
 
@@ -120,8 +134,14 @@ class Owned:
     cells, a pair cutoff ``cutoff`` (DX units of length), ``frame()`` -> (strain, origin)
     of an oblique grid (None: rectangular) whose strain never exceeds ``strain_max``."""
 
-    def __init__(self, grid, offsets, dx, cutoff=0.0, frame=None, strain_max=0.0):
+    def __init__(self, grid, offsets, dx, cutoff=0.0, frame=None, strain_max=0.0,
+                 bodies=None, extra_width=0):
         from mpi4py import MPI
+        # rigid bodies: (body of every bead, first bead of every body) (global ids); a body
+        # and all its beads are owned by the owner of its first bead's base point
+        self.group, self.lead = (None, None) if bodies is None else bodies
+        self.extra_width = int(extra_width)
+        self.extra = np.zeros((0, self.extra_width))
         self.MPI = MPI
         self.comm = grid.comm
         self.me, self.P = self.comm.Get_rank(), self.comm.Get_size()
@@ -163,6 +183,13 @@ class Owned:
         cy = np.searchsorted(self.blocks[1][:, 0], b[:, 1], side="right") - 1
         return cx * self.py + cy
 
+    def _body_owners(self, owner, gid):
+        """Rigid bodies: the owner of every bead (rows of global ids ``gid``, sorted, whole
+        bodies) is that of its body's first bead; else ``owner`` unchanged."""
+        if self.group is None:
+            return owner
+        return owner[np.searchsorted(gid, self.lead[self.group[gid]])]
+
     def destinations(self, b):
         """(N, P) bool: the ranks whose widened block holds each particle."""
         mx = _meets(b[:, 0], self.lo[0], self.width[0], self.blocks[0], self.shape[0])
@@ -176,7 +203,9 @@ class Owned:
         gid, owner = rec[:, GID], rec[:, OWNER]
         key = np.where(owner == self.me, -1.0, owner)
         order = np.lexsort((gid, key))
-        p, self.gid, self.owner = unpack(rec[order], constraints)
+        rec = rec[order]
+        p, self.gid, self.owner = unpack(rec, constraints)
+        self.extra = np.ascontiguousarray(rec[:, WIDTH:])
         self.n_own = int(np.count_nonzero(owner == self.me))
         n = self.n_own
         # where the owned rows are ghosts (the senders computed the same from the same bits)
@@ -193,14 +222,16 @@ class Owned:
         self._own_at = int(starts[self.me])
         return p
 
-    def scatter(self, whole: ParticleState, constraints=None) -> ParticleState:
-        """This rank's table (owned + ghosts) of a whole table held alike by every rank."""
+    def scatter(self, whole: ParticleState, constraints=None, extra=None) -> ParticleState:
+        """This rank's table (owned + ghosts) of a whole table held alike by every rank
+        (``extra`` (N, extra_width): the further columns of every row, kept in ``extra``)."""
         b = self.base(whole.R)
-        owner = self.owners(b)
+        owner = self._body_owners(self.owners(b), np.arange(whole.n))
         dest = self.destinations(b)
         dest[np.arange(whole.n), owner] = True
         rows = np.flatnonzero(dest[:, self.me])
-        return self._arrange(pack(whole, rows, rows, owner[rows]), constraints)
+        ex = None if extra is None else np.asarray(extra)[rows]
+        return self._arrange(pack(whole, rows, rows, owner[rows], ex), constraints)
 
     # ------------------------------------------------------------------ communication
     def _alltoallv(self, send, scounts, rcounts, width):
@@ -213,21 +244,22 @@ class Owned:
         self.comm.Alltoallv([np.ascontiguousarray(send), (sc, sd), D], [recv, (rc, rd), D])
         return recv
 
-    def exchange(self, p: ParticleState, constraints=None) -> ParticleState:
+    def exchange(self, p: ParticleState, constraints=None, extra=None) -> ParticleState:
         """Migration and new halos after the owners moved their particles: the new local
         table (the ghosts of ``p`` are dropped, the owned rows sent to every rank that
-        holds them now)."""
+        holds them now, with their ``extra`` columns (n_own, extra_width))."""
         n = self.n_own
         b = self.base(p.R[:n])
-        owner = self.owners(b)
+        owner = self._body_owners(self.owners(b), self.gid[:n])
         dest = self.destinations(b)
         dest[np.arange(n), owner] = True
         r, i = np.nonzero(dest.T)
-        rec = pack(p, i, self.gid[i], owner[i])
+        rec = pack(p, i, self.gid[i], owner[i], None if extra is None else extra[i])
         scounts = np.bincount(r, minlength=self.P).astype(np.int64)
         rcounts = np.empty_like(scounts)
         self.comm.Alltoall(scounts, rcounts)
-        return self._arrange(self._alltoallv(rec, scounts, rcounts, WIDTH), constraints)
+        return self._arrange(self._alltoallv(rec, scounts, rcounts,
+                                             WIDTH + self.extra_width), constraints)
 
     def reverse_sum(self, values: np.ndarray) -> np.ndarray:
         """Totals (n_own, k) of per-particle partial sums ``values`` (n_local, k) of every
@@ -258,26 +290,30 @@ class Owned:
         self.comm.Allreduce(a, out, op=self.MPI.MIN)
         return tuple(float(v) for v in out)
 
-    def gather(self, p: ParticleState, whole: ParticleState | None, everyone=False) -> None:
+    def gather(self, p: ParticleState, whole: ParticleState | None, everyone=False,
+               extra=None):
         """The owned rows of every rank into ``whole`` on rank 0 (global-id order); with
-        ``everyone`` on every rank (``whole`` then full-sized everywhere)."""
+        ``everyone`` on every rank (``whole`` then full-sized everywhere).  ``extra``
+        (n_own, extra_width): further columns of the owned rows, returned (N, extra_width)
+        in global-id order where ``whole`` is filled (None elsewhere)."""
         n = self.n_own
-        rec = pack(p, np.arange(n), self.gid[:n], self.me).reshape(-1)
+        W = WIDTH if extra is None else WIDTH + extra.shape[1]
+        rec = pack(p, np.arange(n), self.gid[:n], self.me, extra).reshape(-1)
         D = self.MPI.DOUBLE
         if everyone:
-            counts = self.comm.allgather(n * WIDTH)
+            counts = self.comm.allgather(n * W)
         else:
-            counts = self.comm.gather(n * WIDTH, root=0)
+            counts = self.comm.gather(n * W, root=0)
             if self.me != 0:
                 self.comm.Gatherv(rec, None, root=0)
-                return
+                return None
         buf = np.empty(sum(counts))
         displ = np.concatenate([[0], np.cumsum(counts)[:-1]]).astype(int).tolist()
         if everyone:
             self.comm.Allgatherv(rec, [buf, (counts, displ), D])
         else:
             self.comm.Gatherv(rec, [buf, (counts, displ), D], root=0)
-        rec = buf.reshape(-1, WIDTH)
+        rec = buf.reshape(-1, W)
         gid = rec[:, GID].astype(np.int64)
         c = 0
         for name, w in COLUMNS:
@@ -287,3 +323,8 @@ class Owned:
             else:
                 a[gid] = rec[:, c:c + w].reshape((len(gid),) + a.shape[1:])
             c += w
+        if extra is None:
+            return None
+        out = np.empty((len(gid), W - WIDTH))
+        out[gid] = rec[:, WIDTH:]
+        return out

@@ -133,6 +133,24 @@ def dipole_forces(R, q, box, dip: Dipoles, quincke: Quincke | None = None,
     return F[:n], np.cross(mu[:n], E[:n])
 
 
+def dipole_forces_owned(R, q, n_own, box, dip: Dipoles, quincke: Quincke | None, params,
+                        reduce, strain: float = 0.0):
+    """``dipole_forces`` of a distributed run (kapsel.particles.ewald
+    ``dipolar_ewald_owned``): (F, T) (n_own, 3) of the first ``n_own`` of a rank's
+    particles (its owned ones; the rest are ghosts within the real-space cutoff), their
+    mirror images made from the rank's particles as in the serial sum."""
+    n = len(R)
+    box = ewald_box(box, dip)
+    X, mu = sources(R, q, dip, quincke)
+    own = np.zeros(len(X), dtype=bool)
+    own[:n_own] = True
+    if len(X) > n:
+        own[n:n + n_own] = True
+    F, E = ewald.dipolar_ewald_owned(X, mu, own, n_own, box, params, reduce,
+                                     dip.epsilon_surface, strain=strain)
+    return F, np.cross(mu[:n_own], E)
+
+
 def make_electric(dip: Dipoles | None, quincke: Quincke | None, box, n: int, strain=None):
     """``electric(p) -> (F, T)`` of dipoles and the Quincke constraint on the particles
     ``p`` (positions R, orientations q), or None when neither is on.  The Ewald split is
@@ -157,4 +175,20 @@ def make_electric(dip: Dipoles | None, quincke: Quincke | None, box, n: int, str
             F += Fd
             T += Td
         return F, T
+
+    def local(p, n_own, reduce):
+        """``electric`` of a rank's table in a distributed run (owned rows first, then
+        ghosts; ``reduce``: sum over the ranks, a collective): complete on the owned rows."""
+        F = np.zeros((p.n, 3))
+        T = np.zeros((p.n, 3))
+        if quincke is not None:
+            T += quincke_torque(p.q, quincke)
+        if dip is not None:
+            Fd, Td = dipole_forces_owned(p.R, p.q, n_own, box, dip, quincke, params, reduce,
+                                         strain=strain() if strain is not None else 0.0)
+            F[:n_own] += Fd
+            T[:n_own] += Td
+        return F, T
+    electric.local = local
+    electric.reach = params.r_cut if params is not None else 0.0   # (length) for the halos
     return electric

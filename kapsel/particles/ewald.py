@@ -160,11 +160,14 @@ def _ghosts(Rw, box, r_cut):
     return G[keep], idx[keep], zero[keep]
 
 
-def _real_space(R, mu, box, alpha, r_cut, chunk_pairs=1 << 20, strain=0.0):
+def _real_space(R, mu, box, alpha, r_cut, chunk_pairs=1 << 20, strain=0.0, queries=None):
     """Sum over every periodic image within r_cut (any r_cut, also beyond half the box):
     each particle against the periodic copies around the box, found by a k-d tree, in
-    chunks of particles of about ``chunk_pairs`` pairs."""
+    chunks of particles of about ``chunk_pairs`` pairs.  ``queries``: only the first
+    ``queries`` particles get their field and force (the others' rows stay 0; U then counts
+    their pairs only)."""
     n = len(R)
+    m = n if queries is None else int(queries)
     E = np.zeros((n, 3))
     F = np.zeros((n, 3))
     if strain:
@@ -177,10 +180,11 @@ def _real_space(R, mu, box, alpha, r_cut, chunk_pairs=1 << 20, strain=0.0):
     per = 4.0 / 3.0 * np.pi * r_cut ** 3 * n / float(np.prod(box)) + 1.0
     step = max(1, int(chunk_pairs / per))
     U = 0.0
-    for s in range(0, n, step):
-        m = tree.sparse_distance_matrix(cKDTree(Rw[s:s + step]), r_cut, output_type="ndarray")
-        i = m["j"].astype(np.int64) + s
-        j = m["i"].astype(np.int64)
+    for s in range(0, m, step):
+        near = tree.sparse_distance_matrix(cKDTree(Rw[s:min(s + step, m)]), r_cut,
+                                           output_type="ndarray")
+        i = near["j"].astype(np.int64) + s
+        j = near["i"].astype(np.int64)
         keep = ~(zero[j] & (gi[j] == i))
         i, j = i[keep], j[keep]
         if len(i) == 0:
@@ -230,6 +234,69 @@ def _reciprocal(R, mu, box, alpha, k_cut, chunk_bytes=32 << 20, strain=0.0):
         E -= (8 * np.pi / V) * (((c * Mc + sn * Ms) * f) @ k)
         F += (8 * np.pi / V) * ((muk * (sn * Mc - c * Ms) * f) @ k)
     return U, E, F
+
+
+def _reciprocal_owned(R, mu, own, queries, box, alpha, k_cut, reduce, chunk_bytes=32 << 20,
+                      strain=0.0):
+    """``_reciprocal`` of a distributed run: the structure sums M(k) of the ``own`` sources
+    of every rank, summed over the ranks by ``reduce`` (one collective, fixed order), then
+    the field and force of the first ``queries`` particles."""
+    V = float(np.prod(box))
+    K = (_sheared_reciprocal_vectors(lattice(box, strain), k_cut) if strain
+         else reciprocal_vectors(box, k_cut))
+    Ro, mo = R[own], mu[own]
+    Rq, mq = R[:queries], mu[:queries]
+    M = np.empty((2, len(K)))
+    step = max(1, int(chunk_bytes // (8 * 4 * max(len(Ro), queries, 1))))
+    for s in range(0, len(K), step):
+        k = K[s:s + step]
+        phase = Ro @ k.T
+        muk = mo @ k.T
+        M[0, s:s + step] = np.einsum("ik,ik->k", muk, np.cos(phase))
+        M[1, s:s + step] = np.einsum("ik,ik->k", muk, np.sin(phase))
+    M = reduce(M)
+    E = np.zeros((queries, 3))
+    F = np.zeros((queries, 3))
+    for s in range(0, len(K), step):
+        k = K[s:s + step]
+        Mc, Ms = M[0, s:s + step], M[1, s:s + step]
+        k2 = np.einsum("ij,ij->i", k, k)
+        f = np.exp(-k2 / (4 * alpha ** 2)) / k2
+        phase = Rq @ k.T
+        c, sn = np.cos(phase), np.sin(phase)
+        muk = mq @ k.T
+        E -= (8 * np.pi / V) * (((c * Mc + sn * Ms) * f) @ k)
+        F += (8 * np.pi / V) * ((muk * (sn * Mc - c * Ms) * f) @ k)
+    return E, F
+
+
+def dipolar_ewald_owned(R, mu, own, queries, box, params: EwaldParameters, reduce,
+                        epsilon_surface: float = np.inf, strain: float = 0.0):
+    """(F, E) of the first ``queries`` dipoles of a rank's sources (R, mu) in a distributed
+    run (kapsel.parallel.particles): ``own`` (bool, len(R)) marks the sources this rank
+    accounts for (each source is own on exactly one rank), the others are ghosts, present
+    wherever they lie within r_cut of a queried dipole.  The real-space sum runs over the
+    rank's sources, the reciprocal one over the structure sums of every rank's own sources
+    and the surface term over their total moment (``reduce``: sum over the ranks, the same
+    bits everywhere).  The same terms as ``dipolar_ewald``, summed in another order."""
+    R = np.asarray(R, dtype=float)
+    mu = np.asarray(mu, dtype=float)
+    box = np.asarray(box, dtype=float)
+    a = params.alpha
+    _, E, F = _real_space(R, mu, box, a, params.r_cut, strain=strain, queries=queries)
+    E, F = E[:queries], F[:queries]
+    E_k, F_k = _reciprocal_owned(R, mu, own, queries, box, a, params.k_cut, reduce,
+                                 strain=strain)
+    E += E_k
+    F += F_k
+    self_c = 2 * a ** 3 / (3 * SQRT_PI)
+    E += 2 * self_c * mu[:queries]
+    if np.isfinite(epsilon_surface):
+        V = float(np.prod(box))
+        M = reduce(mu[own].sum(axis=0))
+        w = 2 * np.pi / ((2 * epsilon_surface + 1) * V)
+        E -= 2 * w * M
+    return F, E
 
 
 def dipolar_ewald(R, mu, box, params: EwaldParameters, epsilon_surface: float = np.inf,

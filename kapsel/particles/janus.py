@@ -177,6 +177,22 @@ class Janus:
         self.unconverged = 0
         self._bufs = None
 
+    def subset(self, rows) -> "Janus":
+        """The parameters of the particles ``rows`` (global indices) as a Janus of their own
+        (a rank's table in a distributed run); buffers and counters stay with this one."""
+        rows = np.asarray(rows, dtype=np.int64)
+        sub = object.__new__(Janus)
+        sub.n = len(rows)
+        for name in ("force_body", "torque_body", "axis_body", "B1", "beta", "C1", "C2"):
+            setattr(sub, name, getattr(self, name)[rows])
+        for name in ("tumblers", "squirmers", "obstacles"):
+            setattr(sub, name, np.flatnonzero(np.isin(rows, getattr(self, name))))
+        sub.slip_tol, sub.slip_iter = self.slip_tol, self.slip_iter
+        sub.iterations, sub.unconverged = self.iterations, self.unconverged
+        sub._bufs = None
+        sub._whole = self
+        return sub
+
     @property
     def active(self) -> bool:
         """Whether the velocity update differs from the plain one (tumblers or squirmers)."""
@@ -297,15 +313,18 @@ class Janus:
 
     def _solenoidal(self, grid, w, idx):
         """u' = P[sum of the per-point vectors w (M, S, 3) at idx]: (u'_hat, u') in buffers
-        owned by this object (valid until the next call)."""
-        if self._bufs is None or self._bufs[0].shape[1:] != tuple(grid.shape):
-            self._bufs = (grid.empty_real(), grid.empty_complex(), grid.empty_complex(),
-                          grid.empty_real())
-        field, uh, c, up = self._bufs
+        owned by this object (valid until the next call; a rank's blocks of them in a
+        distributed run)."""
+        holder = getattr(self, "_whole", self)
+        shape = tuple(getattr(grid, "local_shape", grid.shape))
+        if holder._bufs is None or holder._bufs[0].shape[1:] != shape:
+            holder._bufs = (grid.empty_real(), grid.empty_complex(), grid.empty_complex(),
+                            grid.empty_real())
+        field, uh, c, up = holder._bufs
         flat = idx.reshape(-1)
         ff = field.reshape(3, -1)
         for k in range(3):
-            ff[k] = np.bincount(flat, weights=w[..., k].reshape(-1), minlength=grid.size)
+            ff[k] = np.bincount(flat, weights=w[..., k].reshape(-1), minlength=ff.shape[1])
         grid.forward(field, out=uh)
         grid.project(uh)
         np.multiply(uh, 1.0 / grid.size, out=c)
@@ -324,6 +343,107 @@ class Janus:
             T[:, c] = (np.einsum("ns,ns->n", r[..., i], w[j])
                        - np.einsum("ns,ns->n", r[..., j], w[i])) * scale
         return F, T
+
+    def update_velocities_owned(self, spm, F_H, T_H, F_o, T_o, dP, dL):
+        """``update_velocities`` of a distributed run (spm.SPM ``_step_owned``; this Janus
+        is the rank's table's, owned rows first; F_H ... dL of the owned rows): the
+        squirmers' stencil sums (moments, shell terms) and slip forces of every rank summed
+        on their owners (reverse sums), the owners' iterates sent to the ghosts, whose
+        stencils join the slip flow on the other blocks, and the convergence test taken
+        over all ranks (every rank makes the same passes)."""
+        o = spm.owned
+        n = o.n_own
+        p, q = spm.p, spm.p_own
+        F_s, T_s = self.self_force(p.q)
+        F_s, T_s = F_s[:n], T_s[:n]
+        if not len(self._whole.squirmers):
+            self._update_owned(spm, F_H + F_s, T_H + T_s, F_o, T_o, dP, dL, F_H, T_H)
+            self._set_slip(q, np.zeros((n, 3)), np.zeros((n, 3)))
+            return
+        T = spm._T                                  # the rows of the stencil arrays
+        is_sq = np.zeros(p.n, dtype=bool)
+        is_sq[self.squirmers] = True
+        st = np.flatnonzero(is_sq[T])               # stencil rows of the squirmers
+        rows = T[st]                                # their table rows
+        own_sq = self.squirmers[self.squirmers < n]
+        a, xi = spm.stencil.A, spm.stencil.xi
+        idx, phi = spm.idx[st], spm.phi_i[st]
+        r = np.ascontiguousarray(spm.r[st])
+        ws = self.shell_weight(r, phi, a, xi) * spm._on[st]    # this block's points only
+        us = self.slip_velocity(r, p.q, rows)
+        uf = spm.u.reshape(3, -1)
+        ul = np.stack([uf[c][idx] for c in range(3)], axis=-1)
+        du_s = us - ul
+        part = np.zeros((p.n, 32))                  # this rank's part of the stencil sums
+        part[rows, 0] = phi.sum(axis=1)
+        part[rows, 1:4] = np.einsum("ns,nsk->nk", phi, r)
+        part[rows, 4:13] = _second_moment(phi, r).reshape(-1, 9)
+        part[rows, 13] = ws.sum(axis=1)
+        part[rows, 14:17] = np.einsum("ns,nsk->nk", ws, r)
+        part[rows, 17:26] = _second_moment(ws, r).reshape(-1, 9)
+        part[rows, 26:29] = np.einsum("ns,nsk->nk", ws, du_s)
+        part[rows, 29:32] = np.einsum("ns,nsk->nk", ws, _cross(r, du_s))
+        tot = o.reverse_sum(part)[own_sq]
+        M0, M1, M2 = tot[:, 0], tot[:, 1:4], tot[:, 4:13].reshape(-1, 3, 3)
+        S0, S1, S2 = tot[:, 13], tot[:, 14:17], tot[:, 17:26].reshape(-1, 3, 3)
+        dPs, dLs = tot[:, 26:29], tot[:, 29:32]
+        K = M2 + (np.einsum("na,nb->nab", M1, M1)
+                  - np.einsum("nk,nk->n", M1, M1)[:, None, None] * np.eye(3)) / M0[:, None, None]
+        shell_fixed = ws[..., None] * du_s
+
+        saved = {k: getattr(q, k).copy() for k in _SAVED}
+        Vs, Ws = q.v[own_sq].copy(), q.omega[own_sq].copy()
+        grid = spm.fluid.grid
+        scale = spm.rho * spm.dx ** 3 / spm.dt
+        it = np.zeros((p.n, 12))
+        for k in range(self.slip_iter):
+            dPk = -(S0[:, None] * Vs + _cross(Ws, S1) + dPs)
+            dLk = -(_cross(S1, Vs) + np.einsum("nab,nb->na", S2, Ws) + dLs)
+            dW = np.linalg.solve(K, (dLk - _cross(M1, dPk) / M0[:, None])[..., None])[..., 0]
+            dV = (dPk - _cross(dW, M1)) / M0[:, None]
+            it[own_sq] = np.concatenate([dV, dW, Vs, Ws], axis=1)
+            o.refresh(it)                           # the owners' iterates to the ghosts
+            g = it[rows]
+            w = phi[..., None] * (g[:, None, 0:3] + _cross(g[:, None, 3:6], r))
+            w += ws[..., None] * (g[:, None, 6:9] + _cross(g[:, None, 9:12], r))
+            w += shell_fixed
+            up_hat, up = self._solenoidal(grid, w, idx)
+            F_sl, T_sl = self._slip_force(spm, up, scale)
+            FT = o.reverse_sum(spm._full(np.concatenate([F_sl, T_sl], axis=1)))
+            F_sl, T_sl = FT[:, :3], FT[:, 3:]
+            if k:
+                for name, val in saved.items():
+                    getattr(q, name)[...] = val
+            self._update_owned(spm, F_H + F_sl + F_s, T_H + T_sl + T_s, F_o, T_o, dP, dL,
+                               F_H, T_H)
+            V, W = q.v[own_sq], q.omega[own_sq]
+            e = float(np.max(_rel2(Vs, V) + _rel2(Ws, W))) if len(own_sq) else 0.0
+            eps = (-o.allmin(-e)[0]) ** 0.5         # the largest over all ranks
+            self.iterations = self._whole.iterations = k + 1
+            if eps < self.slip_tol:
+                break
+            if k + 1 == self.slip_iter:
+                self._whole.unconverged += 1
+                self.unconverged = self._whole.unconverged
+                break
+            Vs = 0.3 * Vs + 0.7 * V
+            Ws = 0.3 * Ws + 0.7 * W
+        self._set_slip(q, F_sl, T_sl)
+        spm.u += up
+        spm.fluid.u_hat += up_hat
+        us = getattr(spm, "_us", None)
+        if us is not None and us.shape[1:] == spm.idx.shape:
+            upf = up.reshape(3, -1)
+            for c in range(3):
+                us[c] += upf[c][spm.idx]
+
+    @staticmethod
+    def _update_owned(spm, F, T, F_o, T_o, dP, dL, F_H, T_H):
+        q, n = spm.p_own, spm.owned.n_own
+        spm.motion.update_velocities(q, F, T, F_o, T_o, spm.dt, spm.rotation, dP, dL,
+                                     mass=spm.mass[:n], inertia=spm.inertia[:n])
+        q.f_hydro[...] = F_H
+        q.torque_hydro[...] = T_H
 
     @staticmethod
     def _update(spm, F, T, F_o, T_o, dP, dL, F_H, T_H):

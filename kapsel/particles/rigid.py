@@ -283,6 +283,73 @@ class RigidBodies:
         self.place_beads(p)
         return p
 
+    # ------------------------------------------------------------------ distributed
+    # a distributed run (kapsel.parallel.particles, kapsel.particles.spm ``_own``): a body
+    # is owned, with all its beads, by the rank owning its first bead; each bead's record
+    # carries the state of its body (BODY_FIELDS) and its Lees-Edwards image count
+    BODY_FIELDS = tuple((name, 3) for name in VECTOR_FIELDS) + (("q", 4), ("q_old", 4))
+    RECORD_WIDTH = sum(w for _, w in BODY_FIELDS) + 1
+
+    def first_beads(self) -> np.ndarray:
+        """Index of the first bead of every body (B,)."""
+        first = np.full(self.nb, len(self.body))
+        np.minimum.at(first, self.body, np.arange(len(self.body)))
+        return first
+
+    def span(self) -> float:
+        """The largest distance of a bead from its body's first bead (any orientation)."""
+        if not len(self.body):
+            return 0.0
+        d = self.body_positions - self.body_positions[self.first_beads()][self.body]
+        return float(np.sqrt(np.einsum("nk,nk->n", d, d).max()))
+
+    def bead_records(self) -> np.ndarray:
+        """(N, RECORD_WIDTH): the state of each bead's body, then the bead's image count."""
+        out = np.empty((len(self.body), self.RECORD_WIDTH))
+        c = 0
+        for name, w in self.BODY_FIELDS:
+            out[:, c:c + w] = getattr(self.state, name)[self.body]
+            c += w
+        out[:, c] = self.image
+        return out
+
+    def take_records(self, beads, records) -> None:
+        """Set the state of the bodies of ``beads`` (global bead indices, whole bodies) and
+        the beads' image counts from their ``records`` (bead_records rows)."""
+        beads = np.asarray(beads, dtype=np.int64)
+        bodies, first = np.unique(self.body[beads], return_index=True)
+        c = 0
+        for name, w in self.BODY_FIELDS:
+            getattr(self.state, name)[bodies] = records[first, c:c + w]
+            c += w
+        self.image[beads] = records[:, c]
+
+    def local(self, beads, records) -> "RigidBodies":
+        """The bodies of ``beads`` (global bead indices, sorted, whole bodies) as a
+        RigidBodies of their own (body index 0.. in order, bead rows as ``beads``), their
+        state from the beads' ``records`` (bead_records rows of the bodies' owner)."""
+        beads = np.asarray(beads, dtype=np.int64)
+        sub = object.__new__(RigidBodies)
+        bodies, first, inverse = np.unique(self.body[beads], return_index=True,
+                                           return_inverse=True)
+        sub.body = inverse.reshape(-1).astype(np.int64)
+        sub.nb = len(bodies)
+        sub.global_bodies = bodies
+        sub.body_positions = self.body_positions[beads]
+        sub.bead_mass = self.bead_mass[beads]
+        sub.bead_inertia = self.bead_inertia[beads]
+        sub.box = self.box
+        for name in ("free_v", "free_o", "v_fixed", "o_fixed", "masses", "moments_body"):
+            setattr(sub, name, getattr(self, name)[bodies])
+        s = self.state
+        sub.state = ParticleState(n=sub.nb, species=s.species[bodies],
+                                  radius=s.radius[bodies], mass=s.mass[bodies],
+                                  inertia=s.inertia[bodies])
+        sub.lees_edwards = self.lees_edwards
+        sub.image = np.zeros(len(beads))
+        sub.take_records(np.arange(len(beads)), records)
+        return sub
+
     # ------------------------------------------------------------------ restart
     def restart_items(self) -> dict:
         """The restart schema's GR_body[] (N, 3), GR_masses[] (B,), GR_moments_body[] (B, 9)."""

@@ -81,15 +81,14 @@ __all__ = ["SPM"]
 
 def _ownable(particles, forces) -> bool:
     """Whether a distributed run keeps the particles owned by ranks: free or pinned
-    spheres and chain beads, whose forces have a local form (pair forces, gravity, FENE
-    bonds: make_forces ``local``); rigid bodies (a body would have to be owned with its
-    beads) and dipoles (Ewald sums over all particles) stay replicated on every rank
-    (README "Distributed runs")."""
+    spheres (self-propelled ones included), chain beads and rigid bodies (each owned
+    whole, with its beads), whose forces have a local form (make_forces ``local``: pair
+    forces, gravity, FENE bonds, dipoles by a distributed Ewald sum, the Quincke
+    constraint)."""
     from .motion import Pinned
+    from .rigid import RigidBodies
     c = getattr(particles, "constraints", None)
-    if c is not None and not isinstance(c, Pinned):
-        return False
-    if getattr(particles, "janus", None) is not None:
+    if c is not None and not isinstance(c, (Pinned, RigidBodies)):
         return False
     return forces is None or getattr(forces, "local", None) is not None
 
@@ -139,9 +138,8 @@ class SPM:
         # coupling are summed over the ranks (_reduce)
         g = getattr(fluid, "grid", None)
         self.dist = g if hasattr(g, "comm") else None
-        if self.dist is not None and (wall is not None or getattr(particles, "janus", None)
-                                      is not None):
-            raise ValueError("walls and self-propelled particles do not run distributed")
+        if self.dist is not None and wall is not None:
+            raise ValueError("walls do not run distributed")
         self.fshape = tuple(g.local_shape) if self.dist is not None else self.shape
         self.fsize = int(np.prod(self.fshape))
         self._T = None          # distributed: the particles whose stencil meets the block
@@ -182,9 +180,11 @@ class SPM:
         if self.janus is not None and len(self.janus.squirmers) and (
                 self.mode != "spectral" or self.oblique):
             raise ValueError("squirmers need the spectral (rectangular) fluid")
-        # distributed: particles owned by the rank holding their stencil's base point, with
-        # ghosts (kapsel.parallel.particles); else (rigid bodies, dipoles) replicated
+        # distributed: particles owned by the rank holding their stencil's base point (rigid
+        # bodies: that of their first bead), with ghosts (kapsel.parallel.particles); else
+        # (walls: refused with more than one rank) replicated
         self.owned = None
+        self._bodies = None
         if self.dist is not None and particles.n and _ownable(particles, forces):
             self._own(particles, smax)
         if particles.n and not dry:
@@ -201,7 +201,11 @@ class SPM:
         g, y0 = (self.fluid.frame_strain, self.fluid.y0) if self.oblique else (0.0, 0.0)
         R = p.R
         if self.owned is not None:     # the rows whose stencil meets the block (owned first)
-            self._T = self._near(p.R, g, y0)[0]
+            T = self._near(p.R, g, y0)[0]
+            n = self.owned.n_own
+            if self._bodies is not None:     # every owned bead (a body's may lie elsewhere)
+                T = np.concatenate([np.arange(n), T[T >= n]])
+            self._T = T
             R = p.R[self._T]
         self.idx, self.phi_i, r = particle_profiles(R, self.stencil, self.shape, self.dx, g,
                                                     y0)
@@ -305,6 +309,7 @@ class SPM:
         ix += iz
         self.idx = np.where(on, ix, 0)
         self.phi_i = np.where(on, self.phi_i, 0.0)
+        self._on = on
 
     def _reduce(self, *arrays):
         """Sum of per-particle arrays over the ranks, the same bits on every rank (MPI
@@ -330,17 +335,29 @@ class SPM:
         ``whole`` (the model's, the same on every rank at the start; kapsel.parallel.
         particles).  ``self.p`` is then the local table, owned rows first."""
         from ..parallel.particles import Owned
+        from .rigid import RigidBodies
         f = self.forces
         cutoff = float(getattr(f, "cutoff", 0.0) or 0.0) if f is not None else 0.0
         frame = ((lambda: (self.fluid.frame_strain, self.fluid.y0)) if self.oblique
                  else None)
+        c = whole.constraints
+        self._bodies = c if isinstance(c, RigidBodies) else None   # global bodies
+        self._pins = None if self._bodies is not None else c       # motion.Pinned or None
+        bodies, width, extra = None, 0, None
+        if self._bodies is not None:
+            # a body is owned with its beads by the owner of its first bead; a pair partner
+            # of any of its beads lies within cutoff + span of that bead's base point
+            b = self._bodies
+            bodies, width, extra = (b.body, b.first_beads()), b.RECORD_WIDTH, b.bead_records()
+            if cutoff > 0:
+                cutoff += b.span()
         self.owned = Owned(self.dist, self.stencil.offsets, self.dx, cutoff, frame,
-                           strain_max)
+                           strain_max, bodies=bodies, extra_width=width)
         self.whole = whole
         self.n_global = whole.n
-        self._pins = whole.constraints          # motion.Pinned (global ids) or None
+        self._janus_whole = whole.janus             # janus.Janus of all particles, or None
         self._released = False
-        self._take(self.owned.scatter(whole))
+        self._take(self.owned.scatter(whole, extra=extra))
 
     def _take(self, p):
         """Make ``p`` (owned rows first, then ghosts) the local table."""
@@ -351,6 +368,9 @@ class SPM:
         n = o.n_own
         self.p_own = view(p, n)                 # the owned rows (views: updates write through)
         self.motion = _free_motion
+        if self._bodies is not None:            # the bodies this rank owns, whole
+            self.p_own.constraints = self.motion = self._bodies.local(o.gid[:n],
+                                                                      o.extra[:n])
         if self._pins is not None:
             gid = o.gid[:n]
             self.p_own.constraints = self.motion = Pinned(
@@ -362,13 +382,24 @@ class SPM:
         self.excess_inertia = p.inertia - 0.4 * self.rho * vol * a ** 2
         self._own_weight = np.zeros(p.n)
         self._own_weight[:n] = 1.0
+        if self._janus_whole is not None:       # the self-propulsion of the table's rows
+            self.janus = self._janus_whole.subset(o.gid)
 
     def gather(self):
         """Collective: the owned rows of every rank into the whole table on rank 0 (the
         output writers and the restart read it there)."""
         if self.owned is not None:
             root = self.owned.me == 0
-            self.owned.gather(self.p, self.whole if root else None)
+            extra = self._records()
+            rec = self.owned.gather(self.p, self.whole if root else None, extra=extra)
+            if rec is not None:                 # the bodies' state into the global bodies
+                self._bodies.take_records(np.arange(self.n_global), rec)
+
+    def _records(self):
+        """The extra columns of the owned rows (the state of rigid bodies), or None."""
+        if self._bodies is None:
+            return None
+        return self.motion.bead_records()
 
     def owned_particles(self):
         """The particles this rank accounts for in global sums (energies): its owned rows
@@ -384,7 +415,7 @@ class SPM:
             if self.owned.me != 0:
                 from ..parallel.particles import release
                 release(self.whole)
-        self._take(self.owned.exchange(self.p))
+        self._take(self.owned.exchange(self.p, extra=self._records()))
 
     def _step_owned(self):
         """``step`` of a distributed run with owned particles: the same steps 1-5, the
@@ -409,7 +440,8 @@ class SPM:
         F_H, T_H = FT[:, :3], FT[:, 3:]
         F_o = T_o = None
         if self.forces is not None:
-            F_o, T_o, ratio, stretch = self.forces.local(p, self._own_weight, o.gid)
+            F_o, T_o, ratio, stretch = self.forces.local(
+                p, self._own_weight, o.gid, reduce=lambda a: self._reduce(a)[0])
             ratio, stretch = o.allmin(ratio, -stretch)      # the same on every rank
             if hasattr(self.forces, "check"):           # (overlap_guard)
                 self.forces.check_bonds(-stretch)
@@ -423,8 +455,12 @@ class SPM:
             dP, dL = self.noise(self.n_global, self.dt)
             gid = o.gid[:n]
             dP, dL = dP[gid], dL[gid]
-        self.motion.update_velocities(self.p_own, F_H, T_H, F_o, T_o, self.dt, self.rotation,
-                                      dP, dL, mass=self.mass[:n], inertia=self.inertia[:n])
+        if self.janus is not None and self._janus_whole.active:  # self force, slip
+            self.janus.update_velocities_owned(self, F_H, T_H, F_o, T_o, dP, dL)
+        else:
+            self.motion.update_velocities(self.p_own, F_H, T_H, F_o, T_o, self.dt,
+                                          self.rotation, dP, dL, mass=self.mass[:n],
+                                          inertia=self.inertia[:n])
         o.refresh(p.v, p.omega)
         v, shear = self._relative_velocity()
         du = rigidity_increment(u, self.idx, self.phi_i, self.r, self._sub(v),
@@ -443,10 +479,11 @@ class SPM:
             np.take(du[c].reshape(-1), flat, out=self._du_points[c])
         clear_points(du, self.idx)
         q = self.p_own
-        if self.oblique:                       # Lees-Edwards images instead of the wrap
+        le = self.oblique and not self._own_images
+        if le:                                 # Lees-Edwards images instead of the wrap
             R0, raw0 = q.R.copy(), q.R_raw.copy()
         self.motion.update_positions(q, self.dt, self.box, self.rotation)
-        if self.oblique:
+        if le:
             q.R[:] = R0 + (q.R_raw - raw0)
             self.fluid.wrap_particles(q)
         self._exchange()
@@ -456,7 +493,8 @@ class SPM:
     def refresh(self):
         """Recompute the profiles after the positions were set from outside (a restart)."""
         if self.owned is not None:
-            self._take(self.owned.scatter(self.whole))
+            extra = None if self._bodies is None else self._bodies.bead_records()
+            self._take(self.owned.scatter(self.whole, extra=extra))
         if self.p.n or self.owned is not None:
             self._profiles()
 
