@@ -35,6 +35,24 @@ pytestmark = pytest.mark.skipif(MPIEXEC is None, reason="the mpi extra is not in
 PROBE = os.path.join(os.path.dirname(__file__), "mpi_particles_probe.py")
 
 
+def agree_with_serial(serial, make, label, limit, extra=None):
+    """Run the input ``make(n)`` writes (its directory returned) on 1, 2 (slabs) and 4
+    (2 x 2) ranks and compare with the serial run in ``serial``: 1 rank bit-identical, 2
+    and 4 within round-off (0 < max |difference| < ``limit``); ``extra(d)``: more
+    differences (name -> value) to print and bound."""
+    for n, grid in ((1, ()), (2, ()), (4, ("-X2", "-Y2"))):
+        d = make(n)
+        mpirun(d, n, "input.udf", *grid)
+        diff = differences(str(serial), str(d))
+        if extra is not None:
+            diff.update(extra(d))
+        print(f"{label}, {n} rank(s): max |distributed - serial| {max(diff.values()):.3g} "
+              f"({max(diff, key=diff.get)}); {diff}")
+        if n == 1:
+            assert max(diff.values()) == 0.0, diff
+        else:
+            assert 0 < max(diff.values()) < limit, diff
+
 def test_owned_particles_agree_with_the_serial_run(tmp_path):
     """32^3, 12 particles (A = 4) with thermal noise and the full LJ attraction (LJ_truncate
     OFF: range 2.5 sigma = 20, so pairs interact across the block boundaries), 50 + 1 steps
@@ -300,23 +318,19 @@ def test_rigid_bodies_agree_with_the_serial_run(tmp_path, eq):
                f"{base}.DC.Shear_rate": 0.05 if "Lees" in eq else 0.02}
     ser = _bodies_input(tmp_path / "serial", eq=eq, gravity=0.2, raw=raw, **puts)
     assert cli(tmp_path / "serial", os.path.basename(ser)) == 0
-    for n, grid in ((1, ()), (2, ()), (4, ("-X2", "-Y2"))):
+    def make(n):
         d = tmp_path / f"p{n}"
         _bodies_input(d, eq=eq, gravity=0.2, raw=raw, **puts)
-        mpirun(d, n, "input.udf", *grid)
-        diff = differences(str(tmp_path / "serial"), str(d))
+        return d
+
+    def outputs(d):            # RigidParticles[], E and rotational_energy.dat as written
+        diff = {}
         for k, a, b in zip(("RigidParticles", "E", "rotational_energy.dat"),
                            _body_outputs(tmp_path / "serial"), _body_outputs(d)):
             assert a.shape == b.shape
             diff[k] = float(np.abs(a - b).max(initial=0.0))
-        print(f"{eq}, rigid bodies, {n} rank(s): max |distributed - serial| "
-              f"{max(diff.values()):.3g} ({max(diff, key=diff.get)}); RigidParticles "
-              f"{diff['RigidParticles']:.3g}, E {diff['E']:.3g}, rotational_energy.dat "
-              f"{diff['rotational_energy.dat']:.3g}")
-        if n == 1:
-            assert max(diff.values()) == 0.0, diff
-        else:
-            assert 0 < max(diff.values()) < 1e-10, diff
+        return diff
+    agree_with_serial(tmp_path / "serial", make, f"{eq}, rigid bodies", 1e-10, outputs)
 
 
 @pytest.mark.parametrize("eq", ["Navier_Stokes", "Shear_Navier_Stokes_Lees_Edwards"])
@@ -386,16 +400,7 @@ def test_dipoles_agree_with_the_serial_run(tmp_path, case):
         _nowall(d, name="input.udf", **puts)
         dirs[name] = d
     assert cli(dirs["serial"], "input.udf") == 0
-    for n, grid in ((1, ()), (2, ()), (4, ("-X2", "-Y2"))):
-        d = dirs[f"p{n}"]
-        mpirun(d, n, "input.udf", *grid)
-        diff = differences(str(dirs["serial"]), str(d))
-        print(f"dipoles ({case}), {n} rank(s): max |distributed - serial| "
-              f"{max(diff.values()):.3g} ({max(diff, key=diff.get)})")
-        if n == 1:
-            assert max(diff.values()) == 0.0, diff
-        else:
-            assert 0 < max(diff.values()) < 1e-10, diff
+    agree_with_serial(dirs["serial"], lambda n: dirs[f"p{n}"], f"dipoles ({case})", 1e-10)
 
 
 # ---------------------------------------------------------------- self-propelled particles
@@ -419,13 +424,5 @@ def test_self_propelled_particles_agree_with_the_serial_run(tmp_path, eq):
         u.write(path)
         dirs[name] = d
     assert cli(dirs["serial"], "input.udf") == 0
-    for n, grid in ((1, ()), (2, ()), (4, ("-X2", "-Y2"))):
-        d = dirs[f"p{n}"]
-        mpirun(d, n, "input.udf", *grid)
-        diff = differences(str(dirs["serial"]), str(d))
-        print(f"self-propelled ({eq}), {n} rank(s): max |distributed - serial| "
-              f"{max(diff.values()):.3g} ({max(diff, key=diff.get)})")
-        if n == 1:
-            assert max(diff.values()) == 0.0, diff
-        else:
-            assert 0 < max(diff.values()) < 1e-10, diff
+    agree_with_serial(dirs["serial"], lambda n: dirs[f"p{n}"], f"self-propelled ({eq})",
+                      1e-10)

@@ -417,6 +417,19 @@ class SPM:
                 release(self.whole)
         self._take(self.owned.exchange(self.p, extra=self._records()))
 
+    def _hydro_sums(self):
+        """(u* at the stencil points, F_H, T_H) of the particles this rank couples: u*
+        sampled once a step (eqs 9-10 use it, and so does the rigidity increment), the
+        hydrodynamic force and torque over this rank's part of their profiles."""
+        if self._us is None or self._us.shape[1:] != self.idx.shape:
+            self._us = np.empty((3,) + self.idx.shape)
+        us = sample(self.u, self.idx, out=self._us)
+        v, shear = self._relative_velocity()
+        F_H, T_H = hydro_force_torque(self.u, self.idx, self.phi_i, self.r, self._sub(v),
+                                      self._sub(self.p.omega), self.rho, self.dx, self.dt,
+                                      shear=shear, sampled=us)
+        return us, F_H, T_H
+
     def _step_owned(self):
         """``step`` of a distributed run with owned particles: the same steps 1-5, the
         coupling sums of the ghosts sent to their owners, the owners moving their
@@ -429,13 +442,7 @@ class SPM:
             self._profiles()
         p, n = self.p, o.n_own
         u = self.u
-        if self._us is None or self._us.shape[1:] != self.idx.shape:
-            self._us = np.empty((3,) + self.idx.shape)
-        us = sample(u, self.idx, out=self._us)
-        v, shear = self._relative_velocity()
-        F_H, T_H = hydro_force_torque(u, self.idx, self.phi_i, self.r, self._sub(v),
-                                      self._sub(p.omega), self.rho, self.dx, self.dt,
-                                      shear=shear, sampled=us)
+        us, F_H, T_H = self._hydro_sums()
         FT = o.reverse_sum(self._full(np.concatenate([F_H, T_H], axis=1)))
         F_H, T_H = FT[:, :3], FT[:, 3:]
         F_o = T_o = None
@@ -587,13 +594,7 @@ class SPM:
             self._profiles()                  # the oblique grid moved with the frame
         if p.n:
             u = self.u
-            if self._us is None or self._us.shape[1:] != self.idx.shape:
-                self._us = np.empty((3,) + self.idx.shape)
-            us = sample(u, self.idx, out=self._us)
-            v, shear = self._relative_velocity()
-            F_H, T_H = hydro_force_torque(u, self.idx, self.phi_i, self.r, self._sub(v),
-                                          self._sub(p.omega), self.rho, self.dx, self.dt,
-                                          shear=shear, sampled=us)
+            us, F_H, T_H = self._hydro_sums()
             if self.dist is not None:
                 F_H, T_H = self._reduce(self._full(F_H), self._full(T_H))
             F_o = T_o = None
