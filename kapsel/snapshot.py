@@ -40,6 +40,10 @@ class Snapshot:
     strain: float = 0.0               # degree_oblique: strain of the oblique frame (0 if none)
     sheared: bool = False             # a Lees-Edwards / zigzag shear type
     sources: dict = field(default_factory=dict)
+    # a distributed run whose h5py is built with MPI: ``h5_fields(tmp, datasets, attrs)``
+    # writes the field datasets of one HDF5 file with every rank writing its block
+    # (kapsel.models.common.Model.write_h5_fields); None: the fields are gathered
+    h5_fields: object = None
     _cache: dict = field(default_factory=dict, repr=False)
 
     def offers(self, name: str) -> bool:

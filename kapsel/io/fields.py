@@ -141,6 +141,10 @@ class SnapshotFiles:
         return os.path.join(self.directory, f"{s.prefix}_{n}.h5")
 
     def _h5(self, tmp, s, snap, n):
+        attrs = {"n": n, "time": float(snap.time), "dx": self.dx}
+        if s.kind != "particles" and snap.h5_fields is not None:
+            snap.h5_fields(tmp, list(s.datasets), attrs)     # parallel HDF5: every rank
+            return                                           # writes its block
         with h5py.File(tmp, "w") as f:
             if s.kind == "particles":
                 p = snap.particles
@@ -158,9 +162,8 @@ class SnapshotFiles:
                     if a.shape != self.shape:
                         raise ValueError(f"{source}: shape {a.shape}, expected {self.shape}")
                     f.create_dataset(name, data=np.ascontiguousarray(a.T, dtype=F64))
-            f.attrs["n"] = n
-            f.attrs["time"] = float(snap.time)
-            f.attrs["dx"] = self.dx
+            for key, value in attrs.items():
+                f.attrs[key] = value
 
     # ------------------------------------------------------------------ XDMF
     def xdmf(self, s) -> str:

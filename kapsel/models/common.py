@@ -299,6 +299,14 @@ def make_noise(cfg: RunConfig, particles: ParticleState, seed: int):
     return impulses
 
 
+def parallel_hdf5() -> bool:
+    """Whether h5py is built with MPI (parallel HDF5): a distributed run then writes its
+    per-snapshot field files with every rank writing its block instead of gathering the
+    fields to rank 0.  PyPI's h5py wheels are built without it."""
+    import h5py
+    return bool(getattr(h5py.get_config(), "mpi", False))
+
+
 def kinetic_energy(rho, dx, u, phi, particles, reduce=None, owned=False) -> float:
     """E: fluid outside the particles, 1/2 RHO sum (1 - phi)|u|^2 dx^3, plus the particles'
     translational and rotational energy.  ``reduce``: sums the fluid part over the ranks of
@@ -382,6 +390,7 @@ class Model:
             self.lockstep.register("source", self._gathered_source)
             self._local_sources = {}
             self.lockstep.register("particles", lambda: self.spm.gather())
+            self.lockstep.register("h5_fields", self.write_h5_fields)
             self._gathered_at = None
 
     def spm_radius(self) -> float:
@@ -432,13 +441,45 @@ class Model:
             from ..particles.rigid import RigidBodies
             if isinstance(p.constraints, RigidBodies):
                 src["E_rot"] = p.constraints.rotational_energies
+        h5_fields = None
         if self.dist is not None:      # every source a collective of the lockstep protocol
             self._local_sources = src
             src = {name: (lambda name=name: self.lockstep.call("source", name))
                    for name in src}
+            if parallel_hdf5():
+                h5_fields = (lambda tmp, datasets, attrs:
+                             self.lockstep.call("h5_fields", tmp, datasets, attrs))
         return Snapshot(step=self.step_index, time=self.time, dt=self.dt,
                         shape=tuple(self.cfg.mesh.shape), dx=self.cfg.mesh.DX, particles=p,
-                        strain=float(self.frame_strain()), sheared=self.sheared, sources=src)
+                        strain=float(self.frame_strain()), sheared=self.sheared, sources=src,
+                        h5_fields=h5_fields)
+
+    def write_h5_fields(self, tmp, datasets, attrs):
+        """Every rank of a distributed run whose h5py has MPI (parallel HDF5): the field
+        datasets ``(name, source, component)`` of one HDF5 file, each (NZ, NY, NX) float64
+        as a plain run writes them (kapsel.io.fields), every rank writing its block; a source
+        computed on rank 0 from gathered fields (``Gathered``) is written by rank 0 alone."""
+        import h5py
+        from ..parallel.pencil import Gathered
+        g = self.grid
+        (x0, x1), (y0, y1), _ = g.real_range
+        nx, ny, nz = g.shape
+        values = {}
+        with h5py.File(tmp, "w", driver="mpio", comm=self.dist.comm) as f:
+            for name, source, comp in datasets:
+                if source not in values:
+                    values[source] = self._local_sources[source]()
+                v = values[source]
+                d = f.create_dataset(name, shape=(nz, ny, nx), dtype="<f8")
+                if isinstance(v, Gathered):
+                    if self.dist.root:
+                        a = v.value if comp is None else v.value[comp]
+                        d[...] = np.ascontiguousarray(a.T, dtype=float)
+                else:
+                    a = v if comp is None else v[comp]
+                    d[:, y0:y1, x0:x1] = np.ascontiguousarray(a.T, dtype=float)
+            for key, value in attrs.items():
+                f.attrs[key] = value
 
     def _owned(self):
         """The SPM of a distributed run whose particles are owned by ranks, else None."""
