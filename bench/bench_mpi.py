@@ -30,18 +30,18 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.join(HERE, "..")
 sys.path.insert(0, ROOT)
 
-SAMPLES = os.path.join(ROOT, "samples")
+
+
+def sample_input(d, eq, n):
+    """The manual's sample in ``d`` as ``eq`` on an n^3 mesh (n a power of 2): the tests'
+    tests/runs.py sample_input, a UDFManager the caller finishes and writes."""
+    sys.path.insert(0, os.path.join(ROOT, "tests"))
+    from runs import sample_input as sample
+    return sample(d, eq, npx=n.bit_length() - 1)            # N = 2^NP
 
 
 def make_input(d, n, particles, eq="Navier_Stokes", ns=None, ch=None):
-    from udf import UDFManager
-    os.makedirs(d, exist_ok=True)
-    for f in ("define.udf", "kapsel_unit.udf"):
-        shutil.copy(os.path.join(SAMPLES, f), os.path.join(d, f))
-    u = UDFManager(os.path.join(SAMPLES, "input.udf"))
-    u.put(eq, "constitutive_eq.type")
-    for k in ("NPX", "NPY", "NPZ"):
-        u.put(n.bit_length() - 1, f"mesh.{k}")            # N = 2^NP
+    u = sample_input(d, eq, n)
     u.put(0.0, f"constitutive_eq.{eq}.kBT")
     if ns is not None and eq != "Navier_Stokes":
         u.put(ns, f"constitutive_eq.{eq}.NS_solver.type")
@@ -97,16 +97,22 @@ def _max():
     return MPI.MAX
 
 
-def timed(d, ranks, steps):
-    cmd = [sys.executable, os.path.abspath(__file__), "--worker", str(steps)]
+def launch(script, d, ranks, steps, env=None):
+    """The words ``script --worker steps`` prints, run in ``d`` (under the venv's mpiexec
+    -n ``ranks`` when ``ranks``, else plainly)."""
+    cmd = [sys.executable, os.path.abspath(script), "--worker", str(steps)]
     if ranks:
         mpiexec = (shutil.which("mpiexec", path=os.path.dirname(sys.executable))
                    or shutil.which("mpiexec"))
         cmd = [mpiexec, "-n", str(ranks)] + cmd
-    r = subprocess.run(cmd, cwd=d, capture_output=True, text=True)
+    r = subprocess.run(cmd, cwd=d, capture_output=True, text=True, env=env)
     if r.returncode:
         raise SystemExit(f"{' '.join(cmd)} failed in {d}:\n{r.stderr[-2000:]}")
-    h, t, c = (float(x) for x in r.stdout.split()[-3:])
+    return r.stdout.split()
+
+
+def timed(d, ranks, steps):
+    h, t, c = (float(x) for x in launch(__file__, d, ranks, steps)[-3:])
     return t, c, h
 
 

@@ -17,26 +17,18 @@ printed) and the particle rows a rank holds (N replicated; owned + ghosts).
 import argparse
 import os
 import resource
-import shutil
-import subprocess
 import sys
 import tempfile
 import time
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.abspath(os.path.join(HERE, ".."))
-SAMPLES = os.path.join(ROOT, "samples")
 
 
 def make_input(d, n, particles):
-    from udf import UDFManager
-    os.makedirs(d, exist_ok=True)
-    for f in ("define.udf", "kapsel_unit.udf"):
-        shutil.copy(os.path.join(SAMPLES, f), os.path.join(d, f))
-    u = UDFManager(os.path.join(SAMPLES, "input.udf"))
-    u.put("Navier_Stokes", "constitutive_eq.type")
-    for k in ("NPX", "NPY", "NPZ"):
-        u.put(n.bit_length() - 1, f"mesh.{k}")
+    sys.path.insert(0, HERE)
+    from bench_mpi import sample_input
+    u = sample_input(d, "Navier_Stokes", n)
     u.put(0.5, "constitutive_eq.Navier_Stokes.kBT")
     u.put(2.0, "A")
     u.put(1.0, "A_XI")
@@ -81,15 +73,10 @@ def worker(steps):
 
 
 def run(d, tree, ranks, steps):
-    mpiexec = (shutil.which("mpiexec", path=os.path.dirname(sys.executable))
-               or shutil.which("mpiexec"))
-    cmd = [mpiexec, "-n", str(ranks), sys.executable, os.path.abspath(__file__), "--worker",
-           str(steps)]
-    env = dict(os.environ, PYTHONPATH=tree)
-    r = subprocess.run(cmd, cwd=d, capture_output=True, text=True, env=env)
-    if r.returncode:
-        raise SystemExit(f"{' '.join(cmd)} failed in {d}:\n{r.stderr[-2000:]}")
-    t, part, rss, rows = r.stdout.split()[-4:]
+    sys.path.insert(0, HERE)
+    from bench_mpi import launch
+    t, part, rss, rows = launch(__file__, d, ranks, steps,
+                                env=dict(os.environ, PYTHONPATH=tree))[-4:]
     return float(t), float(part), float(rss), int(rows)
 
 

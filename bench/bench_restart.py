@@ -21,22 +21,18 @@ import time  # noqa: E402
 
 ROOT = os.path.join(os.path.dirname(__file__), "..")
 sys.path.insert(0, ROOT)
+sys.path.insert(0, os.path.join(ROOT, "tests"))
 from kapsel import config, models  # noqa: E402,F401
 from kapsel.io.restart import write_checkpoint, write_restart  # noqa: E402
 from kapsel.simulation import SOLVERS  # noqa: E402
+from runs import sample_input  # noqa: E402  (tests/runs.py)
 from udf import UDFManager  # noqa: E402
 
 NS_CH = "constitutive_eq.Navier_Stokes_Cahn_Hilliard_FDM"
 
 
 def scene(d, eq, npx):
-    samples = os.path.join(ROOT, "samples")
-    for f in ("define.udf", "kapsel_unit.udf"):
-        shutil.copy(os.path.join(samples, f), os.path.join(d, f))
-    u = UDFManager(os.path.join(samples, "input.udf"))
-    u.put(eq, "constitutive_eq.type")
-    for k in ("NPX", "NPY", "NPZ"):
-        u.put(npx, f"mesh.{k}")
+    u = sample_input(d, eq, npx)
     u.put("explicit_scheme", f"{NS_CH}.NS_solver.type")
     u.put("explicit_scheme", "constitutive_eq.Navier_Stokes_FDM.NS_solver.type")
     u.put(1, "object_type.spherical_particle.Particle_spec[0].Particle_number")

@@ -69,6 +69,18 @@ def test_rate_zero_keeps_the_originals_nan_viscosity(tmp_path, capsys):
     assert len(rows) == 11 and all(r[-1].lower() == "nan" for r in rows)
 
 
+def _poison_step(monkeypatch, step, spoil):
+    """Navier_Stokes runs ``spoil(model)`` right after its step number ``step``."""
+    from kapsel.models import spectral
+    advance = spectral.SpectralModel.advance
+
+    def poisoned(self):
+        advance(self)
+        if self.step_index == step:
+            spoil(self)
+    monkeypatch.setattr(spectral.SpectralModel, "advance", poisoned)
+
+
 def test_an_interrupt_just_after_a_blow_up_says_so_without_a_traceback(tmp_path, capsys,
                                                                       monkeypatch):
     """SIGINT arrives in the step where the fluid turned NaN, before the every-10-steps check:
@@ -80,15 +92,11 @@ def test_an_interrupt_just_after_a_blow_up_says_so_without_a_traceback(tmp_path,
 
     d = tmp_path / "run"
     make_input(d, "Navier_Stokes", particles=2, gts=5, nsnap=4, kBT=0.0)
-    from kapsel.models import spectral
-    advance = spectral.SpectralModel.advance
 
-    def poisoned(self):
-        advance(self)
-        if self.step_index == 13:
-            self.fluid.u_hat[0, 1, 2, 3] = np.nan
-            os.kill(os.getpid(), signal.SIGINT)
-    monkeypatch.setattr(spectral.SpectralModel, "advance", poisoned)
+    def spoil(model):
+        model.fluid.u_hat[0, 1, 2, 3] = np.nan
+        os.kill(os.getpid(), signal.SIGINT)
+    _poison_step(monkeypatch, 13, spoil)
     assert main([f"-I{d}/input.udf", f"-O{d}/output.udf", f"-D{d}/define.udf",
                  f"-R{d}/restart.udf", "--seed", "11", "--quiet"]) == 1
     err = capsys.readouterr().err
@@ -104,14 +112,10 @@ def test_a_blow_up_is_named_without_numpys_warnings(tmp_path, capsys, monkeypatc
     screen before it, are not printed (simulation.advance)."""
     d = tmp_path / "run"
     make_input(d, "Navier_Stokes", particles=2, gts=5, nsnap=4, kBT=0.0)
-    from kapsel.models import spectral
-    advance = spectral.SpectralModel.advance
 
-    def poisoned(self):
-        advance(self)
-        if self.step_index == 12:
-            self.fluid.u_hat[:, 1, 2, 3] = 1e300
-    monkeypatch.setattr(spectral.SpectralModel, "advance", poisoned)
+    def spoil(model):
+        model.fluid.u_hat[:, 1, 2, 3] = 1e300
+    _poison_step(monkeypatch, 12, spoil)
     import warnings
     with warnings.catch_warnings():
         warnings.simplefilter("error")          # a warning would now raise and fail the run

@@ -28,30 +28,12 @@ from udf import UDFManager
 
 sys.path.insert(0, os.path.dirname(__file__))
 from runs import sample_input  # noqa: E402
-from test_mpi import MPIEXEC, differences, mpirun  # noqa: E402
+from test_mpi import MPIEXEC, agree_with_serial, differences, mpirun  # noqa: E402
 from test_restart import cli, make_input  # noqa: E402
 
 pytestmark = pytest.mark.skipif(MPIEXEC is None, reason="the mpi extra is not installed")
 PROBE = os.path.join(os.path.dirname(__file__), "mpi_particles_probe.py")
 
-
-def agree_with_serial(serial, make, label, limit, extra=None):
-    """Run the input ``make(n)`` writes (its directory returned) on 1, 2 (slabs) and 4
-    (2 x 2) ranks and compare with the serial run in ``serial``: 1 rank bit-identical, 2
-    and 4 within round-off (0 < max |difference| < ``limit``); ``extra(d)``: more
-    differences (name -> value) to print and bound."""
-    for n, grid in ((1, ()), (2, ()), (4, ("-X2", "-Y2"))):
-        d = make(n)
-        mpirun(d, n, "input.udf", *grid)
-        diff = differences(str(serial), str(d))
-        if extra is not None:
-            diff.update(extra(d))
-        print(f"{label}, {n} rank(s): max |distributed - serial| {max(diff.values()):.3g} "
-              f"({max(diff, key=diff.get)}); {diff}")
-        if n == 1:
-            assert max(diff.values()) == 0.0, diff
-        else:
-            assert 0 < max(diff.values()) < limit, diff
 
 def test_owned_particles_agree_with_the_serial_run(tmp_path):
     """32^3, 12 particles (A = 4) with thermal noise and the full LJ attraction (LJ_truncate
@@ -61,16 +43,11 @@ def test_owned_particles_agree_with_the_serial_run(tmp_path):
     kw = dict(particles=12, gts=10, nsnap=5, npx=5)
     ser = make_input(tmp_path / "serial", "Navier_Stokes", **kw)
     assert cli(tmp_path / "serial", ser) == 0
-    for n, grid in ((1, ()), (2, ()), (4, ("-X2", "-Y2"))):
-        d = tmp_path / f"p{n}"
-        make_input(d, "Navier_Stokes", **kw)
-        mpirun(d, n, "input.udf", *grid)
-        diff = differences(str(tmp_path / "serial"), str(d))
-        print(f"32^3, 12 particles, {n} rank(s): max |distributed - serial| {diff}")
-        if n == 1:
-            assert max(diff.values()) == 0.0, diff
-        else:
-            assert 0 < max(diff.values()) < 1e-11, diff
+
+    def make(n):
+        make_input(tmp_path / f"p{n}", "Navier_Stokes", **kw)
+        return tmp_path / f"p{n}"
+    agree_with_serial(tmp_path / "serial", make, "32^3, 12 particles", 1e-11)
     d = tmp_path / "p2_again"
     make_input(d, "Navier_Stokes", **kw)
     mpirun(d, 2, "input.udf")
@@ -116,6 +93,18 @@ def _probe(d, n, steps, *grid):
         return {k: z[k] for k in z.files}
 
 
+def _one_and_four_slabs(ref, dist):
+    """The probe's 30 steps in ``ref`` on 1 rank and in ``dist`` on 4 slabs (-X4): (their
+    records, the particle count N, the particles whose owner changed); every particle is
+    owned once after every step."""
+    a = _probe(ref, 1, 30)
+    b = _probe(dist, 4, 30, "-X4", "-Y1")
+    N = int(b["N"])
+    assert np.all(b["owned"].sum(axis=1) == N)
+    moved = np.flatnonzero(np.any(b["owners"] != b["owners"][0], axis=0))
+    return a, b, N, moved
+
+
 def test_particles_are_owned_by_ranks_and_migrate(tmp_path):
     """12 particles falling along -X through 4 slabs of 32 planes (128 x 16 x 16), 30 steps:
     after every step each particle is owned by exactly one rank (that of its stencil's base
@@ -127,11 +116,7 @@ def test_particles_are_owned_by_ranks_and_migrate(tmp_path):
     ref, dist = tmp_path / "one", tmp_path / "four"
     for d in (ref, dist):
         _drift_input(d)
-    a = _probe(ref, 1, 30)
-    b = _probe(dist, 4, 30, "-X4", "-Y1")
-    N = int(b["N"])
-    assert np.all(b["owned"].sum(axis=1) == N)
-    moved = np.flatnonzero(np.any(b["owners"] != b["owners"][0], axis=0))
+    a, b, N, moved = _one_and_four_slabs(ref, dist)
     print(f"owners changed for particles {moved.tolist()}; particles held per rank: "
           f"max {b['local'].max()} of {N}, mean {b['local'].mean():.1f} "
           f"(ghosts mean {b['ghosts'].mean():.1f})")
@@ -271,11 +256,7 @@ def test_rigid_bodies_owned_by_ranks_and_migrate(tmp_path):
     ref, dist = tmp_path / "one", tmp_path / "four"
     for d in (ref, dist):
         _bodies_input(d, output__GTS=10, output__Num_snap=1)
-    a = _probe(ref, 1, 30)
-    b = _probe(dist, 4, 30, "-X4", "-Y1")
-    N = int(b["N"])
-    assert np.all(b["owned"].sum(axis=1) == N)
-    moved = np.flatnonzero(np.any(b["owners"] != b["owners"][0], axis=0))
+    a, b, N, moved = _one_and_four_slabs(ref, dist)
     print(f"bodies: owners changed for beads {moved.tolist()}; beads held per rank: "
           f"max {b['local'].max()} of {N}, mean {b['local'].mean():.1f}")
     assert len(moved) >= 2

@@ -24,7 +24,7 @@ particles summed over the ranks by MPI_Reduce to rank 0 + MPI_Bcast).  The repli
 path (every rank holds all the particles, moves them identically and couples those whose
 stencil meets its block, ``_profiles_distributed``) is left for particles without a local
 form of their forces (with flat walls, refused with more than one rank).  Self-propelled
-particles are owned too (kapsel.particles.janus ``update_velocities_owned``).
+particles are owned too (kapsel.particles.janus ``update_velocities``).
 Rank 0 writes output.udf, restart.udf and the field files with the fields and
 the particle table gathered to it.  Limits: README ("Distributed runs").
 """

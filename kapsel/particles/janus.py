@@ -244,65 +244,103 @@ class Janus:
         """The velocity update of one spm.SPM step with self forces and, with squirmers,
         the self-consistent slip (module docstring).  Leaves f_hydro / torque_hydro = F_H /
         T_H and f_slip / torque_slip in the particle state and, with squirmers, adds the
-        solenoidal slip flow u' to the fluid (spm.u and the solver's state)."""
+        solenoidal slip flow u' to the fluid (spm.u and the solver's state).
+
+        In a distributed run (spm.owned: this Janus is the rank's table's, owned rows first;
+        F_H ... dL of the owned rows) the squirmers' stencil sums (moments, shell terms) and
+        slip forces of every rank are summed on their owners (reverse sums), the owners'
+        iterates go to the ghosts, whose stencils join the slip flow on the other blocks,
+        and the convergence test is taken over all ranks (every rank makes the same
+        passes).  In a plain run these exchanges are identities."""
+        o = getattr(spm, "owned", None)
+        whole = getattr(self, "_whole", self)       # the run's Janus (counters)
         p = spm.p
+        if o is None:                               # the stencil rows are the particles
+            n, q = p.n, p
+            rows = st = own_sq = self.squirmers
+            total, spread, worst = (lambda a: a), (lambda a: None), (lambda e: e)
+            to_table = lambda a: a                  # noqa: E731
+        else:
+            n, q = o.n_own, spm.p_own
+            T = spm._T                              # the table rows of the stencil arrays
+            is_sq = np.zeros(p.n, dtype=bool)
+            is_sq[self.squirmers] = True
+            st = np.flatnonzero(is_sq[T])           # stencil rows of the squirmers
+            rows = T[st]                            # their table rows
+            own_sq = self.squirmers[self.squirmers < n]
+            total, spread, to_table = o.reverse_sum, o.refresh, spm._full
+            worst = lambda e: -o.allmin(-e)[0]      # noqa: E731  (the largest of the ranks)
         F_s, T_s = self.self_force(p.q)
-        if not len(self.squirmers):
-            self._update(spm, F_H + F_s, T_H + T_s, F_o, T_o, dP, dL, F_H, T_H)
-            self._set_slip(p, np.zeros((p.n, 3)), np.zeros((p.n, 3)))
+        F_s, T_s = F_s[:n], T_s[:n]
+        if not len(whole.squirmers):
+            self._update(spm, q, n, F_H + F_s, T_H + T_s, F_o, T_o, dP, dL, F_H, T_H)
+            self._set_slip(q, np.zeros((n, 3)), np.zeros((n, 3)))
             return
-        sq = self.squirmers
         a, xi = spm.stencil.A, spm.stencil.xi
-        u = spm.u
-        idx = spm.idx[sq]
-        phi = spm.phi_i[sq]
-        r = np.ascontiguousarray(spm.r[sq])                       # (M, S, 3)
+        idx, phi = spm.idx[st], spm.phi_i[st]
+        r = np.ascontiguousarray(spm.r[st])                       # (M, S, 3)
         ws = self.shell_weight(r, phi, a, xi)
-        us = self.slip_velocity(r, p.q, sq)
-        uf = u.reshape(3, -1)
+        if o is not None:
+            ws = ws * spm._on[st]                   # this block's points only
+        us = self.slip_velocity(r, p.q, rows)
+        uf = spm.u.reshape(3, -1)
         ul = np.stack([uf[c][idx] for c in range(3)], axis=-1)    # u at the stencil points
         du_s = us - ul
-        M0 = phi.sum(axis=1)
-        M1 = np.einsum("ns,nsk->nk", phi, r)
-        M2 = _second_moment(phi, r)
-        S0 = ws.sum(axis=1)
-        S1 = np.einsum("ns,nsk->nk", ws, r)
-        S2 = _second_moment(ws, r)
-        dPs = np.einsum("ns,nsk->nk", ws, du_s)
-        dLs = np.einsum("ns,nsk->nk", ws, _cross(r, du_s))
+        part = np.zeros((p.n, 32))                  # the stencil sums (this rank's part)
+        part[rows, 0] = phi.sum(axis=1)
+        part[rows, 1:4] = np.einsum("ns,nsk->nk", phi, r)
+        part[rows, 4:13] = _second_moment(phi, r).reshape(-1, 9)
+        part[rows, 13] = ws.sum(axis=1)
+        part[rows, 14:17] = np.einsum("ns,nsk->nk", ws, r)
+        part[rows, 17:26] = _second_moment(ws, r).reshape(-1, 9)
+        part[rows, 26:29] = np.einsum("ns,nsk->nk", ws, du_s)
+        part[rows, 29:32] = np.einsum("ns,nsk->nk", ws, _cross(r, du_s))
+        tot = total(part)[own_sq]
+        M0, M1, M2 = tot[:, 0], tot[:, 1:4], tot[:, 4:13].reshape(-1, 3, 3)
+        S0, S1, S2 = tot[:, 13], tot[:, 14:17], tot[:, 17:26].reshape(-1, 3, 3)
+        dPs, dLs = tot[:, 26:29], tot[:, 29:32]
         K = M2 + (np.einsum("na,nb->nab", M1, M1)
                   - np.einsum("nk,nk->n", M1, M1)[:, None, None] * np.eye(3)) / M0[:, None, None]
         shell_fixed = ws[..., None] * du_s                        # phi_s (u_s - u)
 
-        saved = {k: getattr(p, k).copy() for k in _SAVED}
-        Vs, Ws = p.v[sq].copy(), p.omega[sq].copy()
+        saved = {k: getattr(q, k).copy() for k in _SAVED}
+        Vs, Ws = q.v[own_sq].copy(), q.omega[own_sq].copy()
         grid = spm.fluid.grid
         scale = spm.rho * spm.dx ** 3 / spm.dt
+        it = np.zeros((p.n, 12))                    # the iterates (dV, dW, V*, W*) per row
         for k in range(self.slip_iter):
             dPk = -(S0[:, None] * Vs + _cross(Ws, S1) + dPs)
             dLk = -(_cross(S1, Vs) + np.einsum("nab,nb->na", S2, Ws) + dLs)
             dW = np.linalg.solve(K, (dLk - _cross(M1, dPk) / M0[:, None])[..., None])[..., 0]
             dV = (dPk - _cross(dW, M1)) / M0[:, None]
-            w = phi[..., None] * (dV[:, None, :] + _cross(dW[:, None, :], r))
-            w += ws[..., None] * (Vs[:, None, :] + _cross(Ws[:, None, :], r))
+            it[own_sq] = np.concatenate([dV, dW, Vs, Ws], axis=1)
+            spread(it)                              # the owners' iterates to the ghosts
+            g = it[rows]
+            w = phi[..., None] * (g[:, None, 0:3] + _cross(g[:, None, 3:6], r))
+            w += ws[..., None] * (g[:, None, 6:9] + _cross(g[:, None, 9:12], r))
             w += shell_fixed
             up_hat, up = self._solenoidal(grid, w, idx)
             F_sl, T_sl = self._slip_force(spm, up, scale)
+            FT = total(to_table(np.concatenate([F_sl, T_sl], axis=1)))
+            F_sl, T_sl = FT[:, :3], FT[:, 3:]
             if k:
                 for name, val in saved.items():
-                    getattr(p, name)[...] = val
-            self._update(spm, F_H + F_sl + F_s, T_H + T_sl + T_s, F_o, T_o, dP, dL, F_H, T_H)
-            V, W = p.v[sq], p.omega[sq]
-            eps = np.max(_rel2(Vs, V) + _rel2(Ws, W)) ** 0.5
-            self.iterations = k + 1
+                    getattr(q, name)[...] = val
+            self._update(spm, q, n, F_H + F_sl + F_s, T_H + T_sl + T_s, F_o, T_o, dP, dL,
+                         F_H, T_H)
+            V, W = q.v[own_sq], q.omega[own_sq]
+            e = float(np.max(_rel2(Vs, V) + _rel2(Ws, W))) if len(own_sq) else 0.0
+            eps = worst(e) ** 0.5
+            self.iterations = whole.iterations = k + 1
             if eps < self.slip_tol:
                 break
             if k + 1 == self.slip_iter:
-                self.unconverged += 1
+                whole.unconverged += 1
+                self.unconverged = whole.unconverged
                 break
             Vs = 0.3 * Vs + 0.7 * V
             Ws = 0.3 * Ws + 0.7 * W
-        self._set_slip(p, F_sl, T_sl)
+        self._set_slip(q, F_sl, T_sl)
         spm.u += up
         spm.fluid.u_hat += up_hat
         us = getattr(spm, "_us", None)      # an SPM that samples u at its stencil points once
@@ -344,114 +382,14 @@ class Janus:
                        - np.einsum("ns,ns->n", r[..., j], w[i])) * scale
         return F, T
 
-    def update_velocities_owned(self, spm, F_H, T_H, F_o, T_o, dP, dL):
-        """``update_velocities`` of a distributed run (spm.SPM ``_step_owned``; this Janus
-        is the rank's table's, owned rows first; F_H ... dL of the owned rows): the
-        squirmers' stencil sums (moments, shell terms) and slip forces of every rank summed
-        on their owners (reverse sums), the owners' iterates sent to the ghosts, whose
-        stencils join the slip flow on the other blocks, and the convergence test taken
-        over all ranks (every rank makes the same passes)."""
-        o = spm.owned
-        n = o.n_own
-        p, q = spm.p, spm.p_own
-        F_s, T_s = self.self_force(p.q)
-        F_s, T_s = F_s[:n], T_s[:n]
-        if not len(self._whole.squirmers):
-            self._update_owned(spm, F_H + F_s, T_H + T_s, F_o, T_o, dP, dL, F_H, T_H)
-            self._set_slip(q, np.zeros((n, 3)), np.zeros((n, 3)))
-            return
-        T = spm._T                                  # the rows of the stencil arrays
-        is_sq = np.zeros(p.n, dtype=bool)
-        is_sq[self.squirmers] = True
-        st = np.flatnonzero(is_sq[T])               # stencil rows of the squirmers
-        rows = T[st]                                # their table rows
-        own_sq = self.squirmers[self.squirmers < n]
-        a, xi = spm.stencil.A, spm.stencil.xi
-        idx, phi = spm.idx[st], spm.phi_i[st]
-        r = np.ascontiguousarray(spm.r[st])
-        ws = self.shell_weight(r, phi, a, xi) * spm._on[st]    # this block's points only
-        us = self.slip_velocity(r, p.q, rows)
-        uf = spm.u.reshape(3, -1)
-        ul = np.stack([uf[c][idx] for c in range(3)], axis=-1)
-        du_s = us - ul
-        part = np.zeros((p.n, 32))                  # this rank's part of the stencil sums
-        part[rows, 0] = phi.sum(axis=1)
-        part[rows, 1:4] = np.einsum("ns,nsk->nk", phi, r)
-        part[rows, 4:13] = _second_moment(phi, r).reshape(-1, 9)
-        part[rows, 13] = ws.sum(axis=1)
-        part[rows, 14:17] = np.einsum("ns,nsk->nk", ws, r)
-        part[rows, 17:26] = _second_moment(ws, r).reshape(-1, 9)
-        part[rows, 26:29] = np.einsum("ns,nsk->nk", ws, du_s)
-        part[rows, 29:32] = np.einsum("ns,nsk->nk", ws, _cross(r, du_s))
-        tot = o.reverse_sum(part)[own_sq]
-        M0, M1, M2 = tot[:, 0], tot[:, 1:4], tot[:, 4:13].reshape(-1, 3, 3)
-        S0, S1, S2 = tot[:, 13], tot[:, 14:17], tot[:, 17:26].reshape(-1, 3, 3)
-        dPs, dLs = tot[:, 26:29], tot[:, 29:32]
-        K = M2 + (np.einsum("na,nb->nab", M1, M1)
-                  - np.einsum("nk,nk->n", M1, M1)[:, None, None] * np.eye(3)) / M0[:, None, None]
-        shell_fixed = ws[..., None] * du_s
-
-        saved = {k: getattr(q, k).copy() for k in _SAVED}
-        Vs, Ws = q.v[own_sq].copy(), q.omega[own_sq].copy()
-        grid = spm.fluid.grid
-        scale = spm.rho * spm.dx ** 3 / spm.dt
-        it = np.zeros((p.n, 12))
-        for k in range(self.slip_iter):
-            dPk = -(S0[:, None] * Vs + _cross(Ws, S1) + dPs)
-            dLk = -(_cross(S1, Vs) + np.einsum("nab,nb->na", S2, Ws) + dLs)
-            dW = np.linalg.solve(K, (dLk - _cross(M1, dPk) / M0[:, None])[..., None])[..., 0]
-            dV = (dPk - _cross(dW, M1)) / M0[:, None]
-            it[own_sq] = np.concatenate([dV, dW, Vs, Ws], axis=1)
-            o.refresh(it)                           # the owners' iterates to the ghosts
-            g = it[rows]
-            w = phi[..., None] * (g[:, None, 0:3] + _cross(g[:, None, 3:6], r))
-            w += ws[..., None] * (g[:, None, 6:9] + _cross(g[:, None, 9:12], r))
-            w += shell_fixed
-            up_hat, up = self._solenoidal(grid, w, idx)
-            F_sl, T_sl = self._slip_force(spm, up, scale)
-            FT = o.reverse_sum(spm._full(np.concatenate([F_sl, T_sl], axis=1)))
-            F_sl, T_sl = FT[:, :3], FT[:, 3:]
-            if k:
-                for name, val in saved.items():
-                    getattr(q, name)[...] = val
-            self._update_owned(spm, F_H + F_sl + F_s, T_H + T_sl + T_s, F_o, T_o, dP, dL,
-                               F_H, T_H)
-            V, W = q.v[own_sq], q.omega[own_sq]
-            e = float(np.max(_rel2(Vs, V) + _rel2(Ws, W))) if len(own_sq) else 0.0
-            eps = (-o.allmin(-e)[0]) ** 0.5         # the largest over all ranks
-            self.iterations = self._whole.iterations = k + 1
-            if eps < self.slip_tol:
-                break
-            if k + 1 == self.slip_iter:
-                self._whole.unconverged += 1
-                self.unconverged = self._whole.unconverged
-                break
-            Vs = 0.3 * Vs + 0.7 * V
-            Ws = 0.3 * Ws + 0.7 * W
-        self._set_slip(q, F_sl, T_sl)
-        spm.u += up
-        spm.fluid.u_hat += up_hat
-        us = getattr(spm, "_us", None)
-        if us is not None and us.shape[1:] == spm.idx.shape:
-            upf = up.reshape(3, -1)
-            for c in range(3):
-                us[c] += upf[c][spm.idx]
-
     @staticmethod
-    def _update_owned(spm, F, T, F_o, T_o, dP, dL, F_H, T_H):
-        q, n = spm.p_own, spm.owned.n_own
+    def _update(spm, q, n, F, T, F_o, T_o, dP, dL, F_H, T_H):
+        """The velocity update of the rows ``q`` (the first n of the table: all in a plain
+        run, the owned ones in a distributed run)."""
         spm.motion.update_velocities(q, F, T, F_o, T_o, spm.dt, spm.rotation, dP, dL,
                                      mass=spm.mass[:n], inertia=spm.inertia[:n])
-        q.f_hydro[...] = F_H
+        q.f_hydro[...] = F_H           # the records keep F_H; slip and self forces apart
         q.torque_hydro[...] = T_H
-
-    @staticmethod
-    def _update(spm, F, T, F_o, T_o, dP, dL, F_H, T_H):
-        p = spm.p
-        spm.motion.update_velocities(p, F, T, F_o, T_o, spm.dt, spm.rotation, dP, dL,
-                                     mass=spm.mass, inertia=spm.inertia)
-        p.f_hydro[...] = F_H           # the records keep F_H; slip and self forces apart
-        p.torque_hydro[...] = T_H
 
     @staticmethod
     def _set_slip(p, F, T):

@@ -463,7 +463,7 @@ class SPM:
             gid = o.gid[:n]
             dP, dL = dP[gid], dL[gid]
         if self.janus is not None and self._janus_whole.active:  # self force, slip
-            self.janus.update_velocities_owned(self, F_H, T_H, F_o, T_o, dP, dL)
+            self.janus.update_velocities(self, F_H, T_H, F_o, T_o, dP, dL)
         else:
             self.motion.update_velocities(self.p_own, F_H, T_H, F_o, T_o, self.dt,
                                           self.rotation, dP, dL, mass=self.mass[:n],
