@@ -413,7 +413,7 @@ def prepare(args, locks: list | None = None):
         if code:
             return code
         args.seed = dist.bcast(args.seed)
-        if not isinstance(checked, int) and checked[0].type not in _distributed():
+        if not isinstance(checked, int) and _not_distributed(checked[0]):
             args.dist = dist = None       # one rank (refused with more): a plain run
     elif isinstance(checked, int):
         return checked
@@ -433,9 +433,9 @@ def prepare(args, locks: list | None = None):
     return cfg, doc, model, resumed, seed_drawn
 
 
-def _distributed():
-    from .parallel import DISTRIBUTED
-    return DISTRIBUTED
+def _not_distributed(cfg):
+    from .parallel import not_distributed
+    return not_distributed(cfg)
 
 
 def _check_inputs(args, locks, dist):

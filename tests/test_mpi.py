@@ -269,6 +269,23 @@ def test_walls_are_refused_with_more_than_one_rank(tmp_path):
     assert not (tmp_path / "output.udf").exists()
 
 
+def test_walls_on_one_rank_run_as_a_plain_run(tmp_path):
+    """``mpirun -n 1`` of an input that does not run distributed (flat walls) is a plain
+    run (README "Which types"): the same restart as the run without mpirun.  It stopped
+    with a traceback ("walls do not run distributed") before."""
+    from test_walls import EX14, _wall_run_input
+    for name in ("plain", "one"):
+        d = tmp_path / name
+        d.mkdir()
+        for f in ("define.udf", "kapsel_unit.udf"):
+            shutil.copy(os.path.join(EX14, f), d / f)
+        (d / "in.udf").write_text(_wall_run_input(d, "Navier_Stokes"))
+    assert cli(tmp_path / "plain", "in.udf") == 0
+    r = mpirun(tmp_path / "one", 1, "in.udf", check=False)
+    assert r.returncode == 0, r.stderr[-2000:]
+    assert max(differences(str(tmp_path / "plain"), str(tmp_path / "one")).values()) == 0.0
+
+
 @pytest.mark.parametrize("kind", ["chains", "rigid"])
 def test_chains_and_rigid_bodies_distributed(tmp_path, kind):
     """Chains (with noise) and rigid bodies (one free, one with a fixed velocity, gravity)

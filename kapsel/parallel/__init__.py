@@ -138,9 +138,15 @@ def start(args):
 
 
 def refuse(dist, cfg) -> str | None:
-    """Why the run of ``cfg`` cannot be distributed over ``dist`` (None: it can)."""
+    """Why the run of ``cfg`` cannot be distributed over ``dist`` (None: it can; one rank
+    always can: a run that cannot be distributed then runs as a plain run)."""
     if dist is None or dist.size == 1:
         return None
+    return not_distributed(cfg)
+
+
+def not_distributed(cfg) -> str | None:
+    """Why the run of ``cfg`` does not run distributed (None: it does)."""
     if cfg.type not in DISTRIBUTED:
         return (f"constitutive_eq.type {cfg.type} does not run distributed: run it on one "
                 f"process (without mpirun, or mpirun -n 1); distributed types: "
