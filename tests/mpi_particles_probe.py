@@ -20,6 +20,21 @@ import sys
 import numpy as np
 
 
+
+def _base_here(spm, R, g, y0):
+    """Whether the stencil's base point floor(R / DX) (oblique x - g (y - y0) in a sheared
+    frame) of each particle lies in this rank's block: who must own it."""
+    s = np.asarray(R, dtype=float) / spm.dx
+    if g:
+        s[:, 0] = (R[:, 0] - g * (R[:, 1] - y0)) / spm.dx
+    b = np.floor(s).astype(np.int64)
+    here = np.ones(len(s), dtype=bool)
+    for axis in (0, 1):
+        a0, a1 = spm.dist.real_range[axis]
+        base = np.mod(b[:, axis], spm.shape[axis])
+        here &= (base >= a0) & (base < a1)
+    return here
+
 def main():
     from kapsel.cli import build_parser, prepare
     from kapsel.parallel import start
@@ -56,13 +71,13 @@ def main():
         R = np.empty((N, 3))
         R[all_gid] = all_R
         g, y0 = ((spm.fluid.frame_strain, spm.fluid.y0) if spm.oblique else (0.0, 0.0))
-        T, own = spm._near(R, g, y0)
+        T = spm._near(R, g, y0)
+        own = _base_here(spm, R[T], g, y0)
         assert set(T.tolist()) <= set(gid.tolist()), "a particle meeting the block is missing"
         bodies = spm._bodies
         if bodies is not None:           # owned with their first bead, whole
             lead = bodies.first_beads()
-            Tl, own_l = spm._near(R[lead], g, y0)
-            mine_b = Tl[own_l]
+            mine_b = np.flatnonzero(_base_here(spm, R[lead], g, y0))
             assert set(mine_b.tolist()) == set(bodies.body[gid[:n]].tolist()), \
                 "a body is not owned by the owner of its first bead"
             assert np.array_equal(np.sort(np.flatnonzero(np.isin(bodies.body, mine_b))),

@@ -174,15 +174,12 @@ class FDMModel(Model):
             F[:, c] = np.bincount(owner, weights=flat[c, nodes], minlength=p.n)
         if self.grid is None:
             w = spm.phi_i / spm.phi_i.sum(axis=1)[:, None]      # (N, S), rows sum to 1
-        elif spm.owned is not None:  # the owners' totals, then copied to the ghosts
+        else:         # the owners' totals, then copied to the ghosts
             total = np.zeros_like(F)
             total[:spm.owned.n_own] = spm.owned.reverse_sum(F)
             spm.owned.refresh(total)
             F = total[spm._T]
             w = spm.phi_i / (spm.grid_volume / self.dx ** 3)[:, None]
-        else:         # the forces summed over the ranks; the particles this rank couples
-            F = spm._reduce(F)[0][spm._T]
-            w = spm.phi_i / (spm.grid_volume[spm._T] / self.dx ** 3)[:, None]
         react = force.reshape(3, -1)
         for c in range(3):
             np.add.at(react[c], spm.idx.ravel(), -(w * F[:, c:c + 1]).ravel())

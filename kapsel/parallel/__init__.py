@@ -20,10 +20,7 @@ its owned particles and exchanges them afterwards (migration and new halos)
 (kapsel.particles.spm ``_step_owned``).  Dipoles (and Quincke rollers) are owned alike,
 their Ewald sum distributed (kapsel.particles.ewald ``dipolar_ewald_owned``: the real-space
 part over owned + ghosts, the halo widened to its cutoff; the structure sums of the owned
-particles summed over the ranks by MPI_Reduce to rank 0 + MPI_Bcast).  The replicated
-path (every rank holds all the particles, moves them identically and couples those whose
-stencil meets its block, ``_profiles_distributed``) is left for particles without a local
-form of their forces (with flat walls, refused with more than one rank).  Self-propelled
+particles summed over the ranks by MPI_Reduce to rank 0 + MPI_Bcast).  Self-propelled
 particles are owned too (kapsel.particles.janus ``update_velocities``).
 Rank 0 writes output.udf, restart.udf and the field files with the fields and
 the particle table gathered to it.  Limits: README ("Distributed runs").

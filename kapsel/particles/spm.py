@@ -79,20 +79,6 @@ from .profile import Stencil, particle_profiles, total_phi
 __all__ = ["SPM"]
 
 
-def _ownable(particles, forces) -> bool:
-    """Whether a distributed run keeps the particles owned by ranks: free or pinned
-    spheres (self-propelled ones included), chain beads and rigid bodies (each owned
-    whole, with its beads), whose forces have a local form (make_forces ``local``: pair
-    forces, gravity, FENE bonds, dipoles by a distributed Ewald sum, the Quincke
-    constraint)."""
-    from .motion import Pinned
-    from .rigid import RigidBodies
-    c = getattr(particles, "constraints", None)
-    if c is not None and not isinstance(c, (Pinned, RigidBodies)):
-        return False
-    return forces is None or getattr(forces, "local", None) is not None
-
-
 class SPM:
     """Fluid + particles by the SPM (see module docstring).  No I/O.
 
@@ -181,11 +167,10 @@ class SPM:
                 self.mode != "spectral" or self.oblique):
             raise ValueError("squirmers need the spectral (rectangular) fluid")
         # distributed: particles owned by the rank holding their stencil's base point (rigid
-        # bodies: that of their first bead), with ghosts (kapsel.parallel.particles); else
-        # (walls: refused with more than one rank) replicated
+        # bodies: that of their first bead), with ghosts (kapsel.parallel.particles)
         self.owned = None
         self._bodies = None
-        if self.dist is not None and particles.n and _ownable(particles, forces):
+        if self.dist is not None and particles.n:
             self._own(particles, smax)
         if particles.n and not dry:
             self._profiles()
@@ -195,13 +180,11 @@ class SPM:
     # ------------------------------------------------------------------ profiles
     def _profiles(self):
         """phi_i, r at the current positions; grid volumes, centroid-corrected r, masses."""
-        if self.dist is not None and self.owned is None:
-            return self._profiles_distributed()
         p = self.p
         g, y0 = (self.fluid.frame_strain, self.fluid.y0) if self.oblique else (0.0, 0.0)
         R = p.R
         if self.owned is not None:     # the rows whose stencil meets the block (owned first)
-            T = self._near(p.R, g, y0)[0]
+            T = self._near(p.R, g, y0)
             n = self.owned.n_own
             if self._bodies is not None:     # every owned bead (a body's may lie elsewhere)
                 T = np.concatenate([np.arange(n), T[T >= n]])
@@ -228,48 +211,14 @@ class SPM:
             self._localize()
 
     # ------------------------------------------------------------------ distributed
-    def _profiles_distributed(self):
-        """``_profiles`` on a distributed grid: the whole profiles of the particles whose
-        stencil meets this rank's block only (``_near``), so the profile work and memory of
-        a rank scale with its share of the particles; the grid volume and the sum of
-        phi_i |r|^2 of each particle (its mass and moment of inertia, needed by every rank
-        for the replicated motion) come from the rank holding its stencil's base point (one
-        value and zeros summed: exact), the same bits as the serial computation."""
-        p = self.p
-        g, y0 = (self.fluid.frame_strain, self.fluid.y0) if self.oblique else (0.0, 0.0)
-        T, own = self._near(p.R, g, y0)
-        self._T = T
-        self.idx, self.phi_i, r = particle_profiles(p.R[T], self.stencil, self.shape, self.dx,
-                                                    g, y0)
-        w = self.phi_i.sum(axis=1)
-        if self.center:
-            c = np.stack([np.einsum("ns,ns->n", self.phi_i, r[..., k]) for k in range(3)],
-                         axis=1) / w[:, None]
-            r -= c[:, None, :]
-        self.r = r
-        r2 = sum(np.einsum("ns,ns,ns->n", self.phi_i, r[..., k], r[..., k]) for k in range(3))
-        keep = np.zeros((p.n, 2))
-        keep[T[own], 0] = w[own]
-        keep[T[own], 1] = r2[own]
-        w, r2 = self._reduce(keep[:, 0].copy(), keep[:, 1].copy())
-        self.grid_volume = w * self.dx ** 3
-        if self.mass_mode == "grid":
-            self.mass = self.rho * self.grid_volume + self.excess_mass
-            self.inertia = (2.0 / 3.0) * self.rho * self.dx ** 3 * r2 + self.excess_inertia
-        else:
-            self.mass, self.inertia = p.mass, p.inertia
-        self._localize()
-
     def _near(self, R, strain, origin):
-        """(indices of the particles whose stencil meets this rank's block, which of them
-        have their base point (the stencil's origin) in the block)."""
+        """Indices of the particles whose stencil meets this rank's block."""
         s = np.asarray(R, dtype=float) / self.dx
         if strain:
             s[:, 0] = (R[:, 0] - strain * (R[:, 1] - origin)) / self.dx
         with np.errstate(invalid="ignore"):
             b = np.floor(s).astype(np.int64)
         near = np.ones(len(s), dtype=bool)
-        own = np.ones(len(s), dtype=bool)
         for axis in (0, 1):                   # the blocks split x and y
             n = self.shape[axis]
             a0, a1 = self.dist.real_range[axis]
@@ -278,10 +227,7 @@ class SPM:
             start = np.mod(b[:, axis] + lo, n)
             if width < n:
                 near &= (np.mod(a0 - start, n) < width) | (np.mod(start - a0, n) < a1 - a0)
-            base = np.mod(b[:, axis], n)
-            own &= (base >= a0) & (base < a1)
-        T = np.flatnonzero(near)
-        return T, own[T]
+        return np.flatnonzero(near)
 
     def _sub(self, a):
         """The rows of the particles this rank couples (all of them in a plain run)."""
@@ -595,8 +541,6 @@ class SPM:
         if p.n:
             u = self.u
             us, F_H, T_H = self._hydro_sums()
-            if self.dist is not None:
-                F_H, T_H = self._reduce(self._full(F_H), self._full(T_H))
             F_o = T_o = None
             if self.forces is not None:
                 res = self.forces(p)
@@ -617,8 +561,6 @@ class SPM:
                                     out=self._du, shear=shear,
                                     moment=self.moment if self.oblique else None,
                                     sampled=us, zeroed=True)
-            if self.oblique and self.dist is not None:
-                self.moment[...] = self._reduce(self.moment)[0]
             if self.wall is not None:
                 self._wall_increment(du)
             self._add_solenoidal(du)
