@@ -579,14 +579,20 @@ class CahnHilliard:
     # ---- implicit (eq 31)
     def _apply(self, x, c0, u, dphi, out):
         """A x = c0 x + dt div(x u) + dt kappa alpha lap lap x - dt kappa lap(2 d phi x)."""
-        la = self._lap(x, self._a)
+        return self._operator(x, c0, u, dphi, out, self._lap, self._div_flux,
+                              self._a, self._c, self._a, self._c)
+
+    def _operator(self, x, c0, u, dphi, out, lap, div_flux, la, t, df, dfw):
+        """``_apply`` with the stencils ``lap(f, out)``, ``div_flux(psi, u, out, work)`` and
+        the work arrays la, t (df, dfw: those of div_flux, may be la, t)."""
+        la = lap(x, la)
         if dphi is not None:
-            t = np.multiply(dphi, x, out=self._c)
+            t = np.multiply(dphi, x, out=t)
             la *= self.alpha
             la -= t
-            self._lap(la, out)
+            lap(la, out)
         else:
-            self._lap(la, out)
+            lap(la, out)
             out *= self.alpha
         out *= self.dt * self.kappa
         if c0 == 1.0:
@@ -594,7 +600,7 @@ class CahnHilliard:
         else:
             out += c0 * x
         if u is not None:
-            out += self.dt * self._div_flux(x, u, self._a, self._c)
+            out += self.dt * div_flux(x, u, df, dfw)
         return out
 
     def _step_implicit(self, psi, u, phi):
@@ -758,28 +764,18 @@ class DistributedCahnHilliard(CahnHilliard):
             return super()._apply(x, c0, u, dphi, out)
         h = self.halo2
         X = h.pad(x, key="x")
-        la = _lap(X, self.dx, h.work((), "la"))
-        o = h.work((), "o")
+        D = None
         if dphi is not None:
             src, D = pads["dphi"]
             if src is not dphi:
                 D = np.array(h.pad(dphi, key="dphi"))
                 pads["dphi"] = (dphi, D)
-            t = np.multiply(D, X, out=h.work((), "t"))
-            la *= self.alpha
-            la -= t
-            _lap(la, self.dx, o)
-        else:
-            _lap(la, self.dx, o)
-            o *= self.alpha
-        o *= self.dt * self.kappa
-        if c0 == 1.0:
-            o += X
-        else:
-            o += c0 * X
-        if u is not None:
-            o += self.dt * _div_flux(X, pads["u"], self.dx, h.work((), "df"),
-                                     h.work((), "dfw"))
+        dx = self.dx
+        o = self._operator(X, c0, None if u is None else pads["u"], D, h.work((), "o"),
+                           lambda f, w: _lap(f, dx, w),
+                           lambda f, v, w, w2: _div_flux(f, v, dx, w, w2),
+                           h.work((), "la"), h.work((), "t"), h.work((), "df"),
+                           h.work((), "dfw"))
         out[...] = h.interior(o)
         return out
 
