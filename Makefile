@@ -52,7 +52,8 @@ bench: $(VENV)/.installed-bench
 	$(BIN)/python bench/bench_fdm.py
 	$(BIN)/python bench/bench_cna.py
 	$(BIN)/python bench/bench_output.py
-	$(BIN)/python bench/bench_vs_original.py
+	@if [ -n "$$KREF_CPP" ]; then $(BIN)/python bench/bench_vs_original.py && $(BIN)/python bench/parity.py; \
+	  else echo "bench_vs_original.py and parity.py skipped: they run the original (set KREF_CPP; see ../shared/kref/README.md)"; fi
 	$(BIN)/python bench/work_precision.py
 	$(BIN)/python bench/stability_map.py
 

@@ -1,41 +1,42 @@
-"""kapsel-py against the original program (kapsel_u2m) on the scenes of issue 14.
+"""kapsel-py against the original program (kapsel_u2m), run side by side on the same document.
 
-    .venv/bin/python bench/bench_vs_original.py [--scene NAME ...] [--repeat R] [--threads T]
-                                                [--keep DIR]
+    .venv/bin/python bench/bench_vs_original.py [--original PATH] [--kref DIR] [--scene NAME ...]
+                                                [--repeat R] [--threads T] [--keep DIR] [--json F]
 
-Every scene is built from ``samples/input.udf`` (programmatically, through udf.UDFManager):
-kBT 0 (the sample's), ``time_increment`` auto with factor 1, ``output.GTS`` 10, and
+For every scene both programs run the same document (the original the flattened form its kref
+stand-in for OCTA's UDFManager reads), alternately, A B A B ..., ``--repeat`` times (default 3),
+each in a fresh process with T threads (the original: OMP_NUM_THREADS=T; kapsel-py:
+``--threads T``).  Per program and scene the table gives:
 
-    sample        the sample as is (Navier_Stokes_Cahn_Hilliard_FDM 32^3, 8 particles)
-    ns32          Navier_Stokes 32^3, 1 particle (A 4)
-    ns64          Navier_Stokes 64^3, 1 particle (A 4)
-    ns64x100      Navier_Stokes 64^3, 100 particles (A 2)
-    fdm64e        Navier_Stokes_FDM explicit_scheme 64^3, 8 particles
-    fdm64i        Navier_Stokes_FDM implicit_scheme 64^3, 8 particles
-    nsch64        Navier_Stokes_Cahn_Hilliard_FDM 64^3, 8 particles (the sample's solvers)
-    le32          Shear_Navier_Stokes_Lees_Edwards 32^3, 8 particles (the sample's DC 0.01)
+    ms/step   CPU milliseconds (user + system, all threads) per step of the time loop with its
+              snapshots (records, field files, restart), the median of the repeats: the
+              original's from the two ``#KREF`` lines its kref build prints (start of the loop,
+              end of the loop), kapsel-py's from the same two points of its run (the first
+              step to the closing summary), measured in-process by a hook on kapsel.progress;
+    RSS MB    the peak resident memory of the whole process (``wait4``'s ru_maxrss), largest of
+              the repeats;
 
-kapsel-py's figure is the CPU time (user + system, of the child process) of a 60-step run
-minus that of a 20-step run, divided by 40, each run a fresh ``python -m kapsel.cli`` with
-``--threads 1 --quiet --seed 1`` (start-up, set-up and the first snapshot cancel; the
-snapshots every 10 steps are included) and KAPSEL_PY_COMPILED=1 (the compiled kernels from
-the start, as a long run has them from step 10 on; kapsel.compiled).  CPU time, not wall
-time, because the machine is shared.  With ``--repeat R`` each run is repeated R times and
-the smallest CPU time kept.  The original's figures are those of issue 14 (its time loop's
-CPU per step, the same machine); the ratio is kapsel-py / original.  Also printed: the CPU
-seconds from the start of the process to its first time step ("start-up", default settings),
-the peak RSS of the 60-step run, and "step only": the CPU ms of ``model.advance()`` alone, in-process, over
-40 steps after 3 warm-up steps (bench/profile_step.py --time-only; no output, no snapshots),
-which separates the cost of the step from that of the snapshots (restart.udf, records).
+and the ratios kapsel-py / original.  Runs are long enough for kapsel-py's compiled kernels
+(they switch on in the first steps of a run; kapsel.compiled).  The load average before and after
+is printed with the table: the machine is shared, so CPU time, not wall time, is compared.
+
+The original is not part of the project (no licence): build it from its public source with
+``../shared/kref/`` (``KREF=<dir> KAPSEL3_GIT=<git dir> ../shared/kref/build.sh``) and give its
+binary by ``--original`` or ``$KREF_CPP``; the kref tools (``flatten_udf.py``) by ``--kref`` or
+``$KREF_TOOLS`` (default ``../shared/kref`` next to the repository).
 """
 from __future__ import annotations
 
 import argparse
+import json
 import os
+import re
 import shutil
+import statistics
 import subprocess
 import sys
 import tempfile
+import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -43,141 +44,179 @@ sys.path.insert(0, str(ROOT))
 
 from udf import UDFManager  # noqa: E402
 
-# name: (label, original ms/step from issue 14, edits)
+SAMPLE = ROOT / "samples" / "input.udf"
+SP = "object_type.spherical_particle.Particle_spec[0]"
+
+
+def _ns(n, particles, A, typ="Navier_Stokes"):
+    return {"constitutive_eq.type": typ, "mesh.NPX": n, "mesh.NPY": n, "mesh.NPZ": n,
+            f"{SP}.Particle_number": particles, "A": A}
+
+
+# name: (label, edits of samples/input.udf, steps, GTS)
 SCENES = {
-    "sample": ("sample as is (NSCH_FDM 32^3, 8 particles)", 95.2, {}),
-    "ns32": ("Navier_Stokes 32^3, 1 particle (A 4)", 7.9,
-             {"type": "Navier_Stokes", "np": 5, "n": 1, "A": 4.0}),
-    "ns64": ("Navier_Stokes 64^3, 1 particle (A 4)", 53.3,
-             {"type": "Navier_Stokes", "np": 6, "n": 1, "A": 4.0}),
-    "ns64x100": ("Navier_Stokes 64^3, 100 particles (A 2)", 89.9,
-                 {"type": "Navier_Stokes", "np": 6, "n": 100, "A": 2.0}),
-    "fdm64e": ("Navier_Stokes_FDM explicit 64^3, 8 particles", 137.0,
-               {"type": "Navier_Stokes_FDM", "np": 6, "solver": "explicit_scheme"}),
-    "fdm64i": ("Navier_Stokes_FDM implicit 64^3, 8 particles", 334.0,
-               {"type": "Navier_Stokes_FDM", "np": 6, "solver": "implicit_scheme"}),
-    "nsch64": ("Navier_Stokes_Cahn_Hilliard_FDM 64^3, 8 particles", 882.0, {"np": 6}),
-    "le32": ("Shear_Navier_Stokes_Lees_Edwards 32^3, 8 particles", 20.8,
-             {"type": "Shear_Navier_Stokes_Lees_Edwards"}),
+    "sample": ("sample as is (NSCH_FDM 32^3, 8 particles)", {}, 1000, 100),
+    "ns32": ("Navier_Stokes 32^3, 1 particle (A 4)", _ns(5, 1, 4.0), 200, 20),
+    "ns64": ("Navier_Stokes 64^3, 1 particle (A 4)", _ns(6, 1, 4.0), 200, 20),
+    "ns64x100": ("Navier_Stokes 64^3, 100 particles (A 2)", _ns(6, 100, 2.0), 200, 20),
+    "ns128x1000": ("Navier_Stokes 128^3, 1000 particles (A 2)", _ns(7, 1000, 2.0), 200, 20),
+    "fdm64e": ("Navier_Stokes_FDM explicit 64^3, 8 particles", dict(
+        _ns(6, 8, 4.0, "Navier_Stokes_FDM"),
+        **{"constitutive_eq.Navier_Stokes_FDM.NS_solver.type": "explicit_scheme"}), 200, 20),
+    "nsch64": ("Navier_Stokes_Cahn_Hilliard_FDM 64^3, 8 particles", {
+        "mesh.NPX": 6, "mesh.NPY": 6, "mesh.NPZ": 6}, 200, 20),
+    "le64": ("Shear_Navier_Stokes_Lees_Edwards 64^3, 8 particles (DC 0.01)",
+             _ns(6, 8, 4.0, "Shear_Navier_Stokes_Lees_Edwards"), 200, 20),
+    "el64": ("Electrolyte 64^3, 8 particles (salt, Z -10)", dict(
+        _ns(6, 8, 4.0, "Electrolyte"),
+        **{f"{SP}.Surface_charge": -10.0, "constitutive_eq.Electrolyte.kBT": 1.0}), 200, 20),
+    "squirmer64": ("Navier_Stokes 64^3, 8 squirmers (B1 0.01, alpha -1)", dict(
+        _ns(6, 8, 4.0),
+        **{f"{SP}.janus_axis": "Z", f"{SP}.janus_propulsion": "SQUIRMER",
+           f"{SP}.janus_slip_vel": 0.01, f"{SP}.janus_slip_mode": -1.0,
+           "switch.ROTATION": "ON"}), 200, 20),
 }
 
-
-def make_input(directory: Path, edits: dict, num_snap: int) -> Path:
-    """input.udf of a scene in ``directory`` (with define.udf), Num_snap snapshots of GTS 10."""
-    for f in ("define.udf", "kapsel_unit.udf"):
-        if (ROOT / "samples" / f).exists():
-            shutil.copy(ROOT / "samples" / f, directory / f)
-    u = UDFManager(str(ROOT / "samples" / "input.udf"))
-    if "type" in edits:
-        u.put(edits["type"], "constitutive_eq.type")
-    typ = u.get("constitutive_eq.type")
-    u.put(0.0, f"constitutive_eq.{typ}.kBT")
-    if "solver" in edits:
-        u.put(edits["solver"], f"constitutive_eq.{typ}.NS_solver.type")
-    if "np" in edits:
-        for ax in "XYZ":
-            u.put(edits["np"], f"mesh.NP{ax}")
-    if "n" in edits:
-        u.put(edits["n"], "object_type.spherical_particle.Particle_spec[0].Particle_number")
-    if "A" in edits:
-        u.put(edits["A"], "A")
-    u.put("auto", "time_increment.type")
-    u.put(1.0, "time_increment.auto.factor")
-    u.put(10, "output.GTS")
-    u.put(num_snap, "output.Num_snap")
-    path = directory / "input.udf"
-    u.write(str(path))
-    return path
-
-
-_FIRST_STEP = """
+# kapsel-py with the two timing points of the original's kref build (#KREF lines)
+_HOOK = r"""
 import sys, time
-import kapsel.simulation as S
-run = S.run
-def timed(cfg, args, doc, model, resumed=False):
-    def first():
-        print("%.3f" % time.process_time())
-        sys.exit(0)
-    model.advance = first
-    return run(cfg, args, doc, model, resumed)
-S.run = timed
-import kapsel.cli
-sys.argv = ["kapsel-py"] + sys.argv[1:]
-kapsel.cli.main()
+import kapsel.progress as P
+_init, _summary = P.Progress.__init__, P.Progress.summary
+st = {}
+def init(self, *a, **k):
+    st["t"], st["c"] = time.perf_counter(), time.process_time()
+    _init(self, *a, **k)
+def summary(self, *a, **k):
+    sys.stderr.write("#KREF loop_s %.6f loop_cpu_s %.6f steps %d\n" % (
+        time.perf_counter() - st["t"], time.process_time() - st["c"], self.steps))
+    return _summary(self, *a, **k)
+P.Progress.__init__, P.Progress.summary = init, summary
+from kapsel.cli import main
+sys.argv[0] = "kapsel-py"
+sys.exit(main())
 """
 
 
-def _env(compiled="1"):
-    return dict(os.environ, PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""),
-                OMP_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1", MKL_NUM_THREADS="1",
-                KAPSEL_PY_COMPILED=compiled)
+def make_scene(d: Path, edits: dict, steps: int, gts: int, kref: Path):
+    d.mkdir(parents=True, exist_ok=True)
+    for f in ("define.udf", "kapsel_unit.udf"):
+        shutil.copy(SAMPLE.parent / f, d / f)
+    u = UDFManager(str(SAMPLE))
+    for k, v in dict(edits, **{"output.GTS": gts, "output.Num_snap": steps // gts}).items():
+        u.put(v, k)
+    u.write(str(d / "input.udf"))
+    subprocess.run([sys.executable, str(kref / "flatten_udf.py"), "input.udf", "input.flat"],
+                   cwd=d, check=True, env=dict(os.environ, PYTHONPATH=str(ROOT)))
 
 
-def first_step_cpu(directory: Path, threads: int) -> float:
-    """CPU seconds from the start of the process to the first time step (imports, input,
-    set-up, output files, the initial snapshot), with the default KAPSEL_PY_COMPILED=auto."""
-    cmd = [sys.executable, "-c", _FIRST_STEP, "-Iinput.udf", "-Ooutput.udf", "-Ddefine.udf",
-           "-Rrestart.udf", "--overwrite", "--quiet", "--seed", "1", "--threads", str(threads)]
-    out = subprocess.run(cmd, cwd=directory, env=_env("auto"), capture_output=True, text=True,
-                         check=True).stdout
-    return float(out.split()[-1])
+def _kref(text):
+    out = {}
+    for m in re.finditer(r"#KREF (.*)", text):
+        toks = m.group(1).split()
+        out.update({k: float(v) for k, v in zip(toks[::2], toks[1::2])})
+    return out
 
 
-def cpu_run(directory: Path, threads: int) -> tuple[float, float]:
-    """(CPU seconds, peak RSS MB) of one kapsel-py run in ``directory`` (compiled kernels
-    from the start, KAPSEL_PY_COMPILED=1, so that their loading cancels in the difference)."""
-    env = _env("1")
-    cmd = [sys.executable, "-m", "kapsel.cli", "-Iinput.udf", "-Ooutput.udf", "-Ddefine.udf",
-           "-Rrestart.udf", "--overwrite", "--quiet", "--seed", "1", "--threads", str(threads)]
-    proc = subprocess.Popen(cmd, cwd=directory, env=env, stdout=subprocess.DEVNULL,
-                            stderr=subprocess.PIPE)
-    _, status, ru = os.wait4(proc.pid, 0)
-    proc.returncode = os.waitstatus_to_exitcode(status)
-    err = proc.stderr.read().decode()
-    proc.stderr.close()
-    if proc.returncode != 0:
-        raise RuntimeError(f"kapsel-py failed in {directory}: {err.strip()}")
-    return ru.ru_utime + ru.ru_stime, ru.ru_maxrss / 1024.0
-
-
-def measure(name: str, threads: int, repeat: int, keep: Path | None):
-    label, original, edits = SCENES[name]
-    base = keep if keep is not None else Path(tempfile.mkdtemp(prefix=f"bench-{name}-"))
-    cpu, rss = {}, 0.0
-    for snaps in (2, 6):
-        d = base / f"{name}-{snaps * 10}"
-        d.mkdir(parents=True, exist_ok=True)
-        make_input(d, edits, snaps)
-        best = min(cpu_run(d, threads) for _ in range(repeat))
-        cpu[snaps] = best[0]
-        rss = max(rss, best[1])
-    startup = min(first_step_cpu(base / f"{name}-20", threads) for _ in range(repeat))
-    if keep is None:
-        shutil.rmtree(base, ignore_errors=True)
-    ms = (cpu[6] - cpu[2]) / 40 * 1e3
-    env = _env("1")
-    step = min(float(subprocess.run(
-        [sys.executable, str(ROOT / "bench" / "profile_step.py"), name, "--steps", "40",
-         "--time-only", "--threads", str(threads)], env=env, check=True, capture_output=True, text=True).stdout.split()[-1])
-        for _ in range(repeat))
-    return label, original, ms, startup, rss, step
+def run_once(prog: str, scene: Path, original: str, threads: int):
+    """One run of ``prog`` ('original' / 'kapsel-py') in a fresh copy of the scene."""
+    w = scene / prog
+    if w.exists():
+        shutil.rmtree(w)
+    w.mkdir()
+    for f in ("input.udf", "input.flat", "define.udf", "kapsel_unit.udf"):
+        shutil.copy(scene / f, w / f)
+    env = dict(os.environ, OMP_NUM_THREADS=str(threads), OPENBLAS_NUM_THREADS="1",
+               MKL_NUM_THREADS="1", PYTHONPATH=str(ROOT))
+    if prog == "original":
+        cmd = [original, "-Iinput.flat", "-Ooutput.flat", "-Ddefine.udf", "-Rrestart.flat"]
+    else:
+        cmd = [sys.executable, "-c", _HOOK, "-Iinput.udf", "-Ooutput.udf", "-Ddefine.udf",
+               "-Rrestart.udf", "--threads", str(threads), "--seed", "1"]
+    with open(w / "stderr.txt", "w") as err, open(w / "stdout.txt", "w") as out:
+        p = subprocess.Popen(cmd, cwd=w, env=env, stdout=out, stderr=err)
+        _, status, ru = os.wait4(p.pid, 0)
+    rc = os.waitstatus_to_exitcode(status)
+    k = _kref((w / "stderr.txt").read_text(errors="replace"))
+    res = {"rc": rc, "rss_mb": ru.ru_maxrss / 1024.0,
+           "cpu_s": ru.ru_utime + ru.ru_stime}
+    if "loop_cpu_s" in k and k.get("steps"):
+        res["ms_step"] = 1e3 * k["loop_cpu_s"] / k["steps"]
+        res["steps"] = int(k["steps"])
+    return res
 
 
 def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--scene", nargs="*", choices=list(SCENES), default=list(SCENES))
-    ap.add_argument("--repeat", type=int, default=1)
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--original", default=os.environ.get("KREF_CPP"))
+    ap.add_argument("--kref", default=os.environ.get("KREF_TOOLS",
+                                                     str(ROOT.parent / "shared" / "kref")))
+    ap.add_argument("--scene", nargs="*", choices=list(SCENES))
+    ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--threads", type=int, default=1)
-    ap.add_argument("--keep", type=Path, help="keep the runs under this directory")
+    ap.add_argument("--steps", type=int, help="steps of every scene (default its own)")
+    ap.add_argument("--keep", help="keep the runs under this directory")
+    ap.add_argument("--json", help="append the results (one JSON line per scene) here")
     a = ap.parse_args(argv)
-    print(f"| scene (from samples/input.udf, kBT 0, auto dt, GTS 10) | original ms/step | "
-          f"kapsel-py ms/step | ratio | step only ms | ratio | start-up s CPU | peak RSS MB |")
+    kref = Path(a.kref)
+    if not a.original or not Path(a.original).is_file() or not (kref / "flatten_udf.py").exists():
+        print("bench_vs_original.py runs the original program itself; build it from its public "
+              "source with ../shared/kref/:\n  KREF=<scratch dir> KAPSEL3_GIT=<git dir of "
+              "kapsel-dns/kapsel3> ../shared/kref/build.sh\nthen: bench/bench_vs_original.py "
+              "--original <scratch dir>/src/kapsel [--kref ../shared/kref]", file=sys.stderr)
+        return 2
+    top = Path(a.keep) if a.keep else Path(tempfile.mkdtemp(prefix="kapsel-vs-original-"))
+    load0 = os.getloadavg()
+    rows = []
+    for name in a.scene or list(SCENES):
+        label, edits, steps, gts = SCENES[name]
+        if a.steps:
+            steps = a.steps
+            gts = max(1, min(gts, steps // 2))
+        d = top / name
+        make_scene(d, edits, steps, gts, kref)
+        runs = {"original": [], "kapsel-py": []}
+        for _ in range(a.repeat):
+            for prog in ("original", "kapsel-py"):
+                runs[prog].append(run_once(prog, d, a.original, a.threads))
+        r = {"scene": name, "label": label, "steps": steps, "threads": a.threads,
+             "load": os.getloadavg()[0]}
+        for prog, rs in runs.items():
+            ok = [x for x in rs if x["rc"] == 0 and "ms_step" in x]
+            r[prog] = {"rc": [x["rc"] for x in rs],
+                       "ms_step": [round(x["ms_step"], 3) for x in ok],
+                       "median_ms": statistics.median([x["ms_step"] for x in ok]) if ok else None,
+                       "rss_mb": max(x["rss_mb"] for x in rs)}
+        o, p = r["original"], r["kapsel-py"]
+        r["ratio"] = (p["median_ms"] / o["median_ms"]
+                      if o["median_ms"] and p["median_ms"] else None)
+        r["rss_ratio"] = p["rss_mb"] / o["rss_mb"] if o["rss_mb"] else None
+        rows.append(r)
+        print(f"{name:12s} original {o['ms_step']} ms  kapsel-py {p['ms_step']} ms  "
+              f"ratio {r['ratio'] if r['ratio'] is None else round(r['ratio'], 2)}  "
+              f"RSS {o['rss_mb']:.0f} / {p['rss_mb']:.0f} MB  (load {r['load']:.1f})",
+              flush=True)
+        if a.json:
+            with open(a.json, "a") as fh:
+                fh.write(json.dumps(r) + "\n")
+    stamp = time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime())
+    head = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=ROOT,
+                          capture_output=True, text=True).stdout.strip()
+    print(f"\n{stamp}, {os.uname().nodename} ({os.cpu_count()} cores), {a.threads} thread(s), "
+          f"{a.repeat} repeats A B A B, load {load0[0]:.1f} -> {os.getloadavg()[0]:.1f}, "
+          f"kapsel-py {head}\n")
+    print("| scene | steps | original ms/step | kapsel-py ms/step | ratio | original RSS MB "
+          "| kapsel-py RSS MB | RSS ratio |")
     print("|---|---|---|---|---|---|---|---|")
-    for name in a.scene:
-        label, original, ms, startup, rss, step = measure(name, a.threads, a.repeat, a.keep)
-        print(f"| {label} | {original:.1f} | {ms:.1f} | {ms / original:.2f} | {step:.1f} | "
-              f"{step / original:.2f} | {startup:.2f} | {rss:.0f} |", flush=True)
+    f = (lambda x, s=".1f": "-" if x is None else format(x, s))
+    for r in rows:
+        o, p = r["original"], r["kapsel-py"]
+        print(f"| {r['label']} | {r['steps']} | {f(o['median_ms'])} | {f(p['median_ms'])} | "
+              f"{f(r['ratio'], '.2f')} | {o['rss_mb']:.0f} | {p['rss_mb']:.0f} | "
+              f"{f(r['rss_ratio'], '.2f')} |")
+    if not a.keep:
+        shutil.rmtree(top, ignore_errors=True)
+    return 0
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(main())
