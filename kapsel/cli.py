@@ -25,7 +25,8 @@ def build_parser() -> argparse.ArgumentParser:
         description="Colloidal particles in one- or two-component fluids by the Smoothed "
                     "Profile Method: a drop-in replacement for KAPSEL's kapsel_u2m.",
         epilog="Example: kapsel-py -Iinput.udf -Ooutput.udf -Ddefine.udf -Rrestart.udf\n"
-               "Analyses: kapsel-py analyze {cna,erotate,sq} ... (see kapsel-py analyze -h)",
+               "Analyses: kapsel-py analyze {cna,erotate,sq} ... (see kapsel-py analyze -h)\n"
+               "Examples: kapsel-py example sample DIR copies the manual's sample to DIR",
         formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("-I", dest="input", metavar="INPUT.udf", required=True,
                    help="input UDF (simulation conditions)")
@@ -484,6 +485,9 @@ def main(argv=None) -> int:
     if argv and argv[0] == "analyze":
         from .analysis.cli import main as analyze
         return analyze(argv[1:])
+    if argv and argv[0] == "example":
+        from .examples import main as example
+        return example(argv[1:])
     args = build_parser().parse_args(argv)
     if args.threads < 1:
         return fail(f"--threads must be at least 1, got {args.threads}")
