@@ -942,8 +942,52 @@ BYTES_PER_PARTICLE = 4000           # state and records, besides the stencil
 MEMORY_ENV = "KAPSEL_PY_MEMORY_LIMIT_GB"
 
 
+def cgroup_memory_limit(proc_cgroup="/proc/self/cgroup", root="/sys/fs/cgroup") -> float:
+    """The memory limit of this process's control group (a batch system's job, a container),
+    the smallest over the group and its ancestors: cgroup v2 ``memory.max``, v1
+    ``memory.limit_in_bytes``; inf when there is none or it cannot be read."""
+    limit = float("inf")
+    try:
+        with open(proc_cgroup, encoding="ascii", errors="replace") as fh:
+            lines = fh.read().splitlines()
+    except OSError:
+        return limit
+    for line in lines:
+        parts = line.split(":", 2)
+        if len(parts) != 3:
+            continue
+        hid, controllers, path = parts
+        if hid == "0" and controllers == "":
+            base, name = root, "memory.max"                  # v2 (unified)
+        elif "memory" in controllers.split(","):
+            base, name = os.path.join(root, "memory"), "memory.limit_in_bytes"     # v1
+        else:
+            continue
+        rel = path.strip("/")
+        seen = set()
+        while True:             # the group and its ancestors (a container shows its root)
+            f = os.path.join(base, rel, name) if rel else os.path.join(base, name)
+            if f not in seen:
+                seen.add(f)
+                try:
+                    with open(f, encoding="ascii") as fh:
+                        text = fh.read().strip()
+                    if text and text != "max":
+                        v = float(text)
+                        if 0 < v < 2.0 ** 60:            # v1 says "no limit" by ~2^63
+                            limit = min(limit, v)
+                except (OSError, ValueError):
+                    pass
+            if not rel:
+                break
+            rel = os.path.dirname(rel)
+    return limit
+
+
 def memory_limit() -> float:
-    """Bytes a run may use: the machine's physical memory, or ``$KAPSEL_PY_MEMORY_LIMIT_GB``."""
+    """Bytes a run may use: ``$KAPSEL_PY_MEMORY_LIMIT_GB`` if set, else the machine's
+    physical memory or, if smaller, the limit of the process's control group (cgroup_memory_limit:
+    on a cluster node or in a container the job's limit, not the machine's)."""
     env = os.environ.get(MEMORY_ENV)
     if env:
         try:
@@ -955,9 +999,10 @@ def memory_limit() -> float:
                               MEMORY_ENV, env)
         return gb * 2 ** 30
     try:
-        return float(os.sysconf("SC_PHYS_PAGES") * os.sysconf("SC_PAGE_SIZE"))
+        phys = float(os.sysconf("SC_PHYS_PAGES") * os.sysconf("SC_PAGE_SIZE"))
     except (ValueError, OSError, AttributeError):
-        return float("inf")
+        phys = float("inf")
+    return min(phys, cgroup_memory_limit())
 
 
 def _size(nbytes: float) -> str:

@@ -142,3 +142,28 @@ def test_cli_syntax_error_has_position(tmp_path):
     path = sample_copy(tmp_path, "A_XI:2.00000000000000", "A_XI:2.0 ]")
     r = run_cli(f"-I{path}", f"-D{tmp_path / 'define.udf'}")
     assert r.returncode == 2 and "input.udf:" in r.stderr and "Traceback" not in r.stderr
+
+
+def test_memory_limit_takes_the_control_groups_limit(tmp_path):
+    """On a cluster node or in a container the job's cgroup limit, not the machine's memory,
+    decides (issue 28): v2 memory.max and v1 memory.limit_in_bytes, the smallest of the group
+    and its ancestors; 'max' and v1's ~2^63 mean none."""
+    from kapsel.config import cgroup_memory_limit
+    v2 = tmp_path / "v2"
+    (v2 / "job" / "step").mkdir(parents=True)
+    (v2 / "memory.max").write_text("max\n")
+    (v2 / "job" / "memory.max").write_text(str(8 * 2 ** 30) + "\n")
+    (v2 / "job" / "step" / "memory.max").write_text("max\n")
+    pc = tmp_path / "cgroup2"
+    pc.write_text("0::/job/step\n")
+    assert cgroup_memory_limit(str(pc), str(v2)) == 8 * 2 ** 30
+    v1 = tmp_path / "v1"
+    (v1 / "memory" / "slurm" / "uid").mkdir(parents=True)
+    (v1 / "memory" / "slurm" / "memory.limit_in_bytes").write_text("9223372036854771712\n")
+    (v1 / "memory" / "slurm" / "uid" / "memory.limit_in_bytes").write_text(str(3 * 2 ** 30))
+    pc1 = tmp_path / "cgroup1"
+    pc1.write_text("5:cpu,cpuacct:/slurm/uid\n4:memory:/slurm/uid\n")
+    assert cgroup_memory_limit(str(pc1), str(v1)) == 3 * 2 ** 30
+    pc1.write_text("4:memory:/slurm\n")
+    assert cgroup_memory_limit(str(pc1), str(v1)) == float("inf")
+    assert cgroup_memory_limit(str(tmp_path / "absent"), str(v1)) == float("inf")
