@@ -6,8 +6,10 @@ stderr, unless --quiet:
   (step, last step, wall minutes since the previous line, since the program started, and
   the estimate of the minutes left);
 - between snapshots that are far apart, a heartbeat ``#step s/N  t=...  r steps/s  ETA``
-  when no line was written for ``every`` seconds (the original's line already says step,
-  total, elapsed and remaining time, so this only fills long snapshot intervals);
+  when no line was written for ``every`` seconds, the first one ``first`` seconds after the
+  loop started (so a run whose first snapshot is far off says within seconds that it runs
+  and how fast; the original's line already says step, total, elapsed and remaining time,
+  so this only fills long snapshot intervals);
 - at the end ``#<output> end.``, ``#<restart> end.``, ``#Simulation has ended!`` and the
   total running time and average step time in s, m and h.
 
@@ -27,10 +29,13 @@ class Progress:
     """Snapshot lines, heartbeat and the closing summary on ``stream`` (stderr)."""
 
     def __init__(self, total_steps: int, quiet: bool = False, every: float = 60.0,
-                 stream=None, gts: int = 1, start_step: int = 0, program_start=None):
+                 stream=None, gts: int = 1, start_step: int = 0, program_start=None,
+                 first: float = 10.0):
         self.total = total_steps
         self.quiet = quiet
         self.every = every
+        self.first = min(first, every)
+        self.spoken = False      # a line written since the loop started
         self.stream = stream
         self.gts = max(1, int(gts))
         self.start_step = int(start_step)
@@ -46,9 +51,11 @@ class Progress:
     def step(self, step: int, sim_time: float) -> None:
         self.steps += 1
         now = time.perf_counter()
-        if self.quiet or now - self.last < self.every:
+        wait = self.every if self.spoken else self.first
+        if self.quiet or now - self.last < wait:
             return
         self.last = now
+        self.spoken = True
         rate = self.steps / (now - self.t0)
         left = (self.total - step) / rate if rate > 0 else float("inf")
         print(f"#step {step}/{self.total}  t={sim_time:.6g}  {rate:.2f} steps/s  "
@@ -59,6 +66,7 @@ class Progress:
         now = time.perf_counter()
         block = (now - self.block_start) / 60.0
         self.block_start = self.last = now
+        self.spoken = True
         left = (self.total - step + 1) / self.gts * block
         line = (f"# Step: {step:9d}/{self.total:9d}\t  Block time (m): {block:8.3f}\t "
                 f"Global time (m): {(now - self.program_start) / 60.0:8.3f}/{left:8.3f}")

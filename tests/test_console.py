@@ -77,3 +77,26 @@ def test_quiet_silences_stderr_but_not_the_table(tmp_path):
     r = kapsel(tmp_path, "--overwrite")         # Shear_Navier_Stokes: rows on stderr
     rows = [line for line in r.stderr.splitlines() if not line.startswith("#")]
     assert len(rows) == 3 and all(len(line.split()) == 5 for line in rows)
+
+
+def test_heartbeat_comes_within_the_first_seconds_then_every_interval(monkeypatch):
+    """A run whose snapshots are far apart says within ``first`` seconds (10) that it runs,
+    then again only after ``every`` seconds without a line (issue 28)."""
+    import io
+    from kapsel import progress
+    clock = [100.0]
+    monkeypatch.setattr(progress.time, "perf_counter", lambda: clock[0])
+    out = io.StringIO()
+    p = progress.Progress(1000, stream=out, every=60.0)
+    clock[0] += 9.0
+    p.step(1, 0.1)
+    assert out.getvalue() == ""
+    clock[0] += 1.5
+    p.step(2, 0.2)
+    assert out.getvalue().startswith("#step 2/1000")
+    clock[0] += 30.0
+    p.step(3, 0.3)
+    assert out.getvalue().count("#step") == 1
+    clock[0] += 31.0
+    p.step(4, 0.4)
+    assert out.getvalue().count("#step") == 2
