@@ -239,7 +239,7 @@ SCENES = {
          f"constitutive_eq.{NSCH}.NS_solver.implicit_scheme.ON.ETA_A": 1.0,
          f"constitutive_eq.{NSCH}.NS_solver.implicit_scheme.ON.ETA_B": 5.0}), 200),
     "nsch_wetted": ("NSCH_FDM, 1 static wetted sphere (pinned, w -1)", merge(
-        common(NSCH), solvers(NSCH, ns="explicit_scheme", ch="explicit_scheme"), spheres(SED),
+        common(NSCH), solvers(NSCH, ns="explicit_scheme", ch="implicit_scheme"), spheres(SED),
         {f"constitutive_eq.{NSCH}.Potential.Landau.w": -1.0,
          "switch.pin.type": "YES", "switch.pin.YES.pin[]": [0], "switch.pin.YES.pin_rot[]": [0]}), 200),
     "zz_dc": ("Shear_Navier_Stokes DC 0.01, 2 spheres at rest", merge(
@@ -268,6 +268,7 @@ SCENES = {
     "el_salt": ("Electrolyte salt, DC field x, 2 charged spheres", merge(
         common(EL), spheres(REST2, mass=1.0),
         {"object_type.spherical_particle.Particle_spec[0].Surface_charge": -5.0,
+         f"constitutive_eq.{EL}.kBT": 1.0,      # the ions' temperature (no particle noise here)
          f"constitutive_eq.{EL}.INIT_profile": "Poisson_Boltzmann",
          f"constitutive_eq.{EL}.Add_salt.type": "salt",
          f"constitutive_eq.{EL}.Add_salt.salt.Debye_length": 4.0,
