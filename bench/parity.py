@@ -265,11 +265,11 @@ SCENES = {
     "lech_ii": ("Shear_NS_LE_CH_FDM implicit / implicit DC, 2 spheres", merge(
         common(LECH), solvers(LECH, ns="implicit_scheme", ch="implicit_scheme"),
         spheres(REST2, mass=1.0), shear(LECH)), 200),
-    "el_salt": ("Electrolyte salt, DC field x, 2 charged spheres", merge(
-        common(EL), spheres(REST2, mass=1.0),
+    "el_salt": ("Electrolyte salt, DC field x, 2 charged spheres (dt 0.005)", merge(
+        common(EL, dt=0.005), spheres(REST2, mass=1.0),
         {"object_type.spherical_particle.Particle_spec[0].Surface_charge": -5.0,
          f"constitutive_eq.{EL}.kBT": 1.0,      # the ions' temperature (no particle noise here)
-         f"constitutive_eq.{EL}.INIT_profile": "Poisson_Boltzmann",
+         f"constitutive_eq.{EL}.INIT_profile": "Uniform",
          f"constitutive_eq.{EL}.Add_salt.type": "salt",
          f"constitutive_eq.{EL}.Add_salt.salt.Debye_length": 4.0,
          f"constitutive_eq.{EL}.Electric_field.type": "ON",
