@@ -279,6 +279,21 @@ def test_continued_run_appends_and_replaces(tmp_path):
     assert w.times == {0: 0.0}
 
 
+def test_continuing_files_without_xdmf_views(tmp_path):
+    """Snapshots written without xdmf_<n>.h5 (the original's, or an older kapsel-py's) get
+    it when a run continues them, so the rewritten .xmf files open."""
+    write_series(tmp_path, steps=(0, 2))
+    for n in (0, 1):
+        os.remove(tmp_path / f"xdmf_{n}.h5")
+    write_series(tmp_path, steps=(2, 4), resumed=True)
+    for n in (0, 1, 2):
+        with h5py.File(tmp_path / f"xdmf_{n}.h5", "r") as h, \
+                h5py.File(tmp_path / f"velocity_{n}.h5", "r") as v:
+            np.testing.assert_array_equal(h["velocity_field"][..., 1], v["UY"][()])
+    check_xmf_with_vtk(tmp_path, SHAPE, DX, [0.0, 2 * DT, 4 * DT],
+                       {"velocity_field": lambda t: fake_snapshot(int(round(t / DT))).get("u")})
+
+
 def test_failed_write_leaves_nothing(tmp_path, monkeypatch):
     w = SnapshotFiles(tmp_path, NSCH, SHAPE, DX, GTS, 3)
     bad = fake_snapshot(0, shape=(2, 4, 8))     # (NZ, NY, NX) is not the internal order
