@@ -10,21 +10,19 @@ with particles: the five per-snapshot .xmf; spectral Navier_Stokes with output.A
 EXTENDED: _fluid.xdmf and _particle.xdmf; Shear_NS_LE_CH_FDM with particles and a cropped
 EXTENDED trajectory), the one-particle layout, every Print_field choice and an obstacle
 file (the writers driven directly).  Runs only where ``pvbatch`` is found (under
-``xvfb-run`` when there is no display); one pvbatch process does all of it.  About 90 s on
-an idle core (ParaView's start and the runs), hence ``slow``.
+``xvfb-run`` when there is no display); one pvbatch process does all of it.  About 30 s of
+CPU (the runs, ParaView's start), 2 min on a loaded 2-core machine, hence ``slow``.
 """
 import json
 import os
 import shutil
 import subprocess
-import sys
 
 import h5py
 import numpy as np
 import pytest
 
 HERE = os.path.dirname(os.path.abspath(__file__))
-sys.path.insert(0, HERE)
 SAMPLES = os.path.join(HERE, "..", "samples")
 PVBATCH = shutil.which("pvbatch")
 READERS = ("XDMFReader", "Xdmf3ReaderS", "Xdmf3ReaderT")
