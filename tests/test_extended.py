@@ -196,6 +196,13 @@ def test_continued_run_appends_frames(tmp_path):
                 np.testing.assert_array_equal(a[name], b[name])
     one.close()
     assert " 5\n[Particle Number]" in (d / "out" / "traj.conf").read_text()
+    # the XDMF files' views (kapsel.io.extended) cover every frame of the continued file
+    with h5py.File(d / "out" / "traj_xdmf.h5", "r") as x, \
+            h5py.File(d / "out" / "traj.h5", "r") as two:
+        assert sorted(x) == ["field_xyz", *[f"frame_{k}" for k in range(5)], "particle_vertex"]
+        for k in range(5):
+            np.testing.assert_array_equal(x[f"frame_{k}/u"][..., 2],
+                                          two[f"trajectory_data/frame_{k}/field/u_z"][()])
 
 
 def test_what_a_type_does_not_compute_is_refused(tmp_path):

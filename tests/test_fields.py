@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from kapsel.io import atomic
-from kapsel.io.fields import SnapshotFiles, read_snapshot
+from kapsel.io.fields import XMF_NAMES, SnapshotFiles, read_snapshot
 from kapsel.particles.state import ParticleState
 from kapsel.snapshot import Snapshot
 
@@ -64,8 +64,8 @@ def test_names_datasets_and_layout(tmp_path):
     names = set(os.listdir(tmp_path))
     assert names == {"fluid_phase.xmf", "particle_phase.xmf", "particle_coordinate.xmf",
                      "velocity_field.xmf", "flux_field.xmf"} | {
-        f"{p}_{n}.h5" for p in ("orderparam", "flux", "particle", "particle_data", "velocity")
-        for n in range(3)}                   # and no temporary file left
+        f"{p}_{n}.h5" for p in ("orderparam", "flux", "particle", "particle_data", "velocity",
+                                "xdmf") for n in range(3)}     # and no temporary file left
     snap = fake_snapshot(2)
     nx, ny, nz = SHAPE
     expect = {"orderparam_1.h5": {"PSI_ALL": snap.get("psi_all")},
@@ -89,14 +89,31 @@ def test_names_datasets_and_layout(tmp_path):
             np.testing.assert_array_equal(h[f"R{c}"][()], snap.particles.R[:, i])
             np.testing.assert_array_equal(h[f"V{c}"][()], snap.particles.v[:, i])
         assert h["DEGREE_OBLIQUE"].shape == (1,)
+    # xdmf_<n>.h5: views of the components (no data of their own) and the vertex list
+    with h5py.File(tmp_path / "xdmf_1.h5", "r") as h:
+        assert sorted(h.keys()) == ["flux_field", "particle_position", "particle_velocity",
+                                    "particle_vertex", "velocity_field"]
+        for name, src, comps in [("velocity_field", "velocity_1.h5", ["UX", "UY", "UZ"]),
+                                 ("flux_field", "flux_1.h5", ["FLUX_X", "FLUX_Y", "FLUX_Z"]),
+                                 ("particle_position", "particle_data_1.h5", ["RX", "RY", "RZ"]),
+                                 ("particle_velocity", "particle_data_1.h5", ["VX", "VY", "VZ"])]:
+            d = h[name]
+            assert d.is_virtual and d.dtype == np.dtype("<f8")
+            assert {(m.file_name, m.dset_name) for m in d.virtual_sources()} == \
+                {(src, c) for c in comps}
+            with h5py.File(tmp_path / src, "r") as g:
+                np.testing.assert_array_equal(d[()], np.stack([g[c][()] for c in comps], -1))
+        assert h["velocity_field"].shape == (nz, ny, nx, 3)
+        assert h["particle_vertex"].dtype == np.int32
+        np.testing.assert_array_equal(h["particle_vertex"][()], [0, 1, 2])
 
 
 def test_which_files_each_type_writes(tmp_path):
     for eq, particles, want in [
-            (LECH, 2, {"orderparam", "particle", "particle_data", "velocity"}),
-            ("Navier_Stokes_FDM", 0, {"velocity"}),
+            (LECH, 2, {"orderparam", "particle", "particle_data", "velocity", "xdmf"}),
+            ("Navier_Stokes_FDM", 0, {"velocity", "xdmf"}),
             ("Shear_Navier_Stokes_Lees_Edwards_FDM", 1, {"particle", "particle_data",
-                                                          "velocity"})]:
+                                                          "velocity", "xdmf"})]:
         d = tmp_path / eq
         write_series(d, eq=eq, steps=(0,), n_particles=particles)
         assert {n.rsplit("_", 1)[0] for n in os.listdir(d) if n.endswith(".h5")} == want
@@ -104,7 +121,10 @@ def test_which_files_each_type_writes(tmp_path):
         assert list(h) == ["PSI"]
 
 
-def test_xmf_text_is_the_originals(tmp_path):
+def test_xmf_text(tmp_path):
+    """The original's text (grid and attribute names, layout, spacing) with what the Xdmf3
+    readers need: Dimensions on the topology, a Center on every attribute, the vectors and
+    particle positions as one plain HDF item of xdmf_<n>.h5 each (kapsel.io.fields)."""
     write_series(tmp_path, steps=(0, 2))
     text = (tmp_path / "fluid_phase.xmf").read_text()
     first = text.split('<Grid Name="Structured grid"')[0]
@@ -112,7 +132,7 @@ def test_xmf_text_is_the_originals(tmp_path):
                      '<Xdmf Version="2.0">\n<Domain>\n<Grid Name="CellTime" '
                      'GridType="Collection" CollectionType="Temporal">\n\n')
     grid = ('<Grid Name="Structured grid" GridType="Uniform">\n<Time Value="0.125" />\n'
-            '<Topology Name="tp" TopologyType="3DCORECTMesh" NumberOfElements="2 4 8"/>\n'
+            '<Topology Name="tp" TopologyType="3DCORECTMesh" Dimensions="2 4 8"/>\n'
             '<Geometry Name="geo" GeometryType="ORIGIN_DXDYDZ">\n'
             '<DataItem Name="Origin" Dimensions="3" NumberType="Float" Precision="4" '
             'Format="XML">\n0 0 0\n</DataItem>\n'
@@ -125,16 +145,23 @@ def test_xmf_text_is_the_originals(tmp_path):
     assert text.endswith("</Grid>\n\n</Grid>\n</Domain>\n</Xdmf>\n")
     vec = (tmp_path / "velocity_field.xmf").read_text()
     assert ('<Attribute Name = "velocity_field" AttributeType = "Vector" Center = "Node">\n'
-            '<DataItem ItemType="Function" Dimensions="2 4 8 3" Function = "JOIN($0, $1, $2) ">\n'
-            '<DataItem Dimensions="2 4 8" NumberType="Float" Precision="8" Format="HDF">\n'
-            'velocity_1.h5:/UX\n</DataItem>\n') in vec
+            '<DataItem Dimensions="2 4 8 3" NumberType="Float" Precision="8" Format="HDF">\n'
+            'xdmf_1.h5:/velocity_field\n</DataItem>\n</Attribute>\n') in vec
     part = (tmp_path / "particle_coordinate.xmf").read_text()
-    assert ('<Topology Name="tp" TopologyType="Polyvertex" NumberOfElements="3"/>\n'
+    assert ('<Topology Name="tp" TopologyType="Polyvertex" NumberOfElements="3">\n'
+            '<DataItem Dimensions="3" NumberType="Int" Precision="4" Format="HDF">\n'
+            'xdmf_0.h5:/particle_vertex\n</DataItem>\n</Topology>\n'
             '<Geometry GeometryType="XYZ">\n'
-            '<DataItem ItemType="Function" Dimensions="3 3" Function = "JOIN($0, $1, $2) ">\n'
-            '<DataItem Dimensions="3" NumberType="Float" Precision="8" Format="HDF">\n'
-            'particle_data_0.h5:/RX\n</DataItem>\n') in part
-    assert '<Attribute Name = "particle_velocity" AttributeType = "Vector">' in part
+            '<DataItem Dimensions="3 3" NumberType="Float" Precision="8" Format="HDF">\n'
+            'xdmf_0.h5:/particle_position\n</DataItem>\n</Geometry>\n'
+            '<Attribute Name = "particle_velocity" AttributeType = "Vector" Center = "Node">\n'
+            '<DataItem Dimensions="3 3" NumberType="Float" Precision="8" Format="HDF">\n'
+            'xdmf_0.h5:/particle_velocity\n</DataItem>\n</Attribute>\n') in part
+    for name in XMF_NAMES:
+        text = (tmp_path / name).read_text()
+        assert "Function" not in text and "NumberOfElements=\"2 4 8\"" not in text
+        root = ET.fromstring(text)
+        assert all(a.get("Center") == "Node" for a in root.iter("Attribute"))
     for name in ("fluid_phase", "particle_phase", "particle_coordinate", "velocity_field",
                  "flux_field"):
         root = ET.parse(tmp_path / f"{name}.xmf").getroot()
@@ -250,6 +277,21 @@ def test_continued_run_appends_and_replaces(tmp_path):
     # a new run starts a new series
     w = write_series(tmp_path, steps=(0,))
     assert w.times == {0: 0.0}
+
+
+def test_continuing_files_without_xdmf_views(tmp_path):
+    """Snapshots written without xdmf_<n>.h5 (the original's, or an older kapsel-py's) get
+    it when a run continues them, so the rewritten .xmf files open."""
+    write_series(tmp_path, steps=(0, 2))
+    for n in (0, 1):
+        os.remove(tmp_path / f"xdmf_{n}.h5")
+    write_series(tmp_path, steps=(2, 4), resumed=True)
+    for n in (0, 1, 2):
+        with h5py.File(tmp_path / f"xdmf_{n}.h5", "r") as h, \
+                h5py.File(tmp_path / f"velocity_{n}.h5", "r") as v:
+            np.testing.assert_array_equal(h["velocity_field"][..., 1], v["UY"][()])
+    check_xmf_with_vtk(tmp_path, SHAPE, DX, [0.0, 2 * DT, 4 * DT],
+                       {"velocity_field": lambda t: fake_snapshot(int(round(t / DT))).get("u")})
 
 
 def test_failed_write_leaves_nothing(tmp_path, monkeypatch):

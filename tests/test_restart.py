@@ -103,7 +103,7 @@ def test_continuation_is_bit_identical(tmp_path, eq, kw):
             for ds in ("UX", "UY", "UZ"):
                 assert np.array_equal(fa[ds][...], fb[ds][...])
         xmf = (tmp_path / "two" / "velocity_field.xmf").read_text()
-        assert all(f"velocity_{n}.h5" in xmf for n in range(5))
+        assert all(f"xdmf_{n}.h5:/velocity_field" in xmf for n in range(5))
 
 
 def test_continuation_drops_later_records_of_the_earlier_run(tmp_path):

@@ -30,12 +30,24 @@ crop included; scalar attributes and the vector ``u``) and ``<Out_name>_particle
 (Polyvertex of the positions; id, spec, the vectors and the tensor QR).  Each grid carries its
 frame's time (the script writes a HyperSlab start / step / count time instead).
 
+Both of ParaView's XDMF readers (legacy ``XDMFReader`` and ``Xdmf3ReaderS`` / ``T``) read
+them (see kapsel.io.fields for what Xdmf3 needs): where the script joins x, y, z or u_x, u_y,
+u_z with ``Function="JOIN(...)"`` or ``X_Y_Z`` items, the files read
+``<Out_name>_xdmf.h5``, which holds no data of its own: ``field_xyz`` (cx, cy, cz, 3) and
+``frame_<f>/u`` (cx, cy, cz, 3) are HDF5 virtual datasets of ``<Out_name>.h5``'s
+system_data/field/{x,y,z} and frame_<f>/field/u_{x,y,z}; ``particle_vertex`` and
+``obstacle_vertex`` (int32 0 .. n-1) are the Polyvertex connectivities (n one-point cells;
+the script writes one cell of n points, which the Xdmf3 reader cannot build).  Item
+Dimensions have the datasets' rank (id ``n``, QR ``n 3 3``): Xdmf3 aborts on ``n 1`` / ``n 9``.
+
 Differences from the original, on purpose: a continued run appends its frames to the file
 (frames later than the restart are dropped; the original truncates the file and counts
 frames and time from 0 again, losing the earlier trajectory); the ``time`` attribute is the
 snapshot's time (the original's f * DT * GTS restarts at 0 on resume); the .conf and .xdmf
-files are rewritten (atomically) after every frame, so they always describe the file.  The
-.h5 file is flushed after every frame and closed at the end, on interruption and on failure.
+files are rewritten (atomically) after every frame, so they always describe the file; the
+XDMF text reads the sidecar described above (the script's opens only in the legacy reader).
+The .h5 file is flushed after every frame and closed at the end, on interruption and on
+failure.
 """
 from __future__ import annotations
 
@@ -45,7 +57,8 @@ import sys
 import h5py
 import numpy as np
 
-from .atomic import atomic_write_text, fmt
+from .atomic import atomic_write, atomic_write_text, fmt
+from .fields import SIDECAR_LIBVER, interlaced
 
 F32 = np.float32
 TAU = ("tau_xx", "tau_xy", "tau_xz", "tau_yy", "tau_yz")
@@ -72,6 +85,7 @@ class ExtendedHDF5:
         self.directory = os.fspath(directory)
         self.name = spec.Out_name
         self.path = os.path.join(self.directory, self.name + ".h5")
+        self.sidecar = os.path.join(self.directory, self.name + "_xdmf.h5")
         self.shape, self.dx, self.dt, self.gts = tuple(shape), float(dx), float(dt), int(gts)
         self.sheared = bool(sheared)
         slabs = spec.slabs or tuple((0, n, 1) for n in self.shape)
@@ -122,7 +136,8 @@ class ExtendedHDF5:
         n = self.name
         return [(self.directory, f"{n}.h5 (EXTENDED, frames"
                  + (" appended)" if resumed else ")") + f" + {n}.conf + {n}_fluid.xdmf + "
-                 f"{n}_particle.xdmf" + (f" + {n}_obstacle.xdmf" if self.nobs else ""))]
+                 f"{n}_particle.xdmf" + (f" + {n}_obstacle.xdmf" if self.nobs else "")
+                 + (f" + {n}_xdmf.h5" if self._described() else ""))]
 
     # ------------------------------------------------------------------ protocol
     def open(self, snap, resumed: bool) -> None:
@@ -136,6 +151,7 @@ class ExtendedHDF5:
         self._header(snap)
         self.frames, self._times = 0, []
         self.file.flush()
+        self._write_sidecar()
         self._describe()
 
     def _continue(self, snap) -> bool:
@@ -168,6 +184,7 @@ class ExtendedHDF5:
         if times and abs(times[-1] - snap.time) <= tol:
             self._skip = snap.step
         f.flush()
+        self._write_sidecar()
         self._describe()
         return True
 
@@ -212,9 +229,10 @@ class ExtendedHDF5:
             og = g.create_group("obstacle")
             for name in ("force_h", "force_r"):
                 og.create_dataset(name, data=data[name][self.obs_ids])
+        self.file.flush()
+        self._sidecar_frame(self.frames)
         self.frames += 1
         self._times.append(float(np.float32(snap.time)))
-        self.file.flush()
         self._describe()
 
     def close(self, reason: str) -> None:
@@ -272,6 +290,45 @@ class ExtendedHDF5:
                 snap.particles.R[self.obs_ids], dtype=F32))
         f.create_group("trajectory_data")
 
+    # ------------------------------------------------------------------ <Out_name>_xdmf.h5
+    def _described(self) -> bool:
+        """Whether XDMF files (and so the sidecar) are written."""
+        return bool(self.fields or self.nump or self.nobs)
+
+    def _write_sidecar(self):
+        """The whole sidecar (module docstring) for the frames in the file, written anew."""
+        if not self._described():
+            return
+        src = os.path.basename(self.path)
+
+        def write(tmp):
+            with h5py.File(tmp, "w", libver=SIDECAR_LIBVER) as f:
+                if self.fields:
+                    interlaced(f, "field_xyz", src, [f"/system_data/field/{a}" for a in "xyz"],
+                               self.dims, F32)
+                if self.nump:
+                    f.create_dataset("particle_vertex", data=np.arange(self.nump, dtype=np.int32))
+                if self.nobs:
+                    f.create_dataset("obstacle_vertex", data=np.arange(self.nobs, dtype=np.int32))
+                for i in range(self.frames):
+                    self._frame_views(f, i)
+        atomic_write(self.sidecar, write)
+
+    def _sidecar_frame(self, i):
+        """Frame i's views, added to the sidecar (one small metadata write per frame; a
+        continued run writes the sidecar anew)."""
+        if "u" in self.fields:
+            with h5py.File(self.sidecar, "a", libver=SIDECAR_LIBVER) as f:
+                if f"frame_{i}" in f:
+                    del f[f"frame_{i}"]
+                self._frame_views(f, i)
+
+    def _frame_views(self, f, i):
+        if "u" in self.fields:
+            base = f"/trajectory_data/frame_{i}/field"
+            interlaced(f, f"frame_{i}/u", os.path.basename(self.path),
+                       [f"{base}/u_{c}" for c in "xyz"], self.dims, F32)
+
     # ------------------------------------------------------------------ .conf and XDMF
     def conf(self) -> str:
         cx, cy, cz = self.dims
@@ -325,14 +382,24 @@ class ExtendedHDF5:
         out += [' </Grid>', '</Domain></Xdmf>', '']
         return "\n".join(out)
 
-    def _item(self, dims, path, number="Float", precision=4):
+    def _item(self, dims, path, number="Float", precision=4, file=None):
+        file = file or f"{self.name}.h5"
         return (f'    <DataItem NumberType="{number}" Precision="{precision}" '
-                f'Dimensions="{dims}" Format="HDF">{self.name}.h5:{path}</DataItem>')
+                f'Dimensions="{dims}" Format="HDF">{file}:{path}</DataItem>')
+
+    def _side(self, dims, path, number="Float"):
+        """An item of <Out_name>_xdmf.h5."""
+        return self._item(dims, path, number, file=f"{self.name}_xdmf.h5")
 
     def _attribute(self, kind, name, dims, path, number="Float") -> list:
         """An XDMF Attribute holding one HDF dataset."""
         return [f'   <Attribute AttributeType="{kind}" Name="{name}" Center="Node">',
                 self._item(dims, path, number), '   </Attribute>']
+
+    def _vertices(self, n, name) -> list:
+        """A Polyvertex topology of n one-point cells (connectivity in the sidecar)."""
+        return [f'   <Topology TopologyType="Polyvertex" NumberOfElements="{n}">',
+                self._side(n, f"/{name}", "Int"), '   </Topology>']
 
     def fluid_xdmf(self) -> str:
         dims = " ".join(str(c) for c in self.dims)
@@ -340,18 +407,14 @@ class ExtendedHDF5:
         def frame(i, t):
             base = f"/trajectory_data/frame_{i}/field"
             out = ['  <Grid Name="Fluid Frame" GridType="Uniform">', f'   <Time Value="{fmt(t)}"/>',
-                   f'   <Topology TopologyType="3DSMesh" NumberOfElements="{dims}"/>',
-                   '   <Geometry GeometryType="X_Y_Z">']
-            out += [self._item(dims, f"/system_data/field/{a}") for a in "xyz"]
-            out.append('   </Geometry>')
+                   f'   <Topology TopologyType="3DSMesh" Dimensions="{dims}"/>',
+                   '   <Geometry GeometryType="XYZ">', self._side(f"{dims} 3", "/field_xyz"),
+                   '   </Geometry>']
             for name in self._scalars():
                 out += self._attribute("Scalar", name, dims, f"{base}/{name}")
             if "u" in self.fields:
                 out += ['   <Attribute AttributeType="Vector" Name="u" Center="Node">',
-                        f'    <DataItem ItemType="Function" Dimensions="{dims} 3" '
-                        f'Function="JOIN($0, $1, $2)">']
-                out += [self._item(dims, f"{base}/u_{c}") for c in "xyz"]
-                out += ['    </DataItem>', '   </Attribute>']
+                        self._side(f"{dims} 3", f"/frame_{i}/u"), '   </Attribute>']
             out.append('  </Grid>')
             return out
         return self._xdmf("KAPSEL Fluid Trajectory", frame)
@@ -362,16 +425,14 @@ class ExtendedHDF5:
         def frame(i, t):
             base = f"/trajectory_data/frame_{i}/particle"
             out = ['  <Grid Name="Particle Frame" GridType="Uniform">',
-                   f'   <Time Value="{fmt(t)}"/>',
-                   f'   <Topology TopologyType="Polyvertex" NodesPerElement="{n}"/>',
-                   '   <Geometry GeometryType="XYZ">', self._item(f"{n} 3", f"{base}/pos"),
-                   '   </Geometry>']
+                   f'   <Time Value="{fmt(t)}"/>'] + self._vertices(n, "particle_vertex")
+            out += ['   <Geometry GeometryType="XYZ">', self._item(f"{n} 3", f"{base}/pos"),
+                    '   </Geometry>']
             for name in ("id", "spec"):
-                out += self._attribute("Scalar", name, f"{n} 1",
-                                       f"/system_data/particle/{name}", "Int")
+                out += self._attribute("Scalar", name, n, f"/system_data/particle/{name}", "Int")
             for name in PARTICLE_VECTORS:
                 out += self._attribute("Vector", name, f"{n} 3", f"{base}/{name}")
-            out += self._attribute("Tensor", "QR", f"{n} 9", f"{base}/QR") + ['  </Grid>']
+            out += self._attribute("Tensor", "QR", f"{n} 3 3", f"{base}/QR") + ['  </Grid>']
             return out
         return self._xdmf("KAPSEL Particle Trajectory", frame)
 
@@ -382,13 +443,11 @@ class ExtendedHDF5:
         def frame(i, t):
             base = f"/trajectory_data/frame_{i}/obstacle"
             out = ['  <Grid Name="Obstacle Frame" GridType="Uniform">',
-                   f'   <Time Value="{fmt(t)}"/>',
-                   f'   <Topology TopologyType="Polyvertex" NodesPerElement="{n}"/>',
-                   '   <Geometry GeometryType="XYZ">',
-                   self._item(f"{n} 3", "/system_data/obstacle/pos"), '   </Geometry>']
+                   f'   <Time Value="{fmt(t)}"/>'] + self._vertices(n, "obstacle_vertex")
+            out += ['   <Geometry GeometryType="XYZ">',
+                    self._item(f"{n} 3", "/system_data/obstacle/pos"), '   </Geometry>']
             for name in ("id", "spec"):
-                out += self._attribute("Scalar", name, f"{n} 1",
-                                       f"/system_data/obstacle/{name}", "Int")
+                out += self._attribute("Scalar", name, n, f"/system_data/obstacle/{name}", "Int")
             for name in ("force_h", "force_r"):
                 out += self._attribute("Vector", name, f"{n} 3", f"{base}/{name}")
             out.append('  </Grid>')

@@ -18,16 +18,28 @@ then a dummy -1.0: so do we).  Besides the datasets each file carries the root a
 ``n``, ``time`` and ``dx`` (readers that list the datasets do not see them), from which a
 continued run rebuilds the series.
 
-The .xmf files (XDMF 2.0, the original's text: a temporal collection ``CellTime`` of
+The .xmf files (XDMF 2.0, the original's layout: a temporal collection ``CellTime`` of
 uniform grids all named ``Structured grid``, ``3DCORECTMesh`` + ``ORIGIN_DXDYDZ``, attributes
 named after the file):
 
     fluid_phase.xmf          orderparam_<n>.h5:/PSI_ALL (or /PSI)   scalar  fluid_phase
     particle_phase.xmf       particle_<n>.h5:/PHI                   scalar  particle_phase
-    particle_coordinate.xmf  particle_data_<n>.h5 (Polyvertex; positions, vector
-                             particle_velocity)
-    velocity_field.xmf       velocity_<n>.h5:/UX,UY,UZ              vector  velocity_field
-    flux_field.xmf           flux_<n>.h5:/FLUX_*                    vector  flux_field
+    particle_coordinate.xmf  Polyvertex at xdmf_<n>.h5:/particle_position, vector
+                             particle_velocity (xdmf_<n>.h5:/particle_velocity)
+    velocity_field.xmf       xdmf_<n>.h5:/velocity_field            vector  velocity_field
+    flux_field.xmf           xdmf_<n>.h5:/flux_field                vector  flux_field
+
+``xdmf_<n>.h5`` holds no field data: its vectors are HDF5 virtual datasets, (NZ, NY, NX, 3)
+or (M, 3), whose components are the snapshot files' UX UY UZ, FLUX_X FLUX_Y FLUX_Z, RX RY RZ
+and VX VY VZ (same directory, named without a path), and ``particle_vertex`` (int32 0 .. N-1)
+is the Polyvertex connectivity.  Both of ParaView's readers read that text: the legacy
+``XDMFReader`` (Xdmf2) and ``Xdmf3ReaderS`` / ``Xdmf3ReaderT``, which need ``Dimensions``
+(not ``NumberOfElements``) on a structured topology (XdmfItemFactory.cpp, createItem), a
+``Center`` on every attribute (XdmfAttributeCenter.cpp: it aborts without one), a
+connectivity for Polyvertex cells, and plain HDF items wherever VTK takes the data: a
+``Function`` (``JOIN``) or ``X_Y_Z`` item has no number type until read, and VTK's
+vtkXdmf3DataSet.cxx (XdmfToVTKArray) asks for it first and drops the array ("Skipping
+unrecognized array type [None]"); Xdmf3's JOIN also concatenates where Xdmf2's interlaces.
 
 Differences from the original, on purpose (README "Where output goes"):
 * the original writes every .xmf once, in advance, listing snapshots up to the end of the run
@@ -36,7 +48,11 @@ Differences from the original, on purpose (README "Where output goes"):
   place and lists every snapshot on disk of this time line, the earlier run's included;
 * ``flux_field.xmf`` is written only when flux files are (the original writes it for all four
   types, pointing at files that never exist);
-* times are printed in full (shortest round-trip) precision, not 6 digits.
+* times are printed in full (shortest round-trip) precision, not 6 digits;
+* the vectors and the particle positions are read from ``xdmf_<n>.h5`` instead of
+  ``Function="JOIN($0, $1, $2)"`` items, structured topologies say ``Dimensions`` and every
+  attribute a ``Center``: the original's text gives empty grids in the Xdmf3 readers and
+  aborts them on particle_coordinate.xmf.
 
 Every file goes to the directory of output.udf (the original: the working directory).
 """
@@ -56,6 +72,9 @@ __all__ = ["SnapshotFiles", "series_for", "read_snapshot", "XMF_NAMES"]
 XMF_NAMES = ("fluid_phase.xmf", "particle_phase.xmf", "particle_coordinate.xmf",
              "velocity_field.xmf", "flux_field.xmf")
 F64 = "<f8"
+SIDECAR = "xdmf"            # xdmf_<n>.h5: what the .xmf files read besides the snapshot files
+# HDF5 1.10 is the oldest library that reads virtual datasets (ParaView >= 5.5 has it)
+SIDECAR_LIBVER = ("earliest", "v110")
 
 
 class _Series:
@@ -104,7 +123,10 @@ class SnapshotFiles:
         return {ds[1] for s in self.series for ds in s.datasets}
 
     def files(self, resumed: bool) -> list[tuple[str, str]]:
-        return [(self.directory, f"{s.prefix}_<n>.h5 + {s.name}.xmf") for s in self.series]
+        out = [(self.directory, f"{s.prefix}_<n>.h5 + {s.name}.xmf") for s in self.series]
+        if self.series:
+            out.append((self.directory, f"{SIDECAR}_<n>.h5 (the .xmf files' vectors)"))
+        return out
 
     # ------------------------------------------------------------------ protocol
     def open(self, snap, resumed: bool) -> None:
@@ -118,6 +140,8 @@ class SnapshotFiles:
             if all(os.path.exists(self.path(s, n)) for s in self.series):
                 self.times[n] = _stored_time(self.path(self.series[-1], n),
                                              old.get(n, n * self.gts * snap.dt))
+                if not os.path.exists(self.sidecar_path(n)):   # e.g. the original's files
+                    self._write_sidecar(n)
         if snap.step % self.gts == 0 and n0 in self.times:
             self._skip = snap.step                  # written by the run being continued
 
@@ -128,6 +152,7 @@ class SnapshotFiles:
         n = snap.step // self.gts
         for s in self.series:
             atomic_write(self.path(s, n), lambda tmp, s=s: self._h5(tmp, s, snap, n))
+        self._write_sidecar(n)
         self.times = {m: t for m, t in self.times.items() if m < n}   # a replaced time line
         self.times[n] = float(snap.time)
         for s in self.series:
@@ -139,6 +164,27 @@ class SnapshotFiles:
     # ------------------------------------------------------------------ files
     def path(self, s, n) -> str:
         return os.path.join(self.directory, f"{s.prefix}_{n}.h5")
+
+    def sidecar_path(self, n) -> str:
+        return os.path.join(self.directory, f"{SIDECAR}_{n}.h5")
+
+    def _write_sidecar(self, n):
+        """xdmf_<n>.h5: virtual (interlaced) views of snapshot n's vector components, which
+        both XDMF readers read as one plain HDF item, and the Polyvertex connectivity."""
+        def write(tmp):
+            with h5py.File(tmp, "w", libver=SIDECAR_LIBVER) as f:
+                for s in self.series:
+                    if s.kind == "vector":
+                        interlaced(f, s.name, f"{s.prefix}_{n}.h5",
+                                   [name for name, _src, _c in s.datasets], self.shape[::-1])
+                    elif s.kind == "particles":
+                        m = 2 if self.n_particles == 1 else self.n_particles
+                        f.create_dataset("particle_vertex",
+                                         data=np.arange(self.n_particles, dtype=np.int32))
+                        src = f"{s.prefix}_{n}.h5"
+                        interlaced(f, "particle_position", src, ["RX", "RY", "RZ"], (m,))
+                        interlaced(f, "particle_velocity", src, ["VX", "VY", "VZ"], (m,))
+        atomic_write(self.sidecar_path(n), write)
 
     def _h5(self, tmp, s, snap, n):
         attrs = {"n": n, "time": float(snap.time), "dx": self.dx}
@@ -167,7 +213,8 @@ class SnapshotFiles:
 
     # ------------------------------------------------------------------ XDMF
     def xdmf(self, s) -> str:
-        """The text of one .xmf (FORMAT-OUTPUT.md §4.2)."""
+        """The text of one .xmf (FORMAT-OUTPUT.md §4.2, with the changes of the module
+        docstring)."""
         nx, ny, nz = self.shape
         dims = f"{nz} {ny} {nx}"
         d = fmt(self.dx)
@@ -177,27 +224,26 @@ class SnapshotFiles:
         npart = self.n_particles
         m = 2 if npart == 1 else npart
 
-        def item(dimensions, ref):
-            return [f'<DataItem Dimensions="{dimensions}" NumberType="Float" Precision="8" '
-                    f'Format="HDF">', ref, '</DataItem>']
+        def item(dimensions, ref, number="Float", precision=8):
+            return [f'<DataItem Dimensions="{dimensions}" NumberType="{number}" '
+                    f'Precision="{precision}" Format="HDF">', ref, '</DataItem>']
 
         for n, t in sorted(self.times.items()):
             h5 = f"{s.prefix}_{n}.h5"
+            side = f"{SIDECAR}_{n}.h5"
             out += ['<Grid Name="Structured grid" GridType="Uniform">', f'<Time Value="{fmt(t)}" />']
             if s.kind == "particles":
-                out += [f'<Topology Name="tp" TopologyType="Polyvertex" NumberOfElements="{npart}"/>',
-                        '<Geometry GeometryType="XYZ">',
-                        f'<DataItem ItemType="Function" Dimensions="{m} 3" Function = "JOIN($0, $1, $2) ">']
-                for c in ("RX", "RY", "RZ"):
-                    out += item(m, f"{h5}:/{c}")
-                out += ['</DataItem>', '</Geometry>',
-                        '<Attribute Name = "particle_velocity" AttributeType = "Vector">',
-                        f'<DataItem ItemType="Function" Dimensions="{m} 3" Function = "JOIN($0, $1, $2) ">']
-                for c in ("VX", "VY", "VZ"):
-                    out += item(m, f"{h5}:/{c}")
-                out += ['</DataItem>', '</Attribute>', '</Grid>', '']
+                out.append(f'<Topology Name="tp" TopologyType="Polyvertex" '
+                           f'NumberOfElements="{npart}">')
+                out += item(npart, f"{side}:/particle_vertex", "Int", 4)
+                out += ['</Topology>', '<Geometry GeometryType="XYZ">']
+                out += item(f"{m} 3", f"{side}:/particle_position")
+                out += ['</Geometry>', '<Attribute Name = "particle_velocity" '
+                        'AttributeType = "Vector" Center = "Node">']
+                out += item(f"{m} 3", f"{side}:/particle_velocity")
+                out += ['</Attribute>', '</Grid>', '']
                 continue
-            out += [f'<Topology Name="tp" TopologyType="3DCORECTMesh" NumberOfElements="{dims}"/>',
+            out += [f'<Topology Name="tp" TopologyType="3DCORECTMesh" Dimensions="{dims}"/>',
                     '<Geometry Name="geo" GeometryType="ORIGIN_DXDYDZ">',
                     '<DataItem Name="Origin" Dimensions="3" NumberType="Float" Precision="4" '
                     'Format="XML">', '0 0 0', '</DataItem>',
@@ -207,15 +253,21 @@ class SnapshotFiles:
                 out.append(f'<Attribute Name = "{s.name}" AttributeType = "Scalar" Center = "Node">')
                 out += item(dims, f"{h5}:/{s.datasets[0][0]}")
             else:
-                out += [f'<Attribute Name = "{s.name}" AttributeType = "Vector" Center = "Node">',
-                        f'<DataItem ItemType="Function" Dimensions="{dims} 3" '
-                        f'Function = "JOIN($0, $1, $2) ">']
-                for name, _src, _c in s.datasets:
-                    out += item(dims, f"{h5}:/{name}")
-                out.append('</DataItem>')
+                out.append(f'<Attribute Name = "{s.name}" AttributeType = "Vector" Center = "Node">')
+                out += item(f"{dims} 3", f"{side}:/{s.name}")
             out += ['</Attribute>', '</Grid>', '']
         out += ['</Grid>', '</Domain>', '</Xdmf>', '']
         return "\n".join(out)
+
+
+def interlaced(f, name, source, components, shape, dtype=F64):
+    """Virtual dataset ``name`` of shape ``shape + (3,)`` in h5py file ``f`` whose [..., c] is
+    dataset ``components[c]`` (of ``shape`` and ``dtype``) of file ``source``.  The source is
+    named without a directory: HDF5 looks for it next to the file holding the view."""
+    layout = h5py.VirtualLayout(shape=tuple(shape) + (len(components),), dtype=dtype)
+    for c, comp in enumerate(components):
+        layout[..., c] = h5py.VirtualSource(source, comp, shape=tuple(shape), dtype=dtype)
+    f.create_virtual_dataset(name, layout)
 
 
 # -- reading back ---------------------------------------------------------------------------
