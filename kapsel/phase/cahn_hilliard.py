@@ -13,8 +13,8 @@ Decisions on eq 17 (documented in the report)
   factor xi makes the surface energy xi-independent).  w < 0 (sample input) makes the
   surfaces prefer psi > 0 (the A-rich phase).  xi = A_XI.
 * Particle interior: ``d (psi - psi_bar)^2 phi`` gives mu += 2 d (psi - psi_bar) phi, pulling
-  psi inside particles to the neutral composition psi_bar: 0 for Landau, the critical
-  composition sqrt(NB)/(sqrt(NA)+sqrt(NB)) for Flory-Huggins (see potentials.py).  It does not
+  psi inside particles to the neutral composition psi_bar: 0 for Landau, 0.5 for
+  Flory-Huggins (the original's values, see potentials.py).  It does not
   depend on composition_ratio (override with ``psi_bar=``).
 
 Surface terms of the newer define.udf (PHYSICS-EXTRA.md §1.3, §2.5), all 0 by default
@@ -355,15 +355,26 @@ class CahnHilliard:
         return out
 
     # ------------------------------------------------------------------ fields
-    def initial_field(self, rng):
-        """composition_ratio + initial_fluctuation * U(-1, 1) at every node (table 3).
+    def initial_field(self, phi=None):
+        """The original's initial psi (kapsel.phase.fluctuation): composition_ratio +
+        initial_fluctuation U(-1, 1) at every node (table 3) from its fixed-seed generator,
+        times (1 - phi) inside the particles (+ phi psi_bar for Flory-Huggins), + psi_0_p
+        phi (Landau: the original's psi_all = psi + psi_0_p phi_p).
 
         Landau: psi is the order parameter itself (the sample's 0.0 is the symmetric quench);
         Flory-Huggins: psi is the volume fraction of A, composition_ratio in (0, 1)."""
-        p = self.params
-        psi = rng.uniform(-1.0, 1.0, size=self.shape)
-        psi *= p.initial_fluctuation
-        psi += p.composition_ratio
+        return self._initial(self.shape, phi, lambda a: a)
+
+    def _initial(self, shape, phi, local):
+        from .fluctuation import initial_composition
+        psi = np.ascontiguousarray(local(initial_composition(shape, self.params)))
+        if phi is not None:
+            p = self.params
+            psi *= 1.0 - phi
+            if p.potential != "Landau":
+                psi += self.psi_bar * phi
+            else:
+                psi += float(getattr(p, "psi_0_p", 0.0)) * phi
         return psi
 
     def chemical_potential(self, psi, phi=None, out=None):
@@ -549,10 +560,12 @@ class CahnHilliard:
         return lim
 
     # ------------------------------------------------------------------ step
-    def step(self, psi, u=None, phi=None):
+    def step(self, psi, u=None, phi=None, euler=False):
         """Advance psi (NX, NY, NZ) by dt in place; u (3, NX, NY, NZ) node velocity (u^n for
         the explicit, u^{n+1} for the implicit scheme) or None; phi the particle profile or
-        None.  psi_old becomes the incoming psi."""
+        None.  psi_old becomes the incoming psi.  ``euler``: the implicit scheme takes an
+        implicit Euler step even with psi_old (the original's first two steps, sp_3d_ns.cxx
+        Time_evolution_hydro_fdm: jikan.ts < 2)."""
         if psi.shape != self.shape or psi.dtype != np.float64:
             raise ValueError("psi must be float64 of shape %s" % (self.shape,))
         if u is not None and u.shape != (3,) + self.shape:
@@ -563,7 +576,7 @@ class CahnHilliard:
         if self.scheme == "explicit_scheme":
             self._step_explicit(psi, u, phi)
         else:
-            self._step_implicit(psi, u, phi)
+            self._step_implicit(psi, u, phi, euler)
         self.psi_old = old
         return psi
 
@@ -603,7 +616,7 @@ class CahnHilliard:
             out += self.dt * div_flux(x, u, df, dfw)
         return out
 
-    def _step_implicit(self, psi, u, phi):
+    def _step_implicit(self, psi, u, phi, euler=False):
         pot, p, dt = self.potential, self.params, self.dt
         n = psi.size
         dphi = dphi_p = None
@@ -612,7 +625,7 @@ class CahnHilliard:
         if self._wall_pen is not None:
             dphi = self._wall_pen if dphi is None else dphi + self._wall_pen
         # explicit part g of mu (AB2 extrapolated f', known wetting and psi_bar fields)
-        if self.psi_old is None:           # first step: implicit Euler
+        if self.psi_old is None or euler:   # first step(s): implicit Euler
             c0 = 1.0
             g = pot.df(psi)
             rhs = psi.copy()
@@ -715,13 +728,10 @@ class DistributedCahnHilliard(CahnHilliard):
         lim = super().stable_dt(psi, phi)
         return -self.grid.max(-lim)
 
-    def initial_field(self, rng):
-        """The serial run's field (the same random numbers), this rank's block of it."""
-        p = self.params
-        psi = rng.uniform(-1.0, 1.0, size=self.global_shape)
-        psi *= p.initial_fluctuation
-        psi += p.composition_ratio
-        return np.ascontiguousarray(self.grid.local_real(psi))
+    def initial_field(self, phi=None):
+        """The serial run's field (the same random numbers), this rank's block of it (phi:
+        this rank's block of the profile)."""
+        return self._initial(self.global_shape, phi, self.grid.local_real)
 
     # reductions
     def _sum(self, a):
@@ -744,15 +754,15 @@ class DistributedCahnHilliard(CahnHilliard):
         return PencilDiagonal(self.grid, half, local=True)
 
     # the implicit operator: one exchange of width 2 per product
-    def _step_implicit(self, psi, u, phi):
+    def _step_implicit(self, psi, u, phi, euler=False):
         if self.halo2 is None:
-            return super()._step_implicit(psi, u, phi)
+            return super()._step_implicit(psi, u, phi, euler)
         h = self.halo2
         # u and the particle term padded once for the solve (kept with their source)
         self._step_pads = {"u": None if u is None else np.array(h.pad(u, key="u")),
                            "dphi": (None, None)}
         try:
-            return super()._step_implicit(psi, u, phi)
+            return super()._step_implicit(psi, u, phi, euler)
         finally:
             self._step_pads = None
 
