@@ -346,3 +346,29 @@ def test_preconditioners_agree(pc):
         ref.step(psi, u, phi)
         alt.step(other, u, phi)
     np.testing.assert_allclose(other, psi, rtol=0, atol=1e-9)
+
+
+def test_implicit_z_term_takes_the_interface_width():
+    """The original's implicit scheme scales z by xi = sqrt(alpha / 2b) (its ps.xi), its
+    chemical potential does not: mu is the same for both schemes, the implicit step's z
+    term is xi times as strong (an implicit solver with z behaves as one with z xi whose mu
+    keeps z)."""
+    shape = (10, 10, 10)
+    phi = sphere(shape, (5.0, 5.0, 5.0), 3.0, 2.0)
+    kw = dict(tol=1e-13, initial_fluctuation=0.1, d=1.0, alpha=1.0, b=2.0)
+    imp = CahnHilliard(shape, 1.0, params("implicit_scheme", z=-0.2, **kw), 0.05, xi=2.0)
+    exp_ = CahnHilliard(shape, 1.0, params("explicit_scheme", z=-0.2, **kw), 0.05, xi=2.0)
+    assert imp.z_width == pytest.approx(0.5) and exp_.z_width == 1.0
+    psi = imp.initial_field()
+    np.testing.assert_array_equal(imp.chemical_potential(psi, phi),
+                                  exp_.chemical_potential(psi, phi))
+    half = CahnHilliard(shape, 1.0, params("implicit_scheme", z=-0.1, **kw), 0.05, xi=2.0)
+    half.z_width = 1.0
+    a, b = psi.copy(), psi.copy()
+    imp.step(a, None, phi)
+    half.step(b, None, phi)
+    np.testing.assert_allclose(a, b, rtol=0, atol=1e-12)
+    c = psi.copy()
+    CahnHilliard(shape, 1.0, params("implicit_scheme", z=0.0, **kw), 0.05, xi=2.0).step(c, None,
+                                                                                       phi)
+    assert np.abs(c - a).max() > 1e-6           # z does act

@@ -33,7 +33,12 @@ Differences from the original, on purpose: it writes -(alpha + 2 z phi) lap psi 
 grad phi_p . grad psi, with the walls in the first phi and not in the second, which is the
 variational derivative of no free energy; here the z term is the exact derivative
 -div(2 z phi_s grad psi) (face-centred: the derivative of the forward-difference |grad psi|^2
-with phi_s averaged on each face).  The original holds psi only in the half of the wall
+with phi_s averaged on each face); the original's implicit matrix discretises the same
+lap(div(phi grad psi)) by a 25-point stencil whose column sums are not zero, so its mean psi
+drifts whenever z != 0 (measured: a pinned sphere, z = -0.1, 32^3: the mean of PSI_ALL
+-2.1028e-4 at step 10, -2.1615e-4 at step 100; constant to round-off with z = 0), and it
+scales z there by xi = sqrt(alpha / 2b) (``z_width``, kept here in the implicit scheme: the
+strength of the original's implicit z term), not in its mu.  The original holds psi only in the half of the wall
 solid next to lo (its phi'_wall) and leaves the other half free, so an interface can run
 through the solid at the upper face; here the whole solid is held at psi_0_wall.  psi_dry
 (dry walls) is refused.
@@ -60,7 +65,8 @@ Discretisation (periodic grid, nodes, spacing DX)
   implicit are -alpha lap psi^{n+1}, div(psi^{n+1} u) (u as given: u^{n+1}) and the linear
   particle term 2 d phi psi^{n+1}; the wetting term w xi |grad phi|^2 is a known field.  Both
   f' evaluations use the phi passed to the step.  The first step (no psi_old) is an implicit
-  Euler step with f'(psi^n).  The linear system is solved by BiCGSTAB (no preconditioner by
+  Euler step with f'(psi^n), and so is the second in a run (the model passes ``euler``: the
+  original's jikan.ts < 2).  The linear system is solved by BiCGSTAB (no preconditioner by
   default, as in the original; 'jacobi' and 'fft' are available).
 * Conservation: the column sums of the system matrix are exactly c0 (= 3/2 or 1), so the mean
   of psi^{n+1} is known exactly; BiCGSTAB solves for the zero-mean remainder (its Krylov space
@@ -284,6 +290,13 @@ class CahnHilliard:
         if psi_bar is None and psi_0_p != 0.0:
             self.psi_bar = neutral_value(params, psi_0_p, self.psi_bar)
         self.z = float(getattr(params, "z", 0.0))
+        # the original's implicit scheme takes z xi, xi = sqrt(alpha / 2b) the interface
+        # width (fdm_matrix_solver.cxx, ps.xi of Init_phase_separation); its chemical
+        # potential (capillary force, explicit scheme) takes z.  Flory-Huggins: 1 (the
+        # original's b is unset there, its xi not finite)
+        self.z_width = 1.0
+        if self.scheme == "implicit_scheme" and params.potential == "Landau" and params.b > 0:
+            self.z_width = math.sqrt(0.5 * self.alpha / params.b)
         self.wall = wall
         self._wall_pen = self._wall_static = None
         if wall is not None:
@@ -647,7 +660,7 @@ class CahnHilliard:
         if self.z != 0.0:               # explicit, extrapolated like f' (linear in psi)
             s = self._solids(phi)
             if s is not None:
-                g -= (2.0 * self.z) * self._div_coef_grad(s, guess)
+                g -= (2.0 * self.z * self.z_width) * self._div_coef_grad(s, guess)
         rhs += (dt * self.kappa) * self._lap(g, np.empty(self.shape))
         # mean of the solution is exact (column sums of A are c0); solve for the rest
         m = self._sum(rhs) / (c0 * self._count(rhs))
