@@ -2,7 +2,8 @@
 
 One step (manual §5.1, §5.3, eqs 15-31):
 
-1. chemical potential mu(psi^n, phi^n) and capillary force -psi grad(mu) / RHO (eq 15);
+1. chemical potential mu(psi*, phi*) and capillary force -psi* grad(mu*) / RHO (eq 15), the
+   original's (FDMModel._capillary_force: the state psi^n, phi^n or its extrapolation);
 2. MAC step of the fluid with that force (explicit eqs 20-21 or implicit eqs 23-26), with
    the viscosity field of ``viscosity_change`` (linear in composition, ETA_A .. ETA_B);
 3. particles (SPM, eqs 6, 9-12): momentum exchange with the fluid after the step, new
@@ -79,7 +80,6 @@ class FDMModel(Model):
         self._R_prev = None          # the positions at the start of the last step
         self.eta_field = None
         if cfg.has_phase_field:
-            from ..phase import make_potential
             ph = cfg.phase
             # FFT preconditioner: exact inverse of the linear part; 3-5x fewer BiCGSTAB
             # iterations than none (the original's choice) at the same tolerance
@@ -230,8 +230,6 @@ class FDMModel(Model):
         if self.ch is not None:
             for _ in range(self.substeps):      # implicit Euler on the first two (the original's)
                 self.ch.step(self.psi, self.u, self.phi, euler=self.step_index < 2)
-            if self.eta_field is not None and self.cfg.fluid.ns_solver != "implicit_scheme":
-                self._update_viscosity()
         self.tick()
 
     def stability(self):

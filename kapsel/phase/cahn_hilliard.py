@@ -416,45 +416,6 @@ class CahnHilliard:
         """-(psi/rho) grad mu for the Navier-Stokes equation (eq 15), (3, NX, NY, NZ)."""
         return capillary_force(psi, mu, rho, self.dx, out, grad=self._grad)
 
-    def conserving_force(self, psi, mu, rho, out=None):
-        """-(psi/rho) grad mu with its local part in exact gradient form (eq 15):
-        psi grad f'(psi) = grad(psi f'(psi) - f(psi)), so
-
-            F = -(1/rho) [grad(psi f' - f) + psi grad(mu - f')].
-
-        Equal to ``capillary_force`` in the continuum; on the grid its sum vanishes to
-        round-off without particles (the central gradient of a field sums to zero, and
-        sum psi grad(lap psi) = 0 for any antisymmetric difference and symmetric Laplacian
-        that commute), where -psi grad f'(psi) alone leaves a net force from the cubic term
-        that drove the whole box (issue 12).  The particle terms of mu keep their net force:
-        ``particle_force`` gives it, and the model hands its reaction to the particles."""
-        pot = self.potential
-        fp = pot.df(psi, out=self._a)
-        nonlocal_mu = np.subtract(mu, fp, out=self._b)
-        out = self._grad(nonlocal_mu, np.empty((3,) + psi.shape) if out is None else out)
-        out *= psi
-        np.multiply(psi, fp, out=self._c)
-        self._c -= pot.f(psi)
-        grad_p = self._grad(self._c, np.empty_like(out))
-        out += grad_p
-        out *= -1.0 / rho
-        return out
-
-    def particle_force(self, psi, phi, rho):
-        """-(psi/rho) grad mu_p, mu_p = w xi |grad phi|^2 + 2 d (psi - psi_bar) phi: the force
-        the particles' terms of eq 17 exert on the fluid (nonzero within two nodes of the
-        particle profiles)."""
-        p = self.params
-        mu_p = np.zeros(psi.shape)
-        if p.w != 0.0:
-            mu_p += (p.w * self.xi) * self._grad_sq(phi)
-        if p.d != 0.0:
-            mu_p += (2.0 * p.d) * (psi - self.psi_bar) * phi
-        out = self._grad(mu_p, np.empty((3,) + psi.shape))
-        out *= psi
-        out *= -1.0 / rho
-        return out
-
     # operators (overridden by the oblique frame's CH, kapsel.fluid.oblique)
     def _lap(self, f, out):
         return _lap(f, self.dx, out)
