@@ -183,7 +183,8 @@ def test_capillary_force_explicit_is_the_originals_with_its_ab2(tmp_path):
 
 def test_capillary_force_implicit_takes_the_extrapolated_state(tmp_path):
     """implicit_scheme (NS_solver_slavedEuler_implicit): psi* = (3 psi^n - psi^(n-1)) / 2
-    and phi* the profile at (3 R^n - R^(n-1)) / 2 (its Calc_ab2_val, Make_phi_s); the first
+    and phi* = (3 phi^n - phi^(n-1)) / 2 (its Calc_ab2_val; its Make_phi_s takes the profile
+    at the extrapolated positions, the same to second order: compared below); the first
     step takes psi^n, phi^n; viscosity_change takes eta of psi*: (1 + psi*) / 2 of the
     ETA_A phase (Landau, clipped to [0, 1])."""
     from kapsel.particles.profile import particle_profiles, total_phi
@@ -197,21 +198,25 @@ def test_capillary_force_implicit_takes_the_extrapolated_state(tmp_path):
     cfg = config.load(path)
     assert cfg.fluid.viscosity_change
     m = FDMModel(cfg, Args())
-    applied, want, eta = [], [], []
+    applied, want, eta, near = [], [], [], []
     inner = m._capillary_force
+    state = {}
 
     def spy():
         if m.ch.psi_old is None:
             psi, phi = m.psi, m.phi
         else:
             psi = 1.5 * m.psi - 0.5 * m.ch.psi_old
+            phi = np.clip(1.5 * m.phi - 0.5 * state["phi"], 0, 1)
+            assert np.abs(phi - m.phi).max() > 0        # the particles moved
             box = np.asarray(cfg.mesh.box, float)
-            d = m.particles.R - m._R_prev
+            d = m.particles.R - state["R"]
             d -= box * np.round(d / box)
             idx, w, _ = particle_profiles(np.mod(m.particles.R + 0.5 * d, box),
                                           m.spm.stencil, m.spm.shape, m.dx)
-            phi = total_phi(idx, w, m.spm.fsize).reshape(m.shape)
-            assert np.abs(phi - m.phi).max() > 0        # the particles moved
+            at = total_phi(idx, w, m.spm.fsize).reshape(m.shape)
+            near.append((np.abs(at - phi).max(), np.abs(phi - m.phi).max()))
+        state.update(phi=m.phi.copy(), R=m.particles.R.copy())
         want.append(_force_of(m, psi, phi))
         applied.append(inner())
         eta.append((np.clip(0.5 * (1 + psi), 0, 1) * (1.0 - 3.0) + 3.0, m.eta_field.copy()))
@@ -223,6 +228,8 @@ def test_capillary_force_implicit_takes_the_extrapolated_state(tmp_path):
         np.testing.assert_array_equal(a, b)
     for e, got in eta:
         np.testing.assert_allclose(got, e, rtol=1e-15)
+    for second, first in near:        # the positions' profile: within 1e-3 of the change
+        assert second <= 1e-3 * first, (second, first)
 
 
 def test_implicit_cahn_hilliard_takes_euler_steps_first(tmp_path):

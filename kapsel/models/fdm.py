@@ -77,7 +77,7 @@ class FDMModel(Model):
         self.ch = None
         self.psi = None
         self.last_force = None       # the raw capillary force of the last step
-        self._R_prev = None          # the positions at the start of the last step
+        self._phi_prev = None        # the particle profile at the start of the last step
         self.eta_field = None
         if cfg.has_phase_field:
             ph = cfg.phase
@@ -179,21 +179,18 @@ class FDMModel(Model):
         return force
 
     def _extrapolated_phi(self):
-        """phi at the positions (3 R^n - R^(n-1)) / 2 (minimum image of the last step's
-        displacement), the profile of the original's implicit fluid step; phi^n on the
-        first step, for walls-only runs, and where the profile is not ours to rebuild (an
-        oblique frame, particles owned by ranks)."""
-        p, spm = self.particles, self.spm
-        if (not p.n or self._R_prev is None or self.dry or self.grid is not None
+        """phi* of the original's implicit fluid step, the profile at the extrapolated
+        positions (3 R^n - R^(n-1)) / 2 (its Make_phi_s), here (3 phi^n - phi^(n-1)) / 2
+        clipped to [0, 1]: the same to second order in the step's displacement d (measured:
+        3e-9 for d = 4e-5 DX, 8 particles at 32^3) and computed alike on every block of a
+        distributed run.  phi^n on the first step, without particles, and in an oblique
+        frame (whose re-mappings move the grid under phi^(n-1))."""
+        if (self._phi_prev is None or self.phi is None
                 or getattr(self.mac, "oblique", False)):
             return self.phi
-        from ..particles.profile import particle_profiles, total_phi
-        box = np.asarray(self.cfg.mesh.box, dtype=float)
-        d = p.R - self._R_prev
-        d -= box * np.round(d / box)
-        R = np.mod(p.R + 0.5 * d, box)
-        idx, w, _ = particle_profiles(R, spm.stencil, spm.shape, self.dx)
-        return total_phi(idx, w, spm.fsize).reshape(spm.fshape)
+        phi = self.phi * 1.5
+        phi -= 0.5 * self._phi_prev
+        return np.clip(phi, 0.0, 1.0, out=phi)
 
     def _pair_strain(self):
         """Lees-Edwards strain for the pair forces of a sheared fluid, else None."""
@@ -221,9 +218,9 @@ class FDMModel(Model):
         if self.ch is not None:
             force = self._capillary_force()
         self.spm.fluid_force, self.spm.eta_field = force, self.eta_field
-        R = self.particles.R.copy() if self.particles.n else None
+        phi = self.phi.copy() if self.phi is not None else None
         self.spm.step()
-        self._R_prev = R
+        self._phi_prev = phi
         self._after_fluid()
         if self.particles.n:
             self.phi = self.spm.phi()
@@ -279,6 +276,8 @@ class FDMModel(Model):
             return self.psi
         if name == "PSI_OLD":
             return self.ch.psi_old if self.ch.psi_old is not None else self.psi
+        if name == "PHI_PREV":
+            return self._phi_prev
         if name == "STRESS_OLD":     # the original's sign: +psi grad mu / RHO
             return -self.last_force if self.last_force is not None else np.zeros_like(self.u)
         raise KeyError(name)
@@ -313,8 +312,8 @@ class FDMModel(Model):
         if self.ch is not None:
             st.update(have_psi_old=self.ch.psi_old is not None, substeps=self.substeps,
                       have_stress_old=self.last_force is not None)
-            if self._R_prev is not None:
-                st["R_prev"] = self._R_prev.copy()
+            if self._phi_prev is not None:
+                st["PHI_prev"] = self._whole("PHI_PREV")
         return st
 
     def load_fields(self, fields: dict, exact) -> None:
@@ -344,9 +343,9 @@ class FDMModel(Model):
                 self.ch.psi_old = local(fields["PSI_OLD"]).copy()
             if self.eta_field is not None:
                 self._update_viscosity()
-            self._R_prev = None
-            if "R_prev" in exact and self.particles.n:
-                self._R_prev = np.array(exact["R_prev"], dtype=float)
+            self._phi_prev = None
+            if "PHI_prev" in exact and self.phi is not None:
+                self._phi_prev = local(np.asarray(exact["PHI_prev"], dtype=float)).copy()
             S = fields.get("STRESS_OLD")
             if exact.get("have_stress_old") and S is not None and S.shape == self.shape + (3,):
                 self.last_force = -local(component_field(S))
