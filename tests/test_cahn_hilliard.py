@@ -161,7 +161,7 @@ def test_conservation_advection(scheme, dt, pot):
     kw = dict(composition_ratio=0.1) if pot == "Landau" else {}
     p = params(scheme, pot, tol=1e-9, initial_fluctuation=0.05, **kw)
     ch = CahnHilliard(shape, 1.0, p, dt)
-    psi = ch.initial_field(np.random.default_rng(3))
+    psi = ch.initial_field()
     u = shear_wave(shape)
     m0 = psi.sum()
     start = psi.copy()
@@ -180,7 +180,7 @@ def test_conservation_with_particle(scheme, dt, pot):
     p = params(scheme, pot, tol=1e-9, initial_fluctuation=0.05, d=1.0, **kw)
     ch = CahnHilliard(shape, 1.0, p, dt, xi=2.0)
     phi = sphere(shape, (7.3, 8.1, 5.6), 4.0, 2.0)
-    psi = ch.initial_field(np.random.default_rng(4))
+    psi = ch.initial_field()
     u = shear_wave(shape)
     m0 = psi.sum()
     for _ in range(15):
@@ -226,7 +226,8 @@ def test_potentials():
         np.testing.assert_allclose(pot.d2f(pts), (pot.df(pts + h) - pot.df(pts - h)) / (2 * h),
                                    rtol=1e-7, atol=1e-8)
     assert L.equilibrium() == pytest.approx((-math.sqrt(0.4), math.sqrt(0.4)))
-    assert FH.psi_bar == pytest.approx(math.sqrt(7) / (math.sqrt(4) + math.sqrt(7)))
+    assert FH.critical == pytest.approx(math.sqrt(7) / (math.sqrt(4) + math.sqrt(7)))
+    assert FH.psi_bar == 0.5          # the original's neutral value, whatever NA, NB
     lo, hi = FH.equilibrium()                     # common tangent
     assert FH.df(lo) == pytest.approx(FH.df(hi), abs=1e-12)
     assert FH.f(hi) - FH.f(lo) == pytest.approx(FH.df(lo) * (hi - lo), abs=1e-12)
@@ -246,7 +247,7 @@ def test_bicgstab_non_convergence_raises():
     shape = (8, 8, 8)
     p = params("implicit_scheme", tol=1e-14, maxit=2, initial_fluctuation=0.3)
     ch = CahnHilliard(shape, 1.0, p, dt=5.0)
-    psi = ch.initial_field(np.random.default_rng(0))
+    psi = ch.initial_field()
     with pytest.raises(SolverDidNotConverge) as exc:
         ch.step(psi, shear_wave(shape))
     assert exc.value.iterations == 2 and exc.value.residual > 1e-14
@@ -289,10 +290,28 @@ def test_capillary_force_and_initial_field():
     assert np.abs(F[0]).max() == 0 and np.abs(F[2]).max() == 0
     p = params(potential="Flory_Huggins", composition_ratio=0.4, initial_fluctuation=0.05)
     ch = CahnHilliard(shape, dx, p, 0.01)
-    a = ch.initial_field(np.random.default_rng(11))
-    np.testing.assert_array_equal(a, ch.initial_field(np.random.default_rng(11)))
+    a = ch.initial_field()
+    np.testing.assert_array_equal(a, ch.initial_field())
     assert a.min() >= 0.35 and a.max() <= 0.45 and abs(a.mean() - 0.4) < 0.01
     np.testing.assert_allclose(ch.capillary_force(psi, mu, 2.0), F)
+
+
+def test_initial_field_is_the_originals():
+    """The original's draw (kapsel.phase.fluctuation): the first nodes of its psi for
+    composition_ratio 0, initial_fluctuation 0.05 (read from the PSI_OLD of a one-step run
+    of the original, 32^3, the nodes away from its particle), bit for bit; inside a
+    particle psi is value (1 - phi) (Landau), value (1 - phi) + 0.5 phi (Flory-Huggins)."""
+    from kapsel.phase.fluctuation import original_uniform
+    first = original_uniform(3, -0.05, 0.05)
+    assert first.tolist() == [0.039015471328273793, -0.036929270594465186,
+                              -0.046024050349744064]
+    shape = (4, 3, 2)
+    phi = np.linspace(0.0, 1.0, 24).reshape(shape)
+    u = original_uniform(24, 0.4 - 0.05, 0.4 + 0.05).reshape(shape)
+    for pot, want in (("Landau", u * (1 - phi)), ("Flory_Huggins", u * (1 - phi) + 0.5 * phi)):
+        p = params(potential=pot, composition_ratio=0.4, initial_fluctuation=0.05)
+        np.testing.assert_array_equal(CahnHilliard(shape, 1.0, p, 0.01).initial_field(phi),
+                                      want)
 
 
 def test_restart_from_psi_old():
@@ -301,7 +320,7 @@ def test_restart_from_psi_old():
     shape = (12, 10, 8)
     p = params("implicit_scheme", tol=1e-12, initial_fluctuation=0.1)
     a = CahnHilliard(shape, 1.0, p, 0.3)
-    psi = a.initial_field(np.random.default_rng(5))
+    psi = a.initial_field()
     u = shear_wave(shape)
     for _ in range(3):
         a.step(psi, u)
@@ -320,10 +339,36 @@ def test_preconditioners_agree(pc):
     phi = sphere(shape, (5.0, 5.0, 4.0), 3.0, 2.0)
     u = shear_wave(shape)
     ref = CahnHilliard(shape, 1.0, p, 0.5, xi=2.0)
-    psi = ref.initial_field(np.random.default_rng(2))
+    psi = ref.initial_field()
     other = psi.copy()
     alt = CahnHilliard(shape, 1.0, p, 0.5, xi=2.0, preconditioner=pc)
     for _ in range(3):
         ref.step(psi, u, phi)
         alt.step(other, u, phi)
     np.testing.assert_allclose(other, psi, rtol=0, atol=1e-9)
+
+
+def test_implicit_z_term_takes_the_interface_width():
+    """The original's implicit scheme scales z by xi = sqrt(alpha / 2b) (its ps.xi), its
+    chemical potential does not: mu is the same for both schemes, the implicit step's z
+    term is xi times as strong (an implicit solver with z behaves as one with z xi whose mu
+    keeps z)."""
+    shape = (10, 10, 10)
+    phi = sphere(shape, (5.0, 5.0, 5.0), 3.0, 2.0)
+    kw = dict(tol=1e-13, initial_fluctuation=0.1, d=1.0, alpha=1.0, b=2.0)
+    imp = CahnHilliard(shape, 1.0, params("implicit_scheme", z=-0.2, **kw), 0.05, xi=2.0)
+    exp_ = CahnHilliard(shape, 1.0, params("explicit_scheme", z=-0.2, **kw), 0.05, xi=2.0)
+    assert imp.z_width == pytest.approx(0.5) and exp_.z_width == 1.0
+    psi = imp.initial_field()
+    np.testing.assert_array_equal(imp.chemical_potential(psi, phi),
+                                  exp_.chemical_potential(psi, phi))
+    half = CahnHilliard(shape, 1.0, params("implicit_scheme", z=-0.1, **kw), 0.05, xi=2.0)
+    half.z_width = 1.0
+    a, b = psi.copy(), psi.copy()
+    imp.step(a, None, phi)
+    half.step(b, None, phi)
+    np.testing.assert_allclose(a, b, rtol=0, atol=1e-12)
+    c = psi.copy()
+    CahnHilliard(shape, 1.0, params("implicit_scheme", z=0.0, **kw), 0.05, xi=2.0).step(c, None,
+                                                                                       phi)
+    assert np.abs(c - a).max() > 1e-6           # z does act

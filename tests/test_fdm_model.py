@@ -150,3 +150,96 @@ def test_restart_written_at_the_end_holds_the_state(tmp_path):
     R_out = out.getArray("Particles[].R")
     R_rs = rs.getArray(f"{base}.Particles[].R")
     assert np.allclose(R_out, R_rs, atol=0.05)   # one step later
+
+
+def _force_of(m, psi, phi):
+    """-psi grad mu(psi, phi) / RHO with the model's own operators."""
+    return m.ch.capillary_force(psi, m.ch.chemical_potential(psi, phi), m.rho)
+
+
+def test_capillary_force_explicit_is_the_originals_with_its_ab2(tmp_path):
+    """explicit_scheme (the original's NS_solver_slavedEuler_explicit): the fluid step takes
+    -psi^n grad mu(psi^n, phi^n) / RHO on the first two steps, then 3/2 F^n - 1/2 F^(n-1);
+    no share of it is moved onto the particles."""
+    cfg = config.load(sample(tmp_path, particles=2, manual_dt=0.05))
+    m = FDMModel(cfg, Args())
+    applied, raw = [], []
+    inner = m._capillary_force
+
+    def spy():
+        raw.append(_force_of(m, m.psi, m.phi))
+        applied.append(inner())
+        return applied[-1]
+    m._capillary_force = spy
+    for _ in range(4):
+        m.advance()
+    np.testing.assert_array_equal(applied[0], raw[0])
+    np.testing.assert_array_equal(applied[1], raw[1])
+    for n in (2, 3):
+        np.testing.assert_allclose(applied[n], 1.5 * raw[n] - 0.5 * raw[n - 1],
+                                   rtol=0, atol=1e-15 * np.abs(raw[n]).max())
+    assert np.abs(raw[3] - raw[2]).max() > 1e-8 * np.abs(raw[3]).max()   # AB2 not vacuous
+
+
+def test_capillary_force_implicit_takes_the_extrapolated_state(tmp_path):
+    """implicit_scheme (NS_solver_slavedEuler_implicit): psi* = (3 psi^n - psi^(n-1)) / 2
+    and phi* = (3 phi^n - phi^(n-1)) / 2 (its Calc_ab2_val; its Make_phi_s takes the profile
+    at the extrapolated positions, the same to second order: compared below); the first
+    step takes psi^n, phi^n; viscosity_change takes eta of psi*: (1 + psi*) / 2 of the
+    ETA_A phase (Landau, clipped to [0, 1])."""
+    from kapsel.particles.profile import particle_profiles, total_phi
+    path = sample(tmp_path, particles=2, ns="implicit_scheme", manual_dt=0.05)
+    u = UDFManager(path)
+    sp = f"{NS_CH}.NS_solver.implicit_scheme"
+    u.put("ON", f"{sp}.viscosity_change")
+    u.put(1.0, f"{sp}.ON.ETA_A")
+    u.put(3.0, f"{sp}.ON.ETA_B")
+    u.write(path)
+    cfg = config.load(path)
+    assert cfg.fluid.viscosity_change
+    m = FDMModel(cfg, Args())
+    applied, want, eta, near = [], [], [], []
+    inner = m._capillary_force
+    state = {}
+
+    def spy():
+        if m.ch.psi_old is None:
+            psi, phi = m.psi, m.phi
+        else:
+            psi = 1.5 * m.psi - 0.5 * m.ch.psi_old
+            phi = np.clip(1.5 * m.phi - 0.5 * state["phi"], 0, 1)
+            assert np.abs(phi - m.phi).max() > 0        # the particles moved
+            box = np.asarray(cfg.mesh.box, float)
+            d = m.particles.R - state["R"]
+            d -= box * np.round(d / box)
+            idx, w, _ = particle_profiles(np.mod(m.particles.R + 0.5 * d, box),
+                                          m.spm.stencil, m.spm.shape, m.dx)
+            at = total_phi(idx, w, m.spm.fsize).reshape(m.shape)
+            near.append((np.abs(at - phi).max(), np.abs(phi - m.phi).max()))
+        state.update(phi=m.phi.copy(), R=m.particles.R.copy())
+        want.append(_force_of(m, psi, phi))
+        applied.append(inner())
+        eta.append((np.clip(0.5 * (1 + psi), 0, 1) * (1.0 - 3.0) + 3.0, m.eta_field.copy()))
+        return applied[-1]
+    m._capillary_force = spy
+    for _ in range(3):
+        m.advance()
+    for a, b in zip(applied, want):
+        np.testing.assert_array_equal(a, b)
+    for e, got in eta:
+        np.testing.assert_allclose(got, e, rtol=1e-15)
+    for second, first in near:        # the positions' profile: within 1e-3 of the change
+        assert second <= 1e-3 * first, (second, first)
+
+
+def test_implicit_cahn_hilliard_takes_euler_steps_first(tmp_path):
+    """The original's implicit Cahn-Hilliard takes implicit Euler steps while jikan.ts < 2,
+    BDF2 after (sp_3d_ns.cxx Time_evolution_hydro_fdm)."""
+    cfg = config.load(sample(tmp_path, particles=2, manual_dt=0.05))
+    m = FDMModel(cfg, Args())
+    flags = []
+    step = m.ch.step
+    m.ch.step = lambda psi, u, phi, euler=False: (flags.append(euler), step(psi, u, phi, euler))
+    for _ in range(4):
+        m.advance()
+    assert flags == [True, True, False, False]

@@ -13,8 +13,8 @@ Decisions on eq 17 (documented in the report)
   factor xi makes the surface energy xi-independent).  w < 0 (sample input) makes the
   surfaces prefer psi > 0 (the A-rich phase).  xi = A_XI.
 * Particle interior: ``d (psi - psi_bar)^2 phi`` gives mu += 2 d (psi - psi_bar) phi, pulling
-  psi inside particles to the neutral composition psi_bar: 0 for Landau, the critical
-  composition sqrt(NB)/(sqrt(NA)+sqrt(NB)) for Flory-Huggins (see potentials.py).  It does not
+  psi inside particles to the neutral composition psi_bar: 0 for Landau, 0.5 for
+  Flory-Huggins (the original's values, see potentials.py).  It does not
   depend on composition_ratio (override with ``psi_bar=``).
 
 Surface terms of the newer define.udf (PHYSICS-EXTRA.md §1.3, §2.5), all 0 by default
@@ -33,7 +33,12 @@ Differences from the original, on purpose: it writes -(alpha + 2 z phi) lap psi 
 grad phi_p . grad psi, with the walls in the first phi and not in the second, which is the
 variational derivative of no free energy; here the z term is the exact derivative
 -div(2 z phi_s grad psi) (face-centred: the derivative of the forward-difference |grad psi|^2
-with phi_s averaged on each face).  The original holds psi only in the half of the wall
+with phi_s averaged on each face); the original's implicit matrix discretises the same
+lap(div(phi grad psi)) by a 25-point stencil whose column sums are not zero, so its mean psi
+drifts whenever z != 0 (measured: a pinned sphere, z = -0.1, 32^3: the mean of PSI_ALL
+-2.1028e-4 at step 10, -2.1615e-4 at step 100; constant to round-off with z = 0), and it
+scales z there by xi = sqrt(alpha / 2b) (``z_width``, kept here in the implicit scheme: the
+strength of the original's implicit z term), not in its mu.  The original holds psi only in the half of the wall
 solid next to lo (its phi'_wall) and leaves the other half free, so an interface can run
 through the solid at the upper face; here the whole solid is held at psi_0_wall.  psi_dry
 (dry walls) is refused.
@@ -60,7 +65,8 @@ Discretisation (periodic grid, nodes, spacing DX)
   implicit are -alpha lap psi^{n+1}, div(psi^{n+1} u) (u as given: u^{n+1}) and the linear
   particle term 2 d phi psi^{n+1}; the wetting term w xi |grad phi|^2 is a known field.  Both
   f' evaluations use the phi passed to the step.  The first step (no psi_old) is an implicit
-  Euler step with f'(psi^n).  The linear system is solved by BiCGSTAB (no preconditioner by
+  Euler step with f'(psi^n), and so is the second in a run (the model passes ``euler``: the
+  original's jikan.ts < 2).  The linear system is solved by BiCGSTAB (no preconditioner by
   default, as in the original; 'jacobi' and 'fft' are available).
 * Conservation: the column sums of the system matrix are exactly c0 (= 3/2 or 1), so the mean
   of psi^{n+1} is known exactly; BiCGSTAB solves for the zero-mean remainder (its Krylov space
@@ -284,6 +290,13 @@ class CahnHilliard:
         if psi_bar is None and psi_0_p != 0.0:
             self.psi_bar = neutral_value(params, psi_0_p, self.psi_bar)
         self.z = float(getattr(params, "z", 0.0))
+        # the original's implicit scheme takes z xi, xi = sqrt(alpha / 2b) the interface
+        # width (fdm_matrix_solver.cxx, ps.xi of Init_phase_separation); its chemical
+        # potential (capillary force, explicit scheme) takes z.  Flory-Huggins: 1 (the
+        # original's b is unset there, its xi not finite)
+        self.z_width = 1.0
+        if self.scheme == "implicit_scheme" and params.potential == "Landau" and params.b > 0:
+            self.z_width = math.sqrt(0.5 * self.alpha / params.b)
         self.wall = wall
         self._wall_pen = self._wall_static = None
         if wall is not None:
@@ -355,15 +368,26 @@ class CahnHilliard:
         return out
 
     # ------------------------------------------------------------------ fields
-    def initial_field(self, rng):
-        """composition_ratio + initial_fluctuation * U(-1, 1) at every node (table 3).
+    def initial_field(self, phi=None):
+        """The original's initial psi (kapsel.phase.fluctuation): composition_ratio +
+        initial_fluctuation U(-1, 1) at every node (table 3) from its fixed-seed generator,
+        times (1 - phi) inside the particles (+ phi psi_bar for Flory-Huggins), + psi_0_p
+        phi (Landau: the original's psi_all = psi + psi_0_p phi_p).
 
         Landau: psi is the order parameter itself (the sample's 0.0 is the symmetric quench);
         Flory-Huggins: psi is the volume fraction of A, composition_ratio in (0, 1)."""
-        p = self.params
-        psi = rng.uniform(-1.0, 1.0, size=self.shape)
-        psi *= p.initial_fluctuation
-        psi += p.composition_ratio
+        return self._initial(self.shape, phi, lambda a: a)
+
+    def _initial(self, shape, phi, local):
+        from .fluctuation import initial_composition
+        psi = np.ascontiguousarray(local(initial_composition(shape, self.params)))
+        if phi is not None:
+            p = self.params
+            psi *= 1.0 - phi
+            if p.potential != "Landau":
+                psi += self.psi_bar * phi
+            else:
+                psi += float(getattr(p, "psi_0_p", 0.0)) * phi
         return psi
 
     def chemical_potential(self, psi, phi=None, out=None):
@@ -391,45 +415,6 @@ class CahnHilliard:
     def capillary_force(self, psi, mu, rho, out=None):
         """-(psi/rho) grad mu for the Navier-Stokes equation (eq 15), (3, NX, NY, NZ)."""
         return capillary_force(psi, mu, rho, self.dx, out, grad=self._grad)
-
-    def conserving_force(self, psi, mu, rho, out=None):
-        """-(psi/rho) grad mu with its local part in exact gradient form (eq 15):
-        psi grad f'(psi) = grad(psi f'(psi) - f(psi)), so
-
-            F = -(1/rho) [grad(psi f' - f) + psi grad(mu - f')].
-
-        Equal to ``capillary_force`` in the continuum; on the grid its sum vanishes to
-        round-off without particles (the central gradient of a field sums to zero, and
-        sum psi grad(lap psi) = 0 for any antisymmetric difference and symmetric Laplacian
-        that commute), where -psi grad f'(psi) alone leaves a net force from the cubic term
-        that drove the whole box (issue 12).  The particle terms of mu keep their net force:
-        ``particle_force`` gives it, and the model hands its reaction to the particles."""
-        pot = self.potential
-        fp = pot.df(psi, out=self._a)
-        nonlocal_mu = np.subtract(mu, fp, out=self._b)
-        out = self._grad(nonlocal_mu, np.empty((3,) + psi.shape) if out is None else out)
-        out *= psi
-        np.multiply(psi, fp, out=self._c)
-        self._c -= pot.f(psi)
-        grad_p = self._grad(self._c, np.empty_like(out))
-        out += grad_p
-        out *= -1.0 / rho
-        return out
-
-    def particle_force(self, psi, phi, rho):
-        """-(psi/rho) grad mu_p, mu_p = w xi |grad phi|^2 + 2 d (psi - psi_bar) phi: the force
-        the particles' terms of eq 17 exert on the fluid (nonzero within two nodes of the
-        particle profiles)."""
-        p = self.params
-        mu_p = np.zeros(psi.shape)
-        if p.w != 0.0:
-            mu_p += (p.w * self.xi) * self._grad_sq(phi)
-        if p.d != 0.0:
-            mu_p += (2.0 * p.d) * (psi - self.psi_bar) * phi
-        out = self._grad(mu_p, np.empty((3,) + psi.shape))
-        out *= psi
-        out *= -1.0 / rho
-        return out
 
     # operators (overridden by the oblique frame's CH, kapsel.fluid.oblique)
     def _lap(self, f, out):
@@ -549,10 +534,12 @@ class CahnHilliard:
         return lim
 
     # ------------------------------------------------------------------ step
-    def step(self, psi, u=None, phi=None):
+    def step(self, psi, u=None, phi=None, euler=False):
         """Advance psi (NX, NY, NZ) by dt in place; u (3, NX, NY, NZ) node velocity (u^n for
         the explicit, u^{n+1} for the implicit scheme) or None; phi the particle profile or
-        None.  psi_old becomes the incoming psi."""
+        None.  psi_old becomes the incoming psi.  ``euler``: the implicit scheme takes an
+        implicit Euler step even with psi_old (the original's first two steps, sp_3d_ns.cxx
+        Time_evolution_hydro_fdm: jikan.ts < 2)."""
         if psi.shape != self.shape or psi.dtype != np.float64:
             raise ValueError("psi must be float64 of shape %s" % (self.shape,))
         if u is not None and u.shape != (3,) + self.shape:
@@ -563,7 +550,7 @@ class CahnHilliard:
         if self.scheme == "explicit_scheme":
             self._step_explicit(psi, u, phi)
         else:
-            self._step_implicit(psi, u, phi)
+            self._step_implicit(psi, u, phi, euler)
         self.psi_old = old
         return psi
 
@@ -603,7 +590,7 @@ class CahnHilliard:
             out += self.dt * div_flux(x, u, df, dfw)
         return out
 
-    def _step_implicit(self, psi, u, phi):
+    def _step_implicit(self, psi, u, phi, euler=False):
         pot, p, dt = self.potential, self.params, self.dt
         n = psi.size
         dphi = dphi_p = None
@@ -612,7 +599,7 @@ class CahnHilliard:
         if self._wall_pen is not None:
             dphi = self._wall_pen if dphi is None else dphi + self._wall_pen
         # explicit part g of mu (AB2 extrapolated f', known wetting and psi_bar fields)
-        if self.psi_old is None:           # first step: implicit Euler
+        if self.psi_old is None or euler:   # first step(s): implicit Euler
             c0 = 1.0
             g = pot.df(psi)
             rhs = psi.copy()
@@ -634,7 +621,7 @@ class CahnHilliard:
         if self.z != 0.0:               # explicit, extrapolated like f' (linear in psi)
             s = self._solids(phi)
             if s is not None:
-                g -= (2.0 * self.z) * self._div_coef_grad(s, guess)
+                g -= (2.0 * self.z * self.z_width) * self._div_coef_grad(s, guess)
         rhs += (dt * self.kappa) * self._lap(g, np.empty(self.shape))
         # mean of the solution is exact (column sums of A are c0); solve for the rest
         m = self._sum(rhs) / (c0 * self._count(rhs))
@@ -715,13 +702,10 @@ class DistributedCahnHilliard(CahnHilliard):
         lim = super().stable_dt(psi, phi)
         return -self.grid.max(-lim)
 
-    def initial_field(self, rng):
-        """The serial run's field (the same random numbers), this rank's block of it."""
-        p = self.params
-        psi = rng.uniform(-1.0, 1.0, size=self.global_shape)
-        psi *= p.initial_fluctuation
-        psi += p.composition_ratio
-        return np.ascontiguousarray(self.grid.local_real(psi))
+    def initial_field(self, phi=None):
+        """The serial run's field (the same random numbers), this rank's block of it (phi:
+        this rank's block of the profile)."""
+        return self._initial(self.global_shape, phi, self.grid.local_real)
 
     # reductions
     def _sum(self, a):
@@ -744,15 +728,15 @@ class DistributedCahnHilliard(CahnHilliard):
         return PencilDiagonal(self.grid, half, local=True)
 
     # the implicit operator: one exchange of width 2 per product
-    def _step_implicit(self, psi, u, phi):
+    def _step_implicit(self, psi, u, phi, euler=False):
         if self.halo2 is None:
-            return super()._step_implicit(psi, u, phi)
+            return super()._step_implicit(psi, u, phi, euler)
         h = self.halo2
         # u and the particle term padded once for the solve (kept with their source)
         self._step_pads = {"u": None if u is None else np.array(h.pad(u, key="u")),
                            "dphi": (None, None)}
         try:
-            return super()._step_implicit(psi, u, phi)
+            return super()._step_implicit(psi, u, phi, euler)
         finally:
             self._step_pads = None
 

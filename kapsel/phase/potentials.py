@@ -3,8 +3,9 @@
 * ``Landau``: f = a/4 psi^4 - b/2 psi^2 (eq 18).  psi is an order parameter centred on 0; the
   bulk (equilibrium) values are +-sqrt(b/a), the neutral composition psi_bar is 0.
 * ``FloryHuggins``: f = kBT [psi/NA ln psi + (1-psi)/NB ln(1-psi) + chi psi (1-psi)] (eq 19).
-  psi is the volume fraction of A.  The neutral composition psi_bar is the critical composition
-  psi_c = sqrt(NB)/(sqrt(NA)+sqrt(NB)) (0.5 for NA = NB).
+  psi is the volume fraction of A.  The neutral composition psi_bar is 0.5, the original's
+  (fdm_phase_separation.cxx Init_phase_separation), for any NA, NB; the critical composition
+  psi_c = sqrt(NB)/(sqrt(NA)+sqrt(NB)) equals it only for NA = NB.
 
 Decisions
 ---------
@@ -131,8 +132,9 @@ class FloryHuggins:
 
     @property
     def psi_bar(self):
-        """Neutral composition (eq 17, fourth term): the critical composition."""
-        return self.critical
+        """Neutral composition (eq 17, fourth term): 0.5, whatever NA and NB (the original's
+        Init_phase_separation; equal to the critical composition for NA = NB)."""
+        return 0.5
 
     def spinodal(self):
         """Roots of f'' = 0: 2 chi NA NB psi^2 + (NA - NB - 2 chi NA NB) psi + NB = 0."""
