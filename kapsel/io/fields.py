@@ -50,6 +50,7 @@ import h5py
 import numpy as np
 
 from .atomic import atomic_write, atomic_write_text, fmt
+from .h5file import write_h5
 
 __all__ = ["SnapshotFiles", "series_for", "read_snapshot", "XMF_NAMES"]
 
@@ -127,7 +128,7 @@ class SnapshotFiles:
             return
         n = snap.step // self.gts
         for s in self.series:
-            atomic_write(self.path(s, n), lambda tmp, s=s: self._h5(tmp, s, snap, n))
+            self._h5(self.path(s, n), s, snap, n)
         self.times = {m: t for m, t in self.times.items() if m < n}   # a replaced time line
         self.times[n] = float(snap.time)
         for s in self.series:
@@ -140,12 +141,16 @@ class SnapshotFiles:
     def path(self, s, n) -> str:
         return os.path.join(self.directory, f"{s.prefix}_{n}.h5")
 
-    def _h5(self, tmp, s, snap, n):
+    def _h5(self, path, s, snap, n):
+        """One snapshot file, atomically (kapsel.io.h5file.write_h5: a full disk is an
+        OSError naming it)."""
         attrs = {"n": n, "time": float(snap.time), "dx": self.dx}
         if s.kind != "particles" and snap.h5_fields is not None:
-            snap.h5_fields(tmp, list(s.datasets), attrs)     # parallel HDF5: every rank
-            return                                           # writes its block
-        with h5py.File(tmp, "w") as f:
+            # parallel HDF5: every rank writes its block
+            atomic_write(path, lambda tmp: snap.h5_fields(tmp, list(s.datasets), attrs))
+            return
+
+        def fill(f):
             if s.kind == "particles":
                 p = snap.particles
                 cols = {"RX": p.R[:, 0], "RY": p.R[:, 1], "RZ": p.R[:, 2],
@@ -164,6 +169,7 @@ class SnapshotFiles:
                     f.create_dataset(name, data=np.ascontiguousarray(a.T, dtype=F64))
             for key, value in attrs.items():
                 f.attrs[key] = value
+        write_h5(path, fill)
 
     # ------------------------------------------------------------------ XDMF
     def xdmf(self, s) -> str:
