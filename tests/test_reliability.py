@@ -152,10 +152,13 @@ def _small_tmpfs(where, size):
                            str(where)], capture_output=True).returncode == 0
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("size", ["300k", "1100k"])
 def test_3_real_full_tmpfs_with_the_plain_sample(tmp_path, size):
     """The plain sample (Navier_Stokes_Cahn_Hilliard_FDM, 32^3, 8 particles) on a tiny
-    tmpfs, a snapshot every 2 steps: the disk fills in the first or second snapshot."""
+    tmpfs, a snapshot every 2 steps: the disk fills in the first or second snapshot (root
+    only; about 30 s each on the busy 2-core machine, hence slow; the in-process ENOSPC test
+    above is the fast one)."""
     from runs import sample_input
     disk = tmp_path / "disk"
     if not _small_tmpfs(disk, size):
