@@ -2,7 +2,7 @@
 #   make run    installs kapsel-py with what a run needs (+ matplotlib for the picture),
 #               runs the manual's sample in samples/, reports its time, draws the last snapshot
 #   make test   installs the test tools too (pytest, hypothesis, vtk, ovito, matplotlib, and
-#               mpi4py + mpich for the distributed tests), runs the fast suite
+#               mpi4py + mpich for the distributed tests; strace from apt), runs the fast suite
 #   make bench  installs the benchmark extra, runs the benchmarks
 # pip's own output goes to .venv/pip-<what>.log and is shown only when an install fails.
 PY ?= python3
@@ -41,7 +41,12 @@ run: $(VENV)/.installed-plot
 	@echo "Output written to samples/: output.udf, restart.udf, *.h5 and *.xmf (ParaView)"
 	@$(BIN)/kapsel-py analyze show samples
 
+# strace (Debian's package) injects kills and ENOSPC at exact system calls
+# (tests/test_kill_points.py; skipped where it cannot be installed)
 test: $(VENV)/.installed-test
+	@command -v strace > /dev/null 2>&1 || { echo "Installing strace (apt-get) for the kill-point tests"; \
+	  { apt-get update -qq && apt-get install -y -qq strace; } > $(VENV)/apt-strace.log 2>&1 \
+	  || echo "strace could not be installed (log: $(VENV)/apt-strace.log): the kill-point tests are skipped"; }
 	$(BIN)/python -m pytest -q -m "not slow"
 
 bench: $(VENV)/.installed-bench

@@ -206,29 +206,61 @@ class _DirLock:
             self.fd = None
 
 
-def lock_output_dirs(args):
-    """Hold an exclusive lock on every directory kapsel-py writes into (that of -O, with the
-    field files, and that of -R) for the whole run, so that two runs cannot write into one
-    directory at once.  Returns (locks, None) or (None, message)."""
+def written_dirs(args, cfg=None) -> list[str]:
+    """Every directory a run writes into: that of -O (with the FDM types' field files and
+    the .dat tables), that of -R, and output.AVS's Out_dir."""
+    paths = [os.path.dirname(os.path.abspath(p)) for p in (args.output, args.restart)]
+    if cfg is not None and cfg.output.fields is not None:
+        from .io.writers import field_directory
+        paths.append(os.path.abspath(field_directory(cfg, args)))
+    return sorted({os.path.realpath(d) for d in paths})
+
+
+def lock_output_dirs(args, cfg=None):
+    """Hold an exclusive lock on every directory kapsel-py writes into (written_dirs; an
+    Out_dir that does not exist yet is made) for the whole run, so that two runs cannot
+    write into one directory at once; then remove the temporary files that killed writes
+    left there (udf.files.remove_temporaries).  Returns (locks, None) or (None, message)."""
     import fcntl
+
+    from udf.files import remove_temporaries
     held = []
-    dirs = sorted({os.path.realpath(os.path.dirname(os.path.abspath(p)))
-                   for p in (args.output, args.restart)})
+    dirs = written_dirs(args, cfg)
+
+    def refuse(message):
+        for h in held:
+            h.close()
+        return None, message
     for d in dirs:
         try:
+            os.makedirs(d, exist_ok=True)
             fd = os.open(d, os.O_RDONLY)
         except OSError as e:
-            return None, f"cannot open {d} to lock it for the run: {e.strerror}"
+            return refuse(f"cannot open {d} to lock it for the run: {e.strerror}")
         try:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except OSError:
             os.close(fd)
-            for h in held:
-                h.close()
-            return None, (f"another kapsel-py run is writing into {d}; two runs must not "
-                          f"write into one directory: wait for it to end, or give -O/-R in "
-                          f"another directory")
+            return refuse(f"another kapsel-py run is writing into {d}; two runs must not "
+                          f"write into one directory (-O, -R or output.AVS's Out_dir): wait "
+                          f"for it to end, or give another directory")
         held.append(_DirLock(fd))
+    from .io.journal import recover_all
+    gone, back = [], []
+    for d in dirs:
+        gone += remove_temporaries(d) + remove_temporaries(os.path.join(d, "avs"))
+        try:
+            back += recover_all(d)
+        except OSError as e:
+            return refuse(f"cannot put back {d}'s file that a killed run was writing: "
+                          f"{e.strerror}")
+    if back and not getattr(args, "quiet", False):
+        print(f"#{', '.join(back)}: put back to its last complete frame (a run was stopped "
+              f"while writing it)", file=sys.stderr)
+    if gone and not getattr(args, "quiet", False):
+        print(f"#removed {len(gone)} temporary file{'s' * (len(gone) > 1)} that interrupted "
+              f"writes had left ({', '.join(sorted(gone)[:3])}{', ...' * (len(gone) > 3)})",
+              file=sys.stderr)
     return held, None
 
 
@@ -342,6 +374,14 @@ def build_model(cfg, args, doc, resumed: bool):
                       f"later snapshot at step {saved.step} (the run ended before rewriting "
                       f"{args.input}): continuing from step {saved.step}", file=sys.stderr)
             model.load_restart(saved)
+            # the text this run continues: checkpoints go on against it (simulation.run)
+            model.restart_source = (args.input, saved.text_fingerprint,
+                                    saved.step if saved.checkpoint_of is None
+                                    else saved.checkpoint_of)
+            if saved.exact and "seed" in saved.exact:
+                # the time line's seed (its noise state is restored), the one output.udf's
+                # first line names, not one drawn for this continuation
+                model.seed = args.seed = int(saved.exact["seed"])
             if not args.quiet:       # the original's line after its restore (§1.3)
                 print("############################ Parameters are restored.",
                       file=sys.stderr)
@@ -378,7 +418,11 @@ class StartUpSignals:
         import signal
         self.got = None
         try:
-            self.old = {s: signal.signal(s, self._note) for s in (signal.SIGINT, signal.SIGTERM)}
+            # SIGTERM (a batch system's stop) ends the process at once, in the kernel: start-
+            # up has written nothing, and a Python handler would wait for a C library that
+            # spins (OpenBLAS retrying an allocation under ulimit -v) or blocks
+            self.old = {signal.SIGINT: signal.signal(signal.SIGINT, self._note),
+                        signal.SIGTERM: signal.signal(signal.SIGTERM, signal.SIG_DFL)}
         except ValueError:              # not the main thread: leave the handlers alone
             self.old = {}
         return self
@@ -443,9 +487,14 @@ def _check_inputs(args, locks, dist):
     """The checks of ``prepare`` before the model is built: an exit code, or (cfg, doc,
     define, resumed, seed_drawn).  In a distributed run the output paths are checked and
     locked by rank 0 only (the one that writes)."""
+    from udf.files import check_regular
     for flag, path in (("-I", args.input), ("-D", args.define)):
-        if not os.path.isfile(path):
+        try:
+            check_regular(path)
+        except FileNotFoundError:
             return fail(f"{flag}{path}: no such file")
+        except OSError as e:
+            return fail(f"{flag}{path}: {e.strerror}")
     try:
         cfg, doc, define = validate(args.input, args.define)
     except BadInput as e:
@@ -455,6 +504,9 @@ def _check_inputs(args, locks, dist):
         problem = refuse(dist, cfg)
         if problem:
             return fail(problem)
+    problem = check_address_limit(cfg)
+    if problem:
+        return fail(problem)
     _START.check()
     writes = dist is None or dist.root
     problem = check_output_paths(args) if writes else None
@@ -462,7 +514,7 @@ def _check_inputs(args, locks, dist):
         return fail(problem)
     resumed = cfg.resume.calculation != "NEW"
     if locks is not None and writes:
-        held, problem = lock_output_dirs(args)    # from here to the end of the run
+        held, problem = lock_output_dirs(args, cfg)    # from here to the end of the run
         if problem:
             return fail(problem)
         locks.extend(held)
@@ -489,6 +541,12 @@ def main(argv=None) -> int:
         from .examples import main as example
         return example(argv[1:])
     args = build_parser().parse_args(argv)
+    limit = _address_limit()
+    if limit is not None and limit < BASE_ADDRESS_SPACE and not args.check:
+        return fail(f"the address space is limited to {limit / 2 ** 20:.0f} MiB (ulimit -v); "
+                    f"kapsel-py needs at least {BASE_ADDRESS_SPACE / 2 ** 20:.0f} MiB for the "
+                    f"program and its libraries before any array: raise the limit",
+                    EXIT_RUN_FAILED)
     if args.threads < 1:
         return fail(f"--threads must be at least 1, got {args.threads}")
     if args.seed is not None and not 0 <= args.seed < 2 ** 63:
@@ -506,9 +564,58 @@ def main(argv=None) -> int:
         print("kapsel-py: interrupted during start-up, before the first step; there is "
               "nothing to continue from", file=sys.stderr)
         return EXIT_RUN_FAILED
+    except MemoryError:
+        return fail(f"out of memory while setting up the run (before its first step; "
+                    f"nothing was written){_address_limit_note()}", EXIT_RUN_FAILED)
+    except ImportError as e:
+        if "failed to map segment" not in str(e) and "Cannot allocate memory" not in str(e):
+            raise
+        return fail(f"out of memory while loading the program's libraries ({e.name or e}"
+                    f"){_address_limit_note()}", EXIT_RUN_FAILED)
     finally:
         for fh in locks:
             fh.close()
+
+
+def _address_limit():
+    """The soft address-space limit (ulimit -v) in bytes, or None."""
+    try:
+        import resource
+        soft, _ = resource.getrlimit(resource.RLIMIT_AS)
+    except (ImportError, OSError, ValueError):
+        return None
+    return None if soft == resource.RLIM_INFINITY else soft
+
+
+def _address_limit_note() -> str:
+    limit = _address_limit()
+    return "" if limit is None else (f"; the address space is limited to "
+                                     f"{limit / 2 ** 20:.0f} MiB (ulimit -v)")
+
+
+# address space a run takes besides its arrays: the interpreter, numpy, scipy, h5py,
+# pyFFTW, numba and OpenBLAS's buffers (measured VmPeak of 8^3 runs: 255 MiB spectral,
+# 286 MiB Navier_Stokes_FDM; under ulimit -v 200000 (195 MiB) OpenBLAS spins, at 280000 it
+# gives up with exit 1)
+BASE_ADDRESS_SPACE = 300 * 2 ** 20
+
+
+def check_address_limit(cfg) -> str | None:
+    """Under ``ulimit -v``, refuse a run whose estimated memory does not fit: below the
+    limit OpenBLAS retries a failed allocation for ever and numpy raises MemoryError in
+    the middle of the set-up."""
+    limit = _address_limit()
+    if limit is None:
+        return None
+    from .config import _size, memory_estimate
+    need = BASE_ADDRESS_SPACE + memory_estimate(cfg.mesh, cfg.type, cfg.particles.count,
+                                                cfg.particles.A, cfg.particles.A_XI)
+    if need > limit:
+        return (f"the address space is limited to {_size(limit)} (ulimit -v), this run "
+                f"needs about {_size(need)} ({describe_setup(cfg)} plus "
+                f"{_size(BASE_ADDRESS_SPACE)} for the program and its libraries): raise "
+                f"the limit (ulimit -v {int(need / 1024) + 1}) or make the run smaller")
+    return None
 
 
 def _main(args, locks) -> int:

@@ -444,6 +444,11 @@ def from_document(doc: udf.UDFManager, input_path: str = "") -> RunConfig:
                     fl["viscosity_change"] = True
                     fl["ETA_A"] = r.positive(f"{vc.rsplit('.', 1)[0]}.ON.ETA_A")
                     fl["ETA_B"] = r.positive(f"{vc.rsplit('.', 1)[0]}.ON.ETA_B")
+        if eq_type == "Electrolyte" and fl.get("kBT") == 0:
+            # the Bjerrum length e^2 / (4 pi eps kBT) and the ions' Boltzmann factors
+            # divide by kBT (PHYSICS-EXTRA §6)
+            r.fail(f"{base}.kBT", 0.0, "must be positive for Electrolyte: the Bjerrum length "
+                                       "and the ions' Boltzmann factors divide by kBT")
         if all(k in fl for k in ("RHO", "ETA", "kBT", "alpha_v", "alpha_o")):
             fluid = Fluid(**fl)
 
@@ -493,6 +498,9 @@ def from_document(doc: udf.UDFManager, input_path: str = "") -> RunConfig:
     if mesh is not None and particles is not None and count:
         with r.block():
             _check_particles_fit(r, mesh, particles)
+        if fluid is not None:
+            with r.block():
+                _check_masses(r, obj, species, particles, fluid.RHO)
 
     if electrolyte is not None and obj is not None:
         with r.block():
@@ -719,6 +727,24 @@ def _check_particles_fit(r: _Reader, mesh: Mesh, particles: Particles) -> None:
         r.fail("object_type", n, f"{n} particles of radius A DX = {a:g} cannot fit in the box "
                                  f"{_dims(box)} (volume fraction {fraction:.3g} > 0.74, the "
                                  f"densest packing)")
+
+
+def _check_masses(r: _Reader, obj: str, species: list, particles: Particles, rho) -> None:
+    """Each bead's mass MASS_RATIO RHO 4/3 pi A^3 and moment of inertia 2/5 M A^2 must be
+    finite numbers: they enter the particles' equations of motion and the energy E of
+    every record (an infinite mass makes E NaN: an unreadable output.udf)."""
+    if not particles.A < 1e100:
+        return                          # refused already: it does not fit in the box
+    unit = rho * (4.0 / 3.0) * math.pi * particles.A ** 3
+    kind = {"spherical_particle": "Particle_spec", "chain": "Chain_spec",
+            "rigid": "Rigid_spec"}.get(obj, "Particle_spec")
+    for i, s in enumerate(species):
+        mass = s.MASS_RATIO * unit
+        inertia = 0.4 * mass * particles.A ** 2
+        if not (math.isfinite(mass) and math.isfinite(inertia)):
+            r.fail(f"object_type.{obj}.{kind}[{i}].MASS_RATIO", s.MASS_RATIO,
+                   f"gives a particle mass MASS_RATIO RHO 4/3 pi A^3 = {mass:g} (moment of "
+                   f"inertia {inertia:g}) that is not a finite number")
 
 
 def _dims(box) -> str:
@@ -1026,7 +1052,8 @@ def memory_estimate(mesh: Mesh, eq_type: str, n_particles: int, A=None, xi=None)
 def _stencil_points(A, xi, dx) -> int:
     """Grid points of one particle's profile stencil (kapsel.particles.profile.Stencil); a
     typical 720 (A = 4, XI = 2 cells) when the particles are not known or not valid."""
-    if A is None or xi is None or not (A > 0.5 * xi > 0) or not dx or dx <= 0:
+    if A is None or xi is None or not (A > 0.5 * xi > 0) or not dx or dx <= 0 \
+            or not A + xi < 1e4 * dx:    # beyond any box: refused by _check_particles_fit
         return 720
     from .particles.profile import Stencil
     return Stencil(A, xi, dx).size

@@ -175,6 +175,11 @@ def run(cfg, args, input_doc, model, resumed: bool = False) -> int:
     saved = {"step": None}
     try:
         return _run(cfg, args, input_doc, model, resumed, saved)
+    except MemoryError:
+        print(f"kapsel-py: error: out of memory at step {model.step_index}. "
+              f"{restart_hint(saved['step'], args)}. Run it where more memory is free "
+              f"(or with a higher ulimit -v).", file=sys.stderr)
+        return 1
     except OSError as e:
         what = e.filename or f"an output file in {os.path.dirname(os.path.abspath(args.output))}"
         print(f"kapsel-py: error: cannot write {what} at step {model.step_index}: "
@@ -190,6 +195,12 @@ def _run(cfg, args, input_doc, model, resumed, saved) -> int:
 
     total = cfg.output.total_steps
     if resumed and model.step_index > total:
+        source = getattr(model, "restart_source", None)
+        if source is not None and source[2] != model.step_index \
+                and _same_file(source[0], args.restart):
+            # killed between the two renames of its last restart write: the text
+            from .io.restart import complete_restart   # from the state file's copy
+            complete_restart(args.restart, args.define, input_doc)
         print(f"kapsel-py: {args.input} holds the end of its run (its last snapshot at step "
               f"{total} = output.Num_snap {cfg.output.Num_snap} x output.GTS "
               f"{cfg.output.GTS}): nothing to do. To run longer, raise output.Num_snap in "
@@ -237,6 +248,11 @@ def _run(cfg, args, input_doc, model, resumed, saved) -> int:
         output(body)
 
     define_doc = [None]
+    source = getattr(model, "restart_source", None)     # (path, fingerprint) of -I's text
+    if resumed and writes and source is not None and _same_file(source[0], args.restart):
+        # the restart.udf on disk is the one this run continues: checkpoints go on against
+        # it, as in the run being continued (whose files this run's then equal)
+        saved.update(base=source[1], step=start, full=source[2])
 
     def save_restart(full=False):
         """The full restart.udf (first snapshot of the run, end, interruption), else the
@@ -249,7 +265,7 @@ def _run(cfg, args, input_doc, model, resumed, saved) -> int:
         if full:
             saved["base"] = write_restart(args.restart, args.define, input_doc, kind,
                                           model.step_index, model.time, model.particles,
-                                          data, exact)
+                                          data, exact, previous=saved.get("base"))
             saved["full"] = model.step_index
         else:
             if define_doc[0] is None:
@@ -379,6 +395,13 @@ def _run(cfg, args, input_doc, model, resumed, saved) -> int:
     sys.stdout.flush()
     progress.summary(args.output if cfg.output.UDF else None, args.restart)
     return 0
+
+
+def _same_file(a, b) -> bool:
+    try:
+        return os.path.samefile(a, b)
+    except OSError:
+        return False
 
 
 def _mpi_max():

@@ -53,7 +53,8 @@ def saved_data(path):
         for k in z.files:
             if z[k].dtype.kind != "U":
                 out["state:" + k] = z[k]
-            elif k not in ("fingerprint", "run_id"):     # identities, not state
+            elif k not in ("fingerprint", "run_id", "checkpoint:base"):   # identities
+                # (checkpoint:base: the restart.udf a full state file also continues)
                 out["state:" + k] = str(z[k])
     return out
 

@@ -15,11 +15,11 @@ from __future__ import annotations
 
 import os
 import re
-import tempfile
 
 import numpy as np
 
 from .errors import UDFError, raise_all
+from .files import read_bytes
 from .parser import build_schema, load_sections
 from .schema import Primitive, Schema, Struct, leaf_count, leaf_slice
 from .values import bind, default, from_python, nest
@@ -42,32 +42,18 @@ class Record:
         self.values = values if values is not None else {}
 
 
-def user_mode() -> int:
-    """The mode a newly created file gets from the user's umask (0666 & ~umask)."""
-    mask = os.umask(0o022)
-    os.umask(mask)
-    return 0o666 & ~mask
-
-
-def _temporary(path: str):
-    """(fd, name) of a new temporary file next to ``path`` with the user's file mode (mkstemp
-    alone makes it 0600, and the rename would keep that)."""
-    d = os.path.dirname(os.path.abspath(path))
-    fd, tmp = tempfile.mkstemp(prefix="." + os.path.basename(path) + ".", dir=d)
-    try:
-        os.fchmod(fd, user_mode())
-    except OSError:
-        pass
-    return fd, tmp
+from .files import create_temporary as _temporary, fsync_directory, put_in_place, user_mode  # noqa: E402,F401
 
 
 class TornTailWarning(UserWarning):
     """A UDF file ended in an incomplete record, which was left out."""
 
 
-def atomic_write_text(path: str, text) -> None:
+def atomic_write_text(path: str, text, place: bool = True):
     """Write ``text`` (a str, or a list of writer pieces) to ``path`` through a temporary
-    file in the same directory and a rename: readers never see a half-written file."""
+    file in the same directory (synced) and a rename: readers never see a half-written
+    file.  ``place=False``: return the complete temporary file instead of renaming it (the
+    caller puts it in place, e.g. after a companion file)."""
     fd, tmp = _temporary(path)
     try:
         with os.fdopen(fd, "wb") as fh:
@@ -75,7 +61,15 @@ def atomic_write_text(path: str, text) -> None:
                 fh.write(text.encode("utf-8"))
             else:
                 write_pieces(fh, text)
-        os.replace(tmp, path)
+            fh.flush()
+            os.fsync(fh.fileno())
+        if not place:
+            return tmp
+        put_in_place(tmp, path)
+    except OSError as e:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise OSError(e.errno, e.strerror, os.fspath(path)) from None
     except BaseException:
         if os.path.exists(tmp):
             os.unlink(tmp)
@@ -163,8 +157,7 @@ class UDFManager:
         warning); None if the error lies elsewhere."""
         import warnings
         try:
-            with open(path, "rb") as fh:
-                data = fh.read()
+            data = read_bytes(path)
         except OSError:
             return None
         cut = data.rfind(b"\\begin{record}")
@@ -543,20 +536,22 @@ class UDFManager:
     def record_text(self, rec: Record) -> str:
         return "".join(map(str, self.record_pieces(rec)))
 
-    def write(self, file: str | None = None, record=None, mode=None) -> None:
-        """Write the document (atomically: temporary file, then rename)."""
+    def write(self, file: str | None = None, record=None, mode=None, place: bool = True):
+        """Write the document (atomically: temporary file, synced, then rename;
+        ``place=False``: return the temporary file, see :func:`atomic_write_text`)."""
         target = file or self.path
         if not target:
             raise UDFError("write(): no file name given")
         try:
             if record is None and self._large():
-                _write_in_two_processes(self, target)
+                tmp = _write_in_two_processes(self, target, place)
             else:
-                atomic_write_text(target, self.pieces(record))
+                tmp = atomic_write_text(target, self.pieces(record), place)
         except ValueError as e:
             raise UDFError(f"cannot write {target}: {e}") from None
-        if file:
+        if file and place:
             self.path = file
+        return tmp
 
     def _large(self) -> bool:
         if len(self.records) < 8 or (os.cpu_count() or 1) < 2 or not hasattr(os, "fork"):
@@ -571,7 +566,7 @@ class UDFManager:
 PARALLEL_WRITE_NUMBERS = 4_000_000
 
 
-def _write_in_two_processes(doc: "UDFManager", target: str) -> None:
+def _write_in_two_processes(doc: "UDFManager", target: str, place: bool = True):
     """Format the records in two processes: a forked child writes the second half to its own
     temporary file, the parent the head and first half; the kernel then appends the child's
     file (copy_file_range) and the result is renamed into place."""
@@ -611,7 +606,11 @@ def _write_in_two_processes(doc: "UDFManager", target: str) -> None:
                         if n == 0:
                             break
                         copied += n
-            os.replace(tmp, target)
+                fh.flush()
+                os.fsync(fh.fileno())
+            if not place:
+                return tmp
+            put_in_place(tmp, target)
         except BaseException:
             if os.path.exists(tmp):
                 os.unlink(tmp)

@@ -18,6 +18,7 @@ import lark
 import numpy as np
 
 from .errors import UDFError
+from .files import check_regular, read_bytes
 from .schema import Member, Primitive, Schema, Select, Struct
 
 BULK_MIN_CHARS = 256
@@ -297,10 +298,15 @@ class _Builder:
             if kind == "include":
                 target = _unquote(node.children[0])
                 path = os.path.join(os.path.dirname(self.file), target)
+                tok = node.children[0]
                 if not os.path.exists(path):
-                    tok = node.children[0]
                     raise UDFError(f'included file "{target}" not found (looked for {path})',
                                    self.file, tok.line, tok.column)
+                try:
+                    check_regular(path)
+                except OSError as e:
+                    raise UDFError(f'included file "{target}" ({path}) {e.strerror}',
+                                   self.file, tok.line, tok.column) from None
                 try:
                     out.extend(self.loader(path))
                 except UDFError as e:
@@ -391,8 +397,7 @@ def load_sections(path: str, _stack=(), data: bytes | None = None) -> list[Secti
                        _stack[-1])
     if data is None:
         try:
-            with open(path, "rb") as fh:
-                data = fh.read()
+            data = read_bytes(path)
         except OSError as e:
             raise UDFError(f"cannot read file: {e.strerror}", path) from None
     reduced, bulks = extract_bulk(data, path)

@@ -20,15 +20,35 @@ def _fail(msg: str) -> int:
 def cmd_sq(a) -> int:
     from .structure_factor import (characteristic_wavenumber, read_psi, snapshot_files,
                                    snapshot_times, structure_factor)
+    if not os.path.isdir(a.directory):
+        return _fail(f"{a.directory}: not a directory")
+    table = a.table or os.path.join(a.directory, "sq.txt")
+    plot = a.plot or os.path.join(a.directory, "sq.png")
+    for flag, path in (("--table", table), ("--plot", plot)):
+        problem = _output_problem(path)
+        if problem:
+            return _fail(f"{flag} {path}: {problem}")
     files = snapshot_files(a.directory)
     if not files:
         return _fail(f"no orderparam_<n>.h5 files in {a.directory}")
-    times = snapshot_times(a.directory)
+    try:
+        times = snapshot_times(a.directory)
+    except (OSError, UnicodeDecodeError) as e:
+        print(f"kapsel-py analyze: warning: the snapshot times are not read ({e})",
+              file=sys.stderr)
+        times = {}
     rows = []
     curves = []
     for f in files:
         n = int(os.path.basename(f).split("_")[1].split(".")[0])
-        q, s, _ = structure_factor(read_psi(f), a.dx, octant=a.octant)
+        try:
+            psi = read_psi(f)
+        except (OSError, KeyError, ValueError, StopIteration) as e:
+            print(f"kapsel-py analyze: warning: {f} is skipped: it cannot be read "
+                  f"({str(e).splitlines()[0] if str(e) else type(e).__name__}; a run "
+                  f"stopped while writing it?)", file=sys.stderr)
+            continue
+        q, s, _ = structure_factor(psi, a.dx, octant=a.octant)
         q1 = characteristic_wavenumber(q, s)
         rows.append((n, times.get(n, float("nan")), q1))
         curves.append((n, q, s))
@@ -39,13 +59,16 @@ def cmd_sq(a) -> int:
     lines.append("# S(q) per snapshot: snapshot q S(q)")
     for n, q, s in curves:
         lines += [f"{n:8d} {qq:14.6g} {ss:14.6g}" for qq, ss in zip(q, s)]
+    if not rows:
+        return _fail(f"no readable orderparam_<n>.h5 file in {a.directory}")
     text = "\n".join(lines) + "\n"
-    table = a.table or os.path.join(a.directory, "sq.txt")
-    with open(table, "w", encoding="utf-8") as fh:
-        fh.write(text)
+    from ..io.atomic import atomic_write_text
+    try:
+        atomic_write_text(table, text)
+    except OSError as e:
+        return _fail(f"cannot write {table}: {e.strerror}")
     print("\n".join(lines[:len(rows) + 1]))
     print(f"S(q) table written to {table}")
-    plot = a.plot or os.path.join(a.directory, "sq.png")
     try:
         import matplotlib
         matplotlib.use("Agg")
@@ -62,9 +85,34 @@ def cmd_sq(a) -> int:
     if len(curves) <= 12:
         ax.legend(fontsize=7)
     fig.tight_layout()
-    fig.savefig(plot, dpi=120)
+    try:
+        save_figure(fig, plot, dpi=120)
+    except OSError as e:
+        return _fail(f"cannot write {plot}: {e.strerror}")
     print(f"plot written to {plot}")
     return 0
+
+
+def _output_problem(path) -> str | None:
+    """Why an analysis output file cannot be written there, or None (checked before the
+    work)."""
+    if os.path.isdir(path):
+        return "is a directory, not a file name"
+    if os.path.lexists(path) and not os.path.isfile(path):
+        return "exists and is not a regular file; it is never replaced"
+    d = os.path.dirname(os.path.abspath(path))
+    if not os.path.isdir(d):
+        return f"the directory {d} does not exist"
+    if not os.access(d, os.W_OK | os.X_OK):
+        return f"the directory {d} is not writable"
+    return None
+
+
+def save_figure(fig, path, **kw) -> None:
+    """``fig.savefig`` through a temporary file and a rename (udf.files)."""
+    from udf.files import write_stream
+    fmt = os.path.splitext(path)[1].lstrip(".") or "png"
+    write_stream(path, lambda fh: fig.savefig(fh, format=fmt, **kw))
 
 
 def cmd_cna(a) -> int:

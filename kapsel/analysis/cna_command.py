@@ -37,6 +37,13 @@ def default_cutoff(positions, box) -> float:
 
 
 def run(a) -> int:
+    from .cli import _output_problem
+    if a.labels:
+        problem = _output_problem(a.labels)
+        if problem:
+            print(f"kapsel-py analyze cna: error: --labels {a.labels}: {problem}",
+                  file=sys.stderr)
+            return 2
     try:
         if a.file.endswith(".udf"):
             frames = udf_frames(a.file, a.record)
@@ -57,6 +64,15 @@ def run(a) -> int:
             print(f"{rec:6d}  (fewer than 2 particles)")
             continue
         rc = a.cutoff or default_cutoff(fr.positions, fr.box)
+        if fr.box is not None and np.any(fr.periodic) and \
+                2 * rc >= float(np.min(np.asarray(fr.box)[np.asarray(fr.periodic)])):
+            L = float(np.min(np.asarray(fr.box)[np.asarray(fr.periodic)]))
+            how = "the given --cutoff" if a.cutoff else "the default cutoff (from the " \
+                "nearest-neighbour distance)"
+            print(f"kapsel-py analyze cna: error: record {rec}: {how} {rc:.4g} is not below "
+                  f"half the periodic box ({L:.4g} / 2): the box is too small for CNA; give "
+                  f"--cutoff below {L / 2:.4g} or a larger box", file=sys.stderr)
+            return 2
         with warnings.catch_warnings(record=True) as w:
             warnings.simplefilter("always")
             labels = C.cna(fr.positions, fr.box, rc, periodic=fr.periodic)
@@ -67,17 +83,30 @@ def run(a) -> int:
               + f"   {rc:.4g}")
         rows.append((rec, labels))
     if a.labels:
-        if a.labels.endswith((".h5", ".hdf5")):
-            import h5py
-            with h5py.File(a.labels, "w") as f:
-                for rec, labels in rows:
-                    f[f"record_{rec}"] = labels
-                f.attrs["names"] = [f"{k}={v}" for k, v in C.NAMES.items()]
-        else:
-            with open(a.labels, "w", encoding="utf-8") as fh:
-                fh.write("record,particle,label,structure\n")
-                for rec, labels in rows:
-                    for i, lab in enumerate(labels.tolist()):
-                        fh.write(f"{rec},{i},{lab},{C.NAMES[lab]}\n")
+        try:
+            _write_labels(a.labels, rows)
+        except OSError as e:
+            print(f"kapsel-py analyze cna: error: cannot write {a.labels}: {e.strerror}",
+                  file=sys.stderr)
+            return 1
         print(f"labels written to {a.labels}")
     return 0
+
+
+def _write_labels(path, rows) -> None:
+    """The labels as HDF5 (.h5, .hdf5) or CSV, atomically (kapsel.io: a killed or failed
+    write leaves the old file or none)."""
+    if path.endswith((".h5", ".hdf5")):
+        from ..io.h5file import write_h5
+
+        def fill(f):
+            for rec, labels in rows:
+                f[f"record_{rec}"] = labels
+            f.attrs["names"] = [f"{k}={v}" for k, v in C.NAMES.items()]
+        write_h5(path, fill)
+        return
+    lines = ["record,particle,label,structure\n"]
+    for rec, labels in rows:
+        lines += [f"{rec},{i},{lab},{C.NAMES[lab]}\n" for i, lab in enumerate(labels.tolist())]
+    from ..io.atomic import atomic_write_text
+    atomic_write_text(path, "".join(lines))

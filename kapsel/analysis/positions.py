@@ -41,10 +41,12 @@ class Frame(tuple):
 
 
 def _open(path):
+    """A regular file only (udf.files.open_regular: a FIFO or device is refused)."""
+    from udf.files import open_regular
     path = str(path)
     if path.endswith(".gz"):
-        return gzip.open(path, "rt", encoding="utf-8")
-    return open(path, encoding="utf-8")
+        return gzip.open(open_regular(path), "rt", encoding="utf-8")
+    return open_regular(path, "r", encoding="utf-8")
 
 
 def _read_lines(path):

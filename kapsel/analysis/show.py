@@ -17,6 +17,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from udf.files import check_regular, open_regular
+
 # field files of a run directory: kind -> (file pattern, dataset(s))
 FIELD_FILES = {
     "psi": (r"orderparam_(\d+)\.h5", ("PSI_ALL", "PSI")),   # the first one the file has
@@ -53,6 +55,7 @@ def snapshot_files(run_dir: str) -> dict[int, dict]:
             entry[kind] = path
             if entry["time"] is None:
                 try:
+                    check_regular(path)
                     with h5py.File(path, "r") as f:
                         t = f.attrs.get("time")
                     entry["time"] = None if t is None else float(t)
@@ -65,6 +68,7 @@ def read_field(path: str, kind: str) -> np.ndarray:
     """psi, or |u|, as a float64 array indexed [x, y, z] (the files are stored z, y, x)."""
     import h5py
     datasets = FIELD_FILES[kind][1]
+    check_regular(path)
     with h5py.File(path, "r") as f:
         if kind == "psi":
             datasets = [next((d for d in datasets if d in f), datasets[0])]
@@ -115,9 +119,10 @@ def read_table(path: str):
     """A step-t-columns table (shear_stress.dat): (names, array) or None if absent."""
     if not os.path.exists(path):
         return None
-    with open(path, encoding="utf-8") as fh:
+    with open_regular(path, "r", encoding="utf-8") as fh:
         header = fh.readline().lstrip("#").split()
-    data = np.loadtxt(path, comments="#", ndmin=2)
+        fh.seek(0)
+        data = np.loadtxt(fh, comments="#", ndmin=2)
     return header, data
 
 

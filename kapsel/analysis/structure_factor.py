@@ -82,7 +82,9 @@ def snapshot_times(directory: str) -> dict:
             break
     else:
         return {}
-    text = open(xmf, encoding="utf-8").read()
+    from udf.files import open_regular
+    with open_regular(xmf, "r", encoding="utf-8") as fh:
+        text = fh.read()
     times = re.findall(r'<Time\s+Value="([^"]+)"', text)
     nums = re.findall(r"orderparam_(\d+)\.h5", text)
     return {int(n): float(t) for n, t in zip(nums, times)}
@@ -91,6 +93,9 @@ def snapshot_times(directory: str) -> dict:
 def read_psi(path: str) -> np.ndarray:
     """The first dataset of an orderparam file, as [x, y, z] (files store (NZ, NY, NX))."""
     import h5py
+
+    from udf.files import check_regular
+    check_regular(path)
     with h5py.File(path, "r") as f:
         name = "PSI" if "PSI" in f else next(iter(f.keys()))
         return np.ascontiguousarray(np.asarray(f[name]).T)

@@ -1,13 +1,19 @@
 """Atomic file writes and number formatting shared by the output writers.
 
-Every file is written under a temporary name in its directory and moved into place with
-:func:`os.replace`, so a reader (or a run killed mid-write) never sees a partial file; the
-file gets the usual 0666 & ~umask mode.
+Every file a run writes goes through udf.files: written under a temporary name in its
+directory, synced, renamed into place, the directory synced; a reader (or a run killed at
+any system call) never sees a partial file, and the temporaries of killed writes are
+removed by the next run under its lock (kapsel.cli.lock_output_dirs).  Files that grow
+(output.udf, the .dat tables) are appended whole or not at all (:func:`append_whole`); the
+EXTENDED trajectory, which HDF5 modifies in place, has a rollback journal
+(kapsel.io.journal).
 """
 from __future__ import annotations
 
 import os
-import secrets
+
+from udf.files import write_file as atomic_write, write_stream  # noqa: F401  (re-exported)
+from udf.manager import atomic_write_text  # noqa: F401  (synced, then renamed)
 
 
 def fmt(x) -> str:
@@ -18,33 +24,24 @@ def fmt(x) -> str:
     return repr(x)
 
 
-def atomic_write(path: str, write) -> None:
-    """Call ``write(tmp_path)`` on a temporary file next to ``path``, then rename it to ``path``."""
-    directory, name = os.path.split(path)
-    while True:
-        tmp = os.path.join(directory, f".{name}.{os.getpid()}.{secrets.token_hex(4)}.tmp")
-        try:  # created with the usual 0666 & ~umask mode (mkstemp would give 0600)
-            os.close(os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666))
-            break
-        except FileExistsError:
-            continue
+def append_whole(path: str, data: bytes) -> None:
+    """Append ``data`` to ``path`` entirely or not at all: one write call (a kill lands
+    before or after it), synced; when the write fails (a full disk) the file is cut back
+    to its previous end, so no torn line or record is left."""
+    fd = os.open(path, os.O_WRONLY | os.O_APPEND)
     try:
-        write(tmp)
-        with open(tmp, "rb+") as fh:
-            os.fsync(fh.fileno())
-        os.replace(tmp, path)
-    except BaseException:
+        end = os.fstat(fd).st_size
         try:
-            os.unlink(tmp)
-        except OSError:
-            pass
-        raise
-
-
-def atomic_write_text(path: str, text: str) -> None:
-    def write(tmp):
-        with open(tmp, "w", encoding="utf-8") as fh:
-            fh.write(text)
-    atomic_write(path, write)
-
-
+            view = memoryview(data)
+            while view:
+                n = os.write(fd, view)
+                view = view[n:]
+            os.fsync(fd)
+        except OSError as e:
+            os.ftruncate(fd, end)
+            raise OSError(e.errno, e.strerror, path) from None
+        except BaseException:
+            os.ftruncate(fd, end)
+            raise
+    finally:
+        os.close(fd)

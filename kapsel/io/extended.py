@@ -57,8 +57,10 @@ import sys
 import h5py
 import numpy as np
 
-from .atomic import atomic_write, atomic_write_text, fmt
+from . import journal
+from .atomic import atomic_write_text, fmt
 from .fields import SIDECAR_LIBVER, interlaced
+from .h5file import append_h5, write_h5
 
 F32 = np.float32
 TAU = ("tau_xx", "tau_xy", "tau_xz", "tau_yy", "tau_yz")
@@ -102,6 +104,7 @@ class ExtendedHDF5:
         self.nump, self.nobs = len(self.ids), len(self.obs_ids)
         self.species = np.asarray(species, dtype=np.int32).reshape(-1)
         self.file = None
+        self.io = None                  # the journaled file object under self.file
         self.frames = 0
         self._skip = None
         self._times: list[float] = []
@@ -147,27 +150,41 @@ class ExtendedHDF5:
                 return
             print(f"#{self.path} cannot be continued (another grid, crop or particle "
                   f"number, or not readable): a new trajectory replaces it", file=sys.stderr)
-        self.file = h5py.File(self.path, "w")
-        self._header(snap)
+        journal.discard(self.path)
+        self.io = journal.JournaledFile(self.path, create=True)
+        self.file = h5py.File(self.io, "w")
+        self._guarded(lambda: self._header(snap))
         self.frames, self._times = 0, []
-        self.file.flush()
         self._write_sidecar()
         self._describe()
 
     def _continue(self, snap) -> bool:
-        """Open the existing trajectory, drop frames later than the restart; False if it
-        was written for another grid, crop or particle count (then it is replaced)."""
+        """Open the existing trajectory (first put back to its last complete frame if a run
+        was killed or failed while writing it: kapsel.io.journal), drop frames later than
+        the restart; False if it was written for another grid, crop or particle count or
+        cannot be read (then it is replaced)."""
         try:
-            f = h5py.File(self.path, "a")
-        except OSError:
+            journal.recover(self.path)
+            self.io = journal.JournaledFile(self.path)
+        except OSError as e:
+            raise OSError(e.errno, e.strerror, self.path) from None
+        try:
+            f = h5py.File(self.io, "a")
+        except (OSError, ValueError, KeyError, RuntimeError):
+            self.io.close()
             return False
-        ok = (list(f.attrs.get("nxnynz", [])) == list(self.dims)
-              and int(f.attrs.get("nump", [-1])[0]) == self.nump
-              and int(f.attrs.get("nump_obs", [0])[0]) == self.nobs
-              and "trajectory_data" in f)
+        try:
+            ok = (list(f.attrs.get("nxnynz", [])) == list(self.dims)
+                  and int(f.attrs.get("nump", [-1])[0]) == self.nump
+                  and int(f.attrs.get("nump_obs", [0])[0]) == self.nobs
+                  and "trajectory_data" in f)
+        except (OSError, ValueError, KeyError, RuntimeError, IndexError, TypeError):
+            ok = False
         if not ok:
             f.close()
+            self.io.close()
             return False
+        self.file = f
         traj = f["trajectory_data"]
         n = 0
         times = []
@@ -176,17 +193,45 @@ class ExtendedHDF5:
                 and float(traj[f"frame_{n}"].attrs["time"][0]) <= snap.time + tol:
             times.append(float(traj[f"frame_{n}"].attrs["time"][0]))
             n += 1
-        m = n
-        while f"frame_{m}" in traj:
-            del traj[f"frame_{m}"]
-            m += 1
-        self.file, self.frames, self._times = f, n, times
+        drop = []
+        while f"frame_{n + len(drop)}" in traj:
+            drop.append(f"frame_{n + len(drop)}")
+
+        def cut():
+            for name in drop:
+                del traj[name]
+        if drop:
+            self._guarded(cut)
+        self.frames, self._times = n, times
         if times and abs(times[-1] - snap.time) <= tol:
             self._skip = snap.step
-        f.flush()
         self._write_sidecar()
         self._describe()
         return True
+
+    def _guarded(self, change) -> None:
+        """Make ``change`` to the file, flush it and commit (kapsel.io.journal); a failed
+        write (a full disk) puts the file back to the last commit and raises OSError
+        naming the file."""
+        try:
+            change()
+            self.file.flush()
+            self.io.commit()
+        except Exception as e:              # h5py wraps the failed write in its own error
+            failed = self.io.error or (e if isinstance(e, OSError) and e.errno else None)
+            self._abandon()
+            if failed is None:
+                raise
+            raise OSError(failed.errno, failed.strerror, self.path) from None
+
+    def _abandon(self) -> None:
+        """After a failure: no further write reaches the file, which is rolled back."""
+        self.io.rollback()
+        try:
+            self.file.close()
+        except Exception:                   # noqa: BLE001 - its writes fail on purpose
+            pass
+        self.file = None
 
     def _complete(self, frame) -> bool:
         """A frame with every dataset this run writes (not one cut by a killed run)."""
@@ -211,6 +256,15 @@ class ExtendedHDF5:
         if snap.step == self._skip:
             self._skip = None
             return
+        if self.file is None:
+            raise OSError(0, "the trajectory was closed after a failed write", self.path)
+        self._guarded(lambda: self._frame(snap))
+        self._sidecar_frame(self.frames)
+        self.frames += 1
+        self._times.append(float(np.float32(snap.time)))
+        self._describe()
+
+    def _frame(self, snap) -> None:
         g = self.file.create_group(f"trajectory_data/frame_{self.frames}")
         g.attrs.create("time", np.array([snap.time], dtype=F32))
         if self.sheared:
@@ -229,15 +283,22 @@ class ExtendedHDF5:
             og = g.create_group("obstacle")
             for name in ("force_h", "force_r"):
                 og.create_dataset(name, data=data[name][self.obs_ids])
-        self.file.flush()
-        self._sidecar_frame(self.frames)
-        self.frames += 1
-        self._times.append(float(np.float32(snap.time)))
-        self._describe()
 
     def close(self, reason: str) -> None:
-        if self.file is not None:
+        if self.file is None:
+            return
+        try:
             self.file.close()
+            self.io.commit()
+            self.io.close()
+        except Exception as e:              # noqa: BLE001 - a full disk at the close
+            failed = self.io.error or (e if isinstance(e, OSError) and e.errno else None)
+            self._abandon()
+            if reason == "end":
+                if failed is None:
+                    raise
+                raise OSError(failed.errno, failed.strerror, self.path) from None
+        finally:
             self.file = None
 
     # ------------------------------------------------------------------ content
@@ -301,27 +362,27 @@ class ExtendedHDF5:
             return
         src = os.path.basename(self.path)
 
-        def write(tmp):
-            with h5py.File(tmp, "w", libver=SIDECAR_LIBVER) as f:
-                if self.fields:
-                    interlaced(f, "field_xyz", src, [f"/system_data/field/{a}" for a in "xyz"],
-                               self.dims, F32)
-                if self.nump:
-                    f.create_dataset("particle_vertex", data=np.arange(self.nump, dtype=np.int32))
-                if self.nobs:
-                    f.create_dataset("obstacle_vertex", data=np.arange(self.nobs, dtype=np.int32))
-                for i in range(self.frames):
-                    self._frame_views(f, i)
-        atomic_write(self.sidecar, write)
+        def write(f):
+            if self.fields:
+                interlaced(f, "field_xyz", src, [f"/system_data/field/{a}" for a in "xyz"],
+                           self.dims, F32)
+            if self.nump:
+                f.create_dataset("particle_vertex", data=np.arange(self.nump, dtype=np.int32))
+            if self.nobs:
+                f.create_dataset("obstacle_vertex", data=np.arange(self.nobs, dtype=np.int32))
+            for i in range(self.frames):
+                self._frame_views(f, i)
+        write_h5(self.sidecar, write, libver=SIDECAR_LIBVER)
 
     def _sidecar_frame(self, i):
         """Frame i's views, added to the sidecar (one small metadata write per frame; a
         continued run writes the sidecar anew)."""
         if "u" in self.fields:
-            with h5py.File(self.sidecar, "a", libver=SIDECAR_LIBVER) as f:
+            def add(f):
                 if f"frame_{i}" in f:
                     del f[f"frame_{i}"]
                 self._frame_views(f, i)
+            append_h5(self.sidecar, add, libver=SIDECAR_LIBVER)
 
     def _frame_views(self, f, i):
         if "u" in self.fields:

@@ -66,6 +66,7 @@ import h5py
 import numpy as np
 
 from .atomic import atomic_write, atomic_write_text, fmt
+from .h5file import write_h5
 
 __all__ = ["SnapshotFiles", "series_for", "read_snapshot", "XMF_NAMES"]
 
@@ -151,7 +152,7 @@ class SnapshotFiles:
             return
         n = snap.step // self.gts
         for s in self.series:
-            atomic_write(self.path(s, n), lambda tmp, s=s: self._h5(tmp, s, snap, n))
+            self._h5(self.path(s, n), s, snap, n)
         self._write_sidecar(n)
         self.times = {m: t for m, t in self.times.items() if m < n}   # a replaced time line
         self.times[n] = float(snap.time)
@@ -171,27 +172,30 @@ class SnapshotFiles:
     def _write_sidecar(self, n):
         """xdmf_<n>.h5: virtual (interlaced) views of snapshot n's vector components, which
         both XDMF readers read as one plain HDF item, and the Polyvertex connectivity."""
-        def write(tmp):
-            with h5py.File(tmp, "w", libver=SIDECAR_LIBVER) as f:
-                for s in self.series:
-                    if s.kind == "vector":
-                        interlaced(f, s.name, f"{s.prefix}_{n}.h5",
-                                   [name for name, _src, _c in s.datasets], self.shape[::-1])
-                    elif s.kind == "particles":
-                        m = 2 if self.n_particles == 1 else self.n_particles
-                        f.create_dataset("particle_vertex",
-                                         data=np.arange(self.n_particles, dtype=np.int32))
-                        src = f"{s.prefix}_{n}.h5"
-                        interlaced(f, "particle_position", src, ["RX", "RY", "RZ"], (m,))
-                        interlaced(f, "particle_velocity", src, ["VX", "VY", "VZ"], (m,))
-        atomic_write(self.sidecar_path(n), write)
+        def write(f):
+            for s in self.series:
+                if s.kind == "vector":
+                    interlaced(f, s.name, f"{s.prefix}_{n}.h5",
+                               [name for name, _src, _c in s.datasets], self.shape[::-1])
+                elif s.kind == "particles":
+                    m = 2 if self.n_particles == 1 else self.n_particles
+                    f.create_dataset("particle_vertex",
+                                     data=np.arange(self.n_particles, dtype=np.int32))
+                    src = f"{s.prefix}_{n}.h5"
+                    interlaced(f, "particle_position", src, ["RX", "RY", "RZ"], (m,))
+                    interlaced(f, "particle_velocity", src, ["VX", "VY", "VZ"], (m,))
+        write_h5(self.sidecar_path(n), write, libver=SIDECAR_LIBVER)
 
-    def _h5(self, tmp, s, snap, n):
+    def _h5(self, path, s, snap, n):
+        """One snapshot file, atomically (kapsel.io.h5file.write_h5: a full disk is an
+        OSError naming it)."""
         attrs = {"n": n, "time": float(snap.time), "dx": self.dx}
         if s.kind != "particles" and snap.h5_fields is not None:
-            snap.h5_fields(tmp, list(s.datasets), attrs)     # parallel HDF5: every rank
-            return                                           # writes its block
-        with h5py.File(tmp, "w") as f:
+            # parallel HDF5: every rank writes its block
+            atomic_write(path, lambda tmp: snap.h5_fields(tmp, list(s.datasets), attrs))
+            return
+
+        def fill(f):
             if s.kind == "particles":
                 p = snap.particles
                 cols = {"RX": p.R[:, 0], "RY": p.R[:, 1], "RZ": p.R[:, 2],
@@ -210,6 +214,7 @@ class SnapshotFiles:
                     f.create_dataset(name, data=np.ascontiguousarray(a.T, dtype=F64))
             for key, value in attrs.items():
                 f.attrs[key] = value
+        write_h5(path, fill)
 
     # ------------------------------------------------------------------ XDMF
     def xdmf(self, s) -> str:

@@ -19,6 +19,9 @@ import os
 import numpy as np
 
 from udf import UDFManager, atomic_write_text
+from udf.files import open_regular
+
+from .atomic import append_whole  # noqa: F401  (tests patch records.os.write)
 from udf.schema import Struct, leaf_count, leaf_slice
 
 # outParticle / sParticle member -> ParticleState attribute.  f_hydro1 and torque_hydro1
@@ -128,28 +131,6 @@ class OutputUDF:
         self.doc.records = []
 
 
-def append_whole(path: str, data: bytes) -> None:
-    """Append ``data`` to ``path`` entirely or not at all: when the write fails (a full
-    disk), the file is cut back to its previous end, so no torn record is left."""
-    fd = os.open(path, os.O_WRONLY | os.O_APPEND)
-    try:
-        end = os.fstat(fd).st_size
-        try:
-            view = memoryview(data)
-            while view:
-                n = os.write(fd, view)
-                view = view[n:]
-            os.fsync(fd)
-        except OSError as e:
-            os.ftruncate(fd, end)
-            raise OSError(e.errno, e.strerror, path) from None
-        except BaseException:
-            os.ftruncate(fd, end)
-            raise
-    finally:
-        os.close(fd)
-
-
 RUN_MARK = "kapsel-py run "
 
 
@@ -170,29 +151,50 @@ def run_id(path: str) -> str | None:
 
 
 class TableLog:
-    """A text table next to output.udf, one line per snapshot (``step t`` then ``columns``),
-    flushed at once; for quantities the define.udf records have no place for."""
+    """A text table next to output.udf, one line per snapshot (``step t`` then ``columns``);
+    for quantities the define.udf records have no place for.  Each row is appended whole
+    (kapsel.io.atomic.append_whole: one write, synced, cut back if it fails)."""
 
     def __init__(self, path: str, columns, append: bool = False, until_step=None):
         """``append`` (a continued run): keep the lines up to ``until_step``, drop later
-        ones (of an earlier run that went further)."""
+        ones (of an earlier run that went further) and a torn last line (a run killed
+        while writing it; said on stderr)."""
         self.path = path
         self.header = "# step t " + " ".join(columns) + "\n"
+        self.torn_tail = 0
         if not append or not os.path.exists(path):
-            with open(path, "w", encoding="utf-8") as fh:
-                fh.write(self.header)
-        elif until_step is not None:
-            with open(path, encoding="utf-8") as fh:
-                lines = fh.readlines()
-            keep = [ln for ln in lines
-                    if ln.startswith("#") or not ln.strip() or int(ln.split()[0]) <= until_step]
-            if len(keep) != len(lines):
-                atomic_write_text(path, "".join(keep))
+            atomic_write_text(path, self.header)
+            return
+        with open_regular(path) as fh:
+            data = fh.read()
+        body, torn = data, b""
+        if data and not data.endswith(b"\n"):
+            cut = data.rfind(b"\n") + 1
+            body, torn = data[:cut], data[cut:]
+        self.torn_tail = len(torn)
+        lines = body.decode("utf-8", "replace").splitlines(keepends=True)
+        keep = [ln for ln in lines if ln.startswith("#") or not ln.strip()
+                or _row_step(ln) is not None
+                and (until_step is None or _row_step(ln) <= until_step)]
+        if torn or len(keep) != len(lines):
+            atomic_write_text(path, "".join(keep) or self.header)
+        if torn:
+            import sys
+            print(f"#{path}: its last line was incomplete ({len(torn)} bytes, written when a "
+                  f"run stopped); it was dropped", file=sys.stderr)
 
     def write_row(self, step: int, time: float, values) -> None:
-        with open(self.path, "a", encoding="utf-8") as fh:
-            fh.write(f"{step} {time:.10g} " + " ".join(f"{float(v):.10g}" for v in values)
-                     + "\n")
+        row = (f"{step} {time:.10g} " + " ".join(f"{float(v):.10g}" for v in values) + "\n")
+        append_whole(self.path, row.encode("utf-8"))
+
+
+def _row_step(line: str):
+    """The step of a complete table row, or None for a line that is not one."""
+    parts = line.split()
+    try:
+        return int(parts[0]) if len(parts) >= 2 and line.endswith("\n") else None
+    except ValueError:
+        return None
 
 
 class ShearLog(TableLog):

@@ -46,6 +46,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from udf import UDFManager
+from udf.files import create_temporary, open_regular, put_in_place
 
 from .records import OUT_FIELDS, particle_table
 
@@ -98,6 +99,7 @@ class Saved:
     state_damaged: str | None = None          # why the state file could not be read
     checkpoint_of: int | None = None          # the step of restart.udf, when the state
     #                                           file held a later checkpoint (taken instead)
+    text_fingerprint: str | None = None       # of the restart.udf text itself
 
     def fingerprint(self) -> str:
         return fingerprint(self.step - 1, self.time, self.particles, self.fields)
@@ -130,12 +132,18 @@ def _sparticle_type(doc: UDFManager, kind: str):
 
 
 def _savez_tmp(path: str, arrays: dict) -> str:
-    """Write the arrays to a temporary file next to ``path``; returns its name (removed
-    again if the write fails)."""
-    tmp = f"{path}.tmp{os.getpid()}"
+    """Write the arrays as an .npz archive to a temporary file next to ``path``, synced;
+    returns its name (removed again if the write fails).  Unlike numpy.savez, the archive
+    entries carry a fixed date (1980-01-01), so the same state gives the same bytes."""
+    fd, tmp = create_temporary(path)
     try:
-        with open(tmp, "wb") as fh:
-            np.savez(fh, **arrays)
+        with os.fdopen(fd, "wb") as fh:
+            with zipfile.ZipFile(fh, "w", zipfile.ZIP_STORED, allowZip64=True) as zf:
+                for name, value in arrays.items():
+                    info = zipfile.ZipInfo(name + ".npy", date_time=(1980, 1, 1, 0, 0, 0))
+                    with zf.open(info, "w", force_zip64=True) as entry:
+                        np.lib.format.write_array(entry, np.asanyarray(value),
+                                                  allow_pickle=False)
             fh.flush()
             os.fsync(fh.fileno())
     except BaseException:
@@ -153,12 +161,19 @@ def _remove(path):
 
 def write_restart(path: str, define_path: str, input_doc: UDFManager, kind: str, step: int,
                   time: float, particles, fields: dict, exact: dict | None = None,
-                  table: np.ndarray | None = None) -> str:
+                  table: np.ndarray | None = None, previous: str | None = None) -> str:
     """Write ``path`` (restart.udf) and its state file for the state after ``step`` steps
     (jikan.ts = step - 1, §6.3).  ``fields``: Saved_Data items by name (``oblique`` etc. as
     plain values); ``exact``: arrays (or JSON-able values) the schema has no place for;
     ``table``: the sParticle table instead of ``particles``.  Returns the fingerprint of the
-    data written (``write_checkpoint``'s ``base``)."""
+    data written (``write_checkpoint``'s ``base``).
+
+    The pair is replaced in two renames, the state file first.  ``previous``: the
+    fingerprint of the restart.udf now at ``path`` (written by this run, or the one it
+    continues); the new state file is then also a complete checkpoint of that file, so a
+    kill between the renames continues from this state, not from the older text.  Without
+    it (the file at ``path`` belongs to no run of this time line) the old text is removed
+    before the renames."""
     doc = UDFManager(schema_from=define_path)
     for name, value in input_doc.common.items():
         if name in doc.schema.global_items:
@@ -187,26 +202,27 @@ def write_restart(path: str, define_path: str, input_doc: UDFManager, kind: str,
     for name, value in unplaced.items():
         state[FIELD_PREFIX + name] = np.asarray(value)
     _put_exact(state, exact)
-    # both files are written in full under temporary names before either replaces the
-    # previous pair: a failure (a full disk) leaves the last good restart and state file
+    if previous is not None:
+        _put_checkpoint(state, kind, step, time, table, fields, previous, True)
+    # both files are written in full (and synced) under temporary names before either
+    # replaces the previous pair: a failure (a full disk) leaves the last good pair
     spath = state_path(path)
     try:
         stmp = _savez_tmp(spath, state)
     except OSError as e:
         raise OSError(e.errno, e.strerror, spath) from None
-    utmp = f"{path}.tmp{os.getpid()}"
     try:
-        doc.write(utmp)
+        utmp = doc.write(path, place=False)
     except OSError as e:
         _remove(stmp)
-        _remove(utmp)
         raise OSError(e.errno, e.strerror, path) from None
     except BaseException:
         _remove(stmp)
-        _remove(utmp)
         raise
-    os.replace(stmp, spath)
-    os.replace(utmp, path)
+    if previous is None and os.path.lexists(path):
+        _remove(path)
+    put_in_place(stmp, spath)
+    put_in_place(utmp, path)
     return fp
 
 
@@ -240,32 +256,43 @@ def write_checkpoint(path: str, define_doc: UDFManager, kind: str, step: int, ti
     ``complete``: ``fields`` are all the Saved_Data fields (else only what the model needs
     to continue, e.g. the spectral velocity in ``exact`` without its Zeta packing)."""
     kind = schema_kind(define_doc, kind)
-    state = {"fingerprint": np.array(""), _CK + "base": np.array(base),
-             _CK + "kind": np.array(kind), _CK + "step": np.array(int(step)),
-             _CK + "time": np.array(float(time)), _CK + "complete": np.array(bool(complete))}
+    state = {"fingerprint": np.array("")}
+    table = None
     if particles is not None and particles.n:
-        state[_CK + "particles"] = particle_table(particles, _sparticle_type(define_doc, kind))
-    for name, value in fields.items():
-        if isinstance(value, np.ndarray):
-            state[_CK + "field:" + name] = value
-        else:
-            state[_CK + "value:" + name] = np.array(json.dumps(value))
+        table = particle_table(particles, _sparticle_type(define_doc, kind))
+    _put_checkpoint(state, kind, step, time, table, fields, base, complete)
     _put_exact(state, exact)
     spath = state_path(path)
     try:
         tmp = _savez_tmp(spath, state)
     except OSError as e:
         raise OSError(e.errno, e.strerror, spath) from None
-    os.replace(tmp, spath)
+    put_in_place(tmp, spath)
+
+
+def _put_checkpoint(state, kind, step, time, table, fields, base, complete) -> None:
+    """The checkpoint entries of a state file: the schema data in binary and the
+    fingerprint ``base`` of the restart.udf it continues."""
+    state.update({_CK + "base": np.array(base), _CK + "kind": np.array(kind),
+                  _CK + "step": np.array(int(step)), _CK + "time": np.array(float(time)),
+                  _CK + "complete": np.array(bool(complete))})
+    if table is not None:
+        state[_CK + "particles"] = np.asarray(table)
+    for name, value in fields.items():
+        if isinstance(value, np.ndarray):
+            state[_CK + "field:" + name] = value
+        else:
+            state[_CK + "value:" + name] = np.array(json.dumps(value))
 
 
 def _split_checkpoint(state: dict):
     """(kind, step, time, table, fields, exact) of a checkpoint state."""
     ck = {k[len(_CK):]: state[k] for k in state if k.startswith(_CK)}
     exact = {k: _decode(v) for k, v in state.items()
-             if not k.startswith(_CK) and k != "fingerprint"}
-    fields = {k[6:]: v for k, v in ck.items() if k.startswith("field:")}
-    fields.update({k[6:]: json.loads(str(v)) for k, v in ck.items() if k.startswith("value:")})
+             if not k.startswith(_CK) and not k.startswith(FIELD_PREFIX)
+             and k != "fingerprint"}
+    fields = {k[6:]: (v if k.startswith("field:") else json.loads(str(v)))
+              for k, v in ck.items() if k.startswith(("field:", "value:"))}   # in order
     ck.pop("complete", None)
     return (str(ck["kind"]), int(ck["step"]), float(ck["time"]), ck.get("particles"), fields,
             exact)
@@ -282,7 +309,7 @@ def complete_restart(path: str, define_path: str, input_doc: UDFManager) -> int 
         return None
     kind, step, time, table, fields, exact = _split_checkpoint(state)
     write_restart(path, define_path, input_doc, kind, step, time, None, fields, exact,
-                  table=table)
+                  table=table, previous=str(state[_CK + "base"]))
     return step
 
 
@@ -315,34 +342,36 @@ def read_restart(doc: UDFManager, input_path: str, kind: str) -> Saved:
     saved = Saved(kind, int(step) + 1, float(time), table, fields,       # ts + 1 steps done
                   particle_struct=_sparticle_type(doc, kind))
     path = state_path(input_path)
-    if os.path.exists(path):
+    mine = saved.text_fingerprint = saved.fingerprint()
+    if os.path.lexists(path):
         try:
             state = _read_state(path)
         except (OSError, ValueError, EOFError, KeyError, zipfile.BadZipFile) as e:
             saved.state_damaged = (e.strerror if isinstance(e, OSError) and e.strerror
                                    else str(e) or type(e).__name__)
             return saved
-        mine = saved.fingerprint()
         if str(state.pop("fingerprint", "")) == mine:
             for k in [k for k in state if k.startswith(FIELD_PREFIX)]:
                 saved.fields.setdefault(k[len(FIELD_PREFIX):], state.pop(k))
-            saved.exact = {k: _decode(v) for k, v in state.items()}
+            saved.exact = {k: _decode(v) for k, v in state.items() if not k.startswith(_CK)}
         elif str(state.get(_CK + "base", "")) == mine:
             ck_kind, step, time, table, fields, exact = _split_checkpoint(state)
             if same_kind(ck_kind, kind) and step >= saved.step:
                 saved = Saved(kind, step, time, table, fields, exact,
                               particle_struct=saved.particle_struct,
-                              checkpoint_of=saved.step)
+                              checkpoint_of=saved.step, text_fingerprint=mine)
     return saved
 
 
 def _read_state(path):
     """The arrays of a state file; raises for a file that is not one (damaged, empty,
     truncated, a directory)."""
-    with np.load(path, allow_pickle=False) as z:
+    with open_regular(path) as fh:
+        z = np.load(fh, allow_pickle=False)
         if not hasattr(z, "files"):
             raise ValueError("not an .npz archive")
-        return {k: z[k] for k in z.files}
+        with z:
+            return {k: z[k] for k in z.files}
 
 
 
