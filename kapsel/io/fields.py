@@ -268,11 +268,24 @@ class SnapshotFiles:
 def interlaced(f, name, source, components, shape, dtype=F64):
     """Virtual dataset ``name`` of shape ``shape + (3,)`` in h5py file ``f`` whose [..., c] is
     dataset ``components[c]`` (of ``shape`` and ``dtype``) of file ``source``.  The source is
-    named without a directory: HDF5 looks for it next to the file holding the view."""
-    layout = h5py.VirtualLayout(shape=tuple(shape) + (len(components),), dtype=dtype)
+    named without a directory: HDF5 looks for it next to the file holding the view.  Made
+    with the low-level API to leave out the object's times (h5py's create_virtual_dataset
+    records them), so the same views give the same bytes (a continued run's files equal an
+    uninterrupted run's)."""
+    shape = tuple(int(n) for n in shape)
+    full = shape + (len(components),)
+    dcpl = h5py.h5p.create(h5py.h5p.DATASET_CREATE)
+    dcpl.set_obj_track_times(False)
+    space = h5py.h5s.create_simple(full)
+    src = h5py.h5s.create_simple(shape)
     for c, comp in enumerate(components):
-        layout[..., c] = h5py.VirtualSource(source, comp, shape=tuple(shape), dtype=dtype)
-    f.create_virtual_dataset(name, layout)
+        view = space.copy()
+        view.select_hyperslab((0,) * len(shape) + (c,), shape + (1,))
+        dcpl.set_virtual(view, source.encode(), comp.encode(), src)
+    lcpl = h5py.h5p.create(h5py.h5p.LINK_CREATE)
+    lcpl.set_create_intermediate_group(True)
+    h5py.h5d.create(f.id, name.encode(), h5py.h5t.py_create(np.dtype(dtype)), space,
+                    dcpl=dcpl, lcpl=lcpl).close()
 
 
 # -- reading back ---------------------------------------------------------------------------
