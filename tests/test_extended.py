@@ -356,3 +356,26 @@ def test_a_new_run_does_not_replace_a_trajectory(tmp_path, capsys):
     assert cli(tmp_path, "input.udf") == 2
     assert "traj.h5 exists; pass --overwrite" in capsys.readouterr().err
     assert cli(tmp_path, "input.udf", "--overwrite") == 0
+
+
+def test_the_banner_lists_only_the_files_written(tmp_path, capsys):
+    """Every Print_field NO: no _fluid.xdmf is written, and the banner does not name one;
+    every view it names exists."""
+    import re
+    from kapsel.cli import main
+    from udf import UDFManager
+    inp = extended_input(tmp_path, NS, pressure=False)
+    u = UDFManager(inp)
+    for flag in ("Vel", "Phi", "Tau", "Charge"):
+        u.put("NO", f"output.ON.EXTENDED.Print_field.{flag}")
+    u.write(inp)
+    os.chdir(tmp_path)
+    assert main([f"-I{inp}", "-Ooutput.udf", "-Ddefine.udf", "-Rrestart.udf", "--seed", "1"]) == 0
+    cap = capsys.readouterr()
+    line = next(x for x in (cap.out + cap.err).splitlines() if "traj.h5 (EXTENDED" in x)
+    assert "traj_fluid.xdmf" not in line
+    assert not (tmp_path / "out" / "traj_fluid.xdmf").exists()
+    named = re.findall(r"traj[\w.]*\.(?:xdmf|conf|h5)", line)
+    assert "traj_particle.xdmf" in named
+    for f in named:
+        assert (tmp_path / "out" / f).exists(), f

@@ -2,6 +2,7 @@
 in one run, for every implemented type (with thermal noise where the type has particles);
 the continued run appends to output.udf and the field series; a restart without its state
 file continues from the schema data."""
+import json
 import os
 import shutil
 
@@ -53,6 +54,12 @@ def saved_data(path):
         for k in z.files:
             if z[k].dtype.kind != "U":
                 out["state:" + k] = z[k]
+            elif k.startswith("checkpoint:value:"):        # schema values kept as JSON
+                v = json.loads(str(z[k]))
+                try:
+                    out["state:" + k] = np.asarray(v, dtype=float)
+                except (TypeError, ValueError):
+                    out["state:" + k] = str(z[k])
             elif k not in ("fingerprint", "run_id", "checkpoint:base"):   # identities
                 # (checkpoint:base: the restart.udf a full state file also continues)
                 out["state:" + k] = str(z[k])

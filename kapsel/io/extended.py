@@ -137,10 +137,13 @@ class ExtendedHDF5:
 
     def files(self, resumed: bool) -> list[tuple[str, str]]:
         n = self.name
+        views = ([f"{n}_fluid.xdmf"] if self.fields else []) + (
+            [f"{n}_particle.xdmf"] if self.nump else []) + (
+            [f"{n}_obstacle.xdmf"] if self.nobs else []) + (
+            [f"{n}_xdmf.h5"] if self._described() else [])
         return [(self.directory, f"{n}.h5 (EXTENDED, frames"
-                 + (" appended)" if resumed else ")") + f" + {n}.conf + {n}_fluid.xdmf + "
-                 f"{n}_particle.xdmf" + (f" + {n}_obstacle.xdmf" if self.nobs else "")
-                 + (f" + {n}_xdmf.h5" if self._described() else ""))]
+                 + (" appended)" if resumed else ")") + f" + {n}.conf"
+                 + "".join(" + " + v for v in views))]
 
     # ------------------------------------------------------------------ protocol
     def open(self, snap, resumed: bool) -> None:
