@@ -162,7 +162,9 @@ def make_forces(cfg: RunConfig, particles: ParticleState, strain=None, wall=None
     added per bead."""
     inter = cfg.interactions
     pairs = inter.LJ_truncate != "NONE" and particles.n > 1 and inter.EPSILON > 0
-    gravity = inter.G != 0 and particles.n > 0
+    # (rigid bodies carry their net gravity themselves: kapsel.particles.rigid)
+    gravity = (inter.G != 0 and particles.n > 0
+               and getattr(particles.constraints, "gravity", None) is None)
     chain = cfg.particles.object_type == "chain" and particles.n > 1
     sw = getattr(cfg, "switches", None)
     quincke, dipoles = getattr(sw, "quincke", None), getattr(sw, "dipoles", None)
