@@ -144,7 +144,7 @@ def test_wall_torque_adds_to_the_pair_torque_of_a_rigid_body():
     # body centre low enough that both beads feel the lower wall; a free third sphere
     # presses on the +x bead from above
     zc = wall.lo + 0.95 * A
-    b = RigidBodies(np.array([0, 0]), shape, beads.mass[:2], beads.inertia[:2], [0],
+    b = RigidBodies.nominal(np.array([0, 0]), shape, beads.mass[:2], beads.inertia[:2], [0],
                     np.array([[16.0, 16.0, zc]]), quat.identity(1), [[True] * 3],
                     [[True] * 3], [[0, 0, 0]], [[0, 0, 0]], [L] * 3)
     p2 = ParticleState.spheres([0, 0], [A] * 2, [1.0] * 2, 1.0)
