@@ -420,7 +420,11 @@ class SPM:
         (sp_3d_ns.cxx main: uk_dc = 0 after the imposition; kapsel-py does the same for the
         FDM types, whose original starts from the Fourier coefficients of this field)."""
         u = self.fluid.velocity(out=self.u) if self.mode == "spectral" else self.u
-        du = self._rigidity(u)
+        self._start = True
+        try:
+            du = self._rigidity(u)
+        finally:
+            self._start = False
         self._add_solenoidal(du)
         if self.p.n and self.wall is None:
             clear_points(du, self.idx)
@@ -430,10 +434,15 @@ class SPM:
             for c in range(3):
                 self.u[c] -= self.fluid.mean(self.u[c])
 
+    _start = False
+
     def _relative_velocity(self):
         """(V relative to the imposed flow at the centres, gamma_dot) for an oblique fluid,
-        else (V, 0)."""
-        if not self.oblique:
+        else (V, 0).  The initial imposition of the sheared types takes V as it is, a
+        deviation from the imposed flow (the original imposes the particle velocities on
+        its deviation field with its unsheared routines, sp_3d_ns.cxx main): particles
+        given at rest start with the shear flow in them."""
+        if not self.oblique or self._start:
             return self.p.v, 0.0
         return self.p.v - self.fluid.background(self.p.R), self.fluid.shear_rate_now
 
