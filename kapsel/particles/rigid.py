@@ -198,7 +198,6 @@ class RigidBodies:
         s.omega[:] = omega
         s.omega_old[:] = s.omega
         self.state = s
-        self.steps = 0                    # updates made (the first one is Euler)
         self.lees_edwards = None          # the oblique fluid under Lees-Edwards images
         self.image = np.zeros(len(self.body))
 
@@ -305,14 +304,11 @@ class RigidBodies:
         self.set_bead_velocities(p, r)
 
     # ------------------------------------------------------------------ SPM motion
-    def _first(self, first):
-        return self.steps == 0 if first is None else bool(first)
-
-    def update_positions(self, p, dt, box, rotation, first=None, wrap_box=True):
+    def update_positions(self, p, dt, box, rotation, first=False, wrap_box=True):
         """R_g, q_g by Euler (first step) or Adams-Bashforth; beads placed rigidly (module
         docstring).  ``rotation`` is not read (the original turns rigid bodies always)."""
         s = self.state
-        if self._first(first):
+        if first:
             dR = dt * s.v
             q = quat.euler_step(s.q, s.omega, dt)
         else:
@@ -333,7 +329,7 @@ class RigidBodies:
         return p
 
     def update_velocities(self, p, F_H, T_H, F_other, T_other, dt, rotation, dP_noise=None,
-                          dL_noise=None, first=None, **_):
+                          dL_noise=None, first=False):
         """Body V, Omega from the summed bead forces (module docstring); bead v, omega.
         The beads keep their own F_H, N_H and other forces (the records' Particles[])."""
         n = p.n
@@ -359,7 +355,7 @@ class RigidBodies:
         wb = np.einsum("gji,gj->gi", Rm, s.omega)
         cyc = ([1, 2, 0], [2, 0, 1])              # (j, k) of every i: (I_j - I_k) w_j w_k
         euler = (Ib[:, cyc[0]] - Ib[:, cyc[1]]) * wb[:, cyc[0]] * wb[:, cyc[1]]
-        if self._first(first):
+        if first:
             dv = (dt * im) * (s.f_hydro + s.f_r)
             tb = np.einsum("gji,gj->gi", Rm, s.torque_hydro + s.torque_r)
             dw = (dt / Ib) * (tb + euler)
@@ -380,7 +376,6 @@ class RigidBodies:
             s.omega += np.where(self.free_o,
                                 np.linalg.solve(self.inertia_space(), L[:, :, None])[:, :, 0],
                                 0.0)
-        self.steps += 1
         self.set_bead_velocities(p, r)
         return p
 
@@ -444,7 +439,6 @@ class RigidBodies:
         sub.state = ParticleState(n=sub.nb, species=s.species[bodies],
                                   radius=s.radius[bodies], mass=s.mass[bodies],
                                   inertia=s.inertia[bodies])
-        sub.steps = self.steps
         sub.lees_edwards = self.lees_edwards
         sub.image = np.zeros(len(beads))
         sub.take_records(np.arange(len(beads)), records)
@@ -459,23 +453,16 @@ class RigidBodies:
     def exact_items(self) -> dict:
         """The body state by name ('rigid_<field>'), for a bit-identical continuation."""
         s = self.state
-        out = {f"rigid_{k}": getattr(s, k).copy() for k in VECTOR_FIELDS + ("q", "q_old")}
-        out["rigid_steps"] = np.array(self.steps)
-        return out
+        return {f"rigid_{k}": getattr(s, k).copy() for k in VECTOR_FIELDS + ("q", "q_old")}
 
     def restore(self, p, exact=None):
         """Body state after the beads ``p`` were read back from a restart: from
         ``exact_items`` when given, else from the beads (q and Omega of each body's first
-        bead, V the mass-weighted mean bead velocity, R_g the centre of the beads); a
-        continued run is past its first step."""
+        bead, V = v_k - Omega x r_k averaged over the beads, R_g the centre of the beads)."""
         s = self.state
-        self.steps = max(self.steps, 1)
         if exact and all(k in exact for k in self.exact_items()):
-            for k in self.exact_items():
-                if k == "rigid_steps":
-                    self.steps = int(exact[k])
-                else:
-                    getattr(s, k[len("rigid_"):])[...] = exact[k]
+            for k, v in self.exact_items().items():
+                getattr(s, k[len("rigid_"):])[...] = exact[k]
             return
         first = self.first_beads()
         b, nb = self.body, self.nb
