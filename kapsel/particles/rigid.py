@@ -461,7 +461,7 @@ class RigidBodies:
         bead, V = v_k - Omega x r_k averaged over the beads, R_g the centre of the beads)."""
         s = self.state
         if exact and all(k in exact for k in self.exact_items()):
-            for k, v in self.exact_items().items():
+            for k in self.exact_items():
                 getattr(s, k[len("rigid_"):])[...] = exact[k]
             return
         first = self.first_beads()
