@@ -229,8 +229,12 @@ class MACSolver:
         d = self._div(n, out=self._s)
         d *= self.rho
         rhs -= d
-        self.pressure[...] = self._poisson.solve(self._poisson.inv_lap)
+        self.pressure[...] = self._poisson.solve(self._lap_inverse())
         return self.pressure
+
+    def _lap_inverse(self):
+        """The symbol -1/|k|^2 of the step's pressure solve (the oblique frame's: metric)."""
+        return self._poisson.inv_lap
 
     def _grad_p(self, phi):
         """The pressure-gradient term G phi (B grid) into an internal buffer (the oblique

@@ -453,13 +453,16 @@ class _AfterReset:
     """A view of a ParticleState with the forces as the original holds them after a step:
     the current ones 0, the step's in *_previous."""
 
-    def __init__(self, p):
+    def __init__(self, p, names):
         self._p = p
         self.n = p.n
+        self._names = names
 
     def __getattr__(self, name):
         p = self._p
         for attr, (cur, prev) in RESET_PAIRS.items():
+            if prev not in self._names:     # an older define.udf: no *_previous member
+                continue
             if name == attr or name == OUT_FIELDS.get(cur):
                 return np.zeros_like(getattr(p, attr))
             if name == attr + "_previous" or name == OUT_FIELDS.get(prev):
@@ -469,7 +472,7 @@ class _AfterReset:
 
 def restart_table(state, struct) -> np.ndarray:
     """The sParticle table of a restart (the original's convention, ``RESET_PAIRS``)."""
-    return _record_table(_AfterReset(state), struct)
+    return _record_table(_AfterReset(state, {m.name for m in struct.members}), struct)
 
 
 particle_table = restart_table
@@ -490,7 +493,7 @@ def particles_from_table(state, table: np.ndarray, struct) -> None:
         return table[:, off:off + cnt]
     # a restart of kapsel-py before 2026-12 kept the step's forces in the current members
     # (fr etc.); the original's and kapsel-py's since then hold 0 there
-    current = [cur for cur, _ in RESET_PAIRS.values() if cur in names]
+    current = [cur for cur, prev in RESET_PAIRS.values() if cur in names and prev in names]
     after_reset = not any(np.any(column(c) != 0.0) for c in current)
     for attr, (cur, prev) in RESET_PAIRS.items():
         if after_reset and prev in names:

@@ -101,6 +101,9 @@ def make_particles(cfg: RunConfig, rng: np.random.Generator) -> ParticleState:
     user_q = user[:n, 6:10] if okind == "user_specify" else None
     p.q[:] = placement.orientations(okind, n, rng, user_q)
     p.q_old[:] = p.q
+    if cfg.type in SHEAR_TYPES:     # as the original (init_particle.cxx Show_parameter)
+        p.v[:, 0] = 0.0             # the sheared types start with V_x = 0, Omega_z = 0
+        p.omega[:, 2] = 0.0
     pin, pin_rot = tuple(cfg.switches.pin), tuple(cfg.switches.pin_rot)
     specs = [s.janus for s in cfg.particles.species]
     if obj == "spherical_particle" and any(j is not None and j.propulsion != "OFF"
@@ -586,6 +589,10 @@ class Model:
         fields = self.checkpoint_fields() if checkpoint else self.restart_fields()
         if self.particles is not None and self.particles.n:
             exact["R_raw"] = self.particles.R_raw.copy()
+            # the other forces of the last step (the next velocity update's trapezoid): an
+            # older define.udf's sParticle has no torque_r / fr_previous for them
+            exact["f_r"] = self.particles.f_r.copy()
+            exact["torque_r"] = self.particles.torque_r.copy()
             bodies = self.particles.constraints
             if hasattr(bodies, "restart_items"):          # rigid bodies: GR_* and body state
                 fields = {**fields, **bodies.restart_items()}
@@ -643,6 +650,9 @@ class Model:
                 p.R_raw[:] = exact["R_raw"]
             elif st is None or st.index("R_raw") is None:     # an sParticle without R_raw
                 p.R_raw[:] = p.R
+            for name in ("f_r", "torque_r"):
+                if exact and name in exact and exact[name].shape == getattr(p, name).shape:
+                    getattr(p, name)[:] = exact[name]
             if not exact:       # as the original restores (FORMAT-OUTPUT.md §6.4)
                 p.q /= np.linalg.norm(p.q, axis=1, keepdims=True)
             if hasattr(p.constraints, "restore"):            # rigid bodies from their beads

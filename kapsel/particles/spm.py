@@ -112,9 +112,13 @@ class SPM:
         self.wall = wall
         self._sole = None       # MAC: the spectral projection of the whole u (step 6)
         if self.mode == "mac" and not dry:
-            from ..fluid.spectral import SpectralProjector
-            self._sole = SpectralProjector(self.dist if self.dist is not None
-                                           else _mac_grid(self.shape, self.dx))
+            grid = self.dist if self.dist is not None else _mac_grid(self.shape, self.dx)
+            if getattr(fluid, "oblique", False):
+                from ..fluid.oblique import MetricProjector
+                self._sole = MetricProjector(grid, fluid)
+            else:
+                from ..fluid.spectral import SpectralProjector
+                self._sole = SpectralProjector(grid)
         # kept 0 between steps: a step scatters du onto its stencil points and clears them
         # (with walls du is dense: cleared whole at the start of the next step instead)
         self._du = None
