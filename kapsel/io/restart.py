@@ -8,6 +8,10 @@ input: ``kapsel-py -Irestart.udf ...`` continues the run.
     CONTINUE_FDM                    jikan, Particles[] (sParticle), U, U_OLD
     CONTINUE_FDM_PHASE_SEPARATION   ... plus PSI, PSI_OLD, STRESS_OLD
 
+With rigid bodies Particles[] holds one row per body (its centre, velocities, quaternion,
+summed forces) and GR_body[], GR_masses[], GR_moments_body[] their geometry, as the
+original writes them (``saved_rows``; kapsel.particles.rigid ``restart_rows``).
+
 Floats are written in full (shortest round-trip) precision.  What the schema has no place
 for -- the unwrapped positions R_raw, the state of the thermal-noise generator, solver
 history, stress accumulators -- goes to a companion file ``<restart>.state.npz`` (written
@@ -168,7 +172,7 @@ def write_restart(path: str, define_path: str, input_doc: UDFManager, kind: str,
     base = f"resume.{kind}.Saved_Data"
     doc.put([int(step) - 1, float(time)], f"{base}.jikan")   # ts = steps done - 1 (§6.3)
     if table is None and particles is not None and particles.n:
-        table = restart_table(particles, _sparticle_type(doc, kind))
+        table = restart_table(saved_rows(particles), _sparticle_type(doc, kind))
     if table is not None:
         doc.put(table, f"{base}.Particles[]")
     arrays, unplaced = {}, {}
@@ -244,7 +248,8 @@ def write_checkpoint(path: str, define_doc: UDFManager, kind: str, step: int, ti
              _CK + "kind": np.array(kind), _CK + "step": np.array(int(step)),
              _CK + "time": np.array(float(time)), _CK + "complete": np.array(bool(complete))}
     if particles is not None and particles.n:
-        state[_CK + "particles"] = restart_table(particles, _sparticle_type(define_doc, kind))
+        state[_CK + "particles"] = restart_table(saved_rows(particles),
+                                                 _sparticle_type(define_doc, kind))
     for name, value in fields.items():
         if isinstance(value, np.ndarray):
             state[_CK + "field:" + name] = value
@@ -468,6 +473,13 @@ class _AfterReset:
             if name == attr + "_previous" or name == OUT_FIELDS.get(prev):
                 return getattr(p, attr)
         return getattr(p, name)
+
+
+def saved_rows(particles):
+    """What Saved_Data.Particles[] holds a row of: every particle, or with rigid bodies
+    every body (their ``restart_rows``, as the original's resume.cxx writes them)."""
+    rows = getattr(getattr(particles, "constraints", None), "restart_rows", None)
+    return particles if rows is None else rows()
 
 
 def restart_table(state, struct) -> np.ndarray:

@@ -640,23 +640,35 @@ class Model:
             if saved.particles is None:
                 raise ConfigError(f"the restart holds no particles, the input describes {p.n}",
                                   path=f"resume.{saved.kind}.Saved_Data.Particles[]", value=0)
-            try:
-                particles_from_table(p, saved.particles, saved.particle_struct)
-            except ValueError as e:
-                raise ConfigError(str(e), path=f"resume.{saved.kind}.Saved_Data.Particles[]",
-                                  value=saved.particles.shape[0]) from None
             st = saved.particle_struct
+            rows = saved.particles.shape[0]
+            bodies = p.constraints if hasattr(p.constraints, "restore_rows") else None
+            where = f"resume.{saved.kind}.Saved_Data.Particles[]"
+            if bodies is not None and rows not in (bodies.nb, p.n):
+                raise ConfigError(f"the restart holds {rows} rows, the input describes "
+                                  f"{bodies.nb} rigid bodies ({p.n} beads): one row per "
+                                  f"body expected", path=where, value=rows)
+            per_body = bodies is not None and rows == bodies.nb    # the original's layout
+            try:
+                if per_body:
+                    particles_from_table(bodies.state, saved.particles, st)
+                    bodies.restore_rows(p, saved.fields, exact,
+                                        raw=st is not None and st.index("R_raw") is not None)
+                else:
+                    particles_from_table(p, saved.particles, st)
+            except ValueError as e:
+                raise ConfigError(str(e), path=where, value=rows) from None
             if exact and "R_raw" in exact:
                 p.R_raw[:] = exact["R_raw"]
-            elif st is None or st.index("R_raw") is None:     # an sParticle without R_raw
-                p.R_raw[:] = p.R
+            elif not per_body and (st is None or st.index("R_raw") is None):
+                p.R_raw[:] = p.R                               # an sParticle without R_raw
             for name in ("f_r", "torque_r"):
                 if exact and name in exact and exact[name].shape == getattr(p, name).shape:
                     getattr(p, name)[:] = exact[name]
-            if not exact:       # as the original restores (FORMAT-OUTPUT.md §6.4)
+            if not exact and not per_body:   # as the original restores (FORMAT-OUTPUT §6.4)
                 p.q /= np.linalg.norm(p.q, axis=1, keepdims=True)
-            if hasattr(p.constraints, "restore"):            # rigid bodies from their beads
-                p.constraints.restore(p, exact)
+            if bodies is not None and not per_body:    # kapsel-py's earlier bead rows
+                bodies.restore(p, exact)
         gen = _noise_generator(self)
         if gen is not None and exact and "noise" in exact:
             gen.set_state(exact["noise"])

@@ -200,6 +200,7 @@ class RigidBodies:
         self.state = s
         self.lees_edwards = None          # the oblique fluid under Lees-Edwards images
         self.image = np.zeros(len(self.body))
+        self.gravity_of = None            # masses -> net gravity (build_bodies), for a restart
 
     @classmethod
     def assemble(cls, X, body, species, masses, centres, inertia, q, v, omega_body, free_v,
@@ -440,24 +441,86 @@ class RigidBodies:
                                   radius=s.radius[bodies], mass=s.mass[bodies],
                                   inertia=s.inertia[bodies])
         sub.lees_edwards = self.lees_edwards
+        sub.gravity_of = None
         sub.image = np.zeros(len(beads))
         sub.take_records(np.arange(len(beads)), records)
         return sub
 
     # ------------------------------------------------------------------ restart
+    # The restart's Saved_Data.Particles[] holds one row per body, as the original writes it
+    # (resume.cxx Save_Restart_udf: Get_Rigid_Particle_Data, then Save_Rigid_Particle_udf):
+    # the body's centre R (R_raw unwrapped), V, V_old, Omega, Omega_old (space frame), q,
+    # q_old and the summed forces and torques in the after-step convention (current 0, the
+    # step's in *_previous: rigid.h calc_Rigid_VOGs resets them), then GR_body[] per bead,
+    # GR_masses[] and GR_moments_body[] per body.
+    def restart_rows(self) -> ParticleState:
+        """The rows of the restart's Particles[]: the body state (one row per body)."""
+        return self.state
+
     def restart_items(self) -> dict:
         """The restart schema's GR_body[] (N, 3), GR_masses[] (B,), GR_moments_body[] (B, 9)."""
         return {"GR_body": self.body_positions.copy(), "GR_masses": self.masses.copy(),
                 "GR_moments_body": self.moments_body.reshape(-1, 9).copy()}
 
     def exact_items(self) -> dict:
-        """The body state by name ('rigid_<field>'), for a bit-identical continuation."""
+        """The body state by name ('rigid_<field>'), for a bit-identical continuation (the
+        state file: what an sParticle without R_raw or *_previous members cannot hold)."""
         s = self.state
         return {f"rigid_{k}": getattr(s, k).copy() for k in VECTOR_FIELDS + ("q", "q_old")}
 
+    def restore_rows(self, p, fields=None, exact=None, raw=True):
+        """Continue from a restart in the original's layout, ``state`` already read from its
+        rows (one per body): the geometry GR_body[], GR_masses[], GR_moments_body[] of
+        ``fields`` (resume.cxx Read_Rigid_Particle_udf; the net gravity follows the masses),
+        the state file's body state over the rows when ``exact`` has it, else the
+        quaternions normalised and, without an R_raw column (``raw`` False), R_raw = R, as
+        the original reads them; then the beads ``p`` placed from the bodies
+        (Set_Rigid_Particle_Data): x_k = R_g + R(q) r_k^B, q, v_k = V + Omega x r_k,
+        omega_k = Omega, v_old and omega_old equal to them.
+
+        The original's Set_Rigid_Particle_Data also sets the beads' omega_old to Omega and
+        its first Adams-Bashforth quaternion step after the restore reads the first bead's
+        omega_old, not the body's Omega_old (rigid.h solver_Rigid_Position): its continued
+        run of a body whose Omega changes leaves its uninterrupted one.  kapsel-py turns
+        the body with Omega_old of the row, as an uninterrupted run does."""
+        fields = fields or {}
+        nb, n = self.nb, len(self.body)
+        for name, shape in (("GR_body", (n, 3)), ("GR_masses", (nb,)),
+                            ("GR_moments_body", (nb, 9))):
+            if name in fields and np.shape(fields[name]) != shape:
+                raise ValueError(f"{name}[] has shape {np.shape(fields[name])}, the input's "
+                                 f"{nb} rigid bodies of {n} beads need {shape}")
+        s = self.state
+        if "GR_body" in fields:
+            self.body_positions = np.array(fields["GR_body"], dtype=float)
+        if "GR_masses" in fields:
+            self.masses = np.array(fields["GR_masses"], dtype=float)
+            s.mass[:] = self.masses
+            if self.gravity_of is not None:
+                self.gravity = self.gravity_of(self.masses)
+        if "GR_moments_body" in fields:
+            self.moments_body = np.array(fields["GR_moments_body"],
+                                         dtype=float).reshape(nb, 3, 3)
+            s.inertia[:] = np.trace(self.moments_body, axis1=1, axis2=2) / 3.0
+        if exact and all(k in exact for k in self.exact_items()):
+            for k in self.exact_items():
+                getattr(s, k[len("rigid_"):])[...] = exact[k]
+        else:
+            s.q[:] = quat.normalise(s.q)
+            s.q_old[:] = quat.normalise(s.q_old)
+            if not raw:
+                s.R_raw[:] = s.R
+        self.place_beads(p)
+        p.v_old[:] = p.v
+        p.omega_old[:] = p.omega
+        for name in ("f_hydro", "torque_hydro", "f_r", "torque_r"):
+            getattr(p, name)[:] = 0.0
+            getattr(p, name + "_previous")[:] = 0.0
+
     def restore(self, p, exact=None):
-        """Body state after the beads ``p`` were read back from a restart: from
-        ``exact_items`` when given, else from the beads (q and Omega of each body's first
+        """Body state after the beads ``p`` were read back from a restart of kapsel-py before
+        2026-12 (one Particles[] row per bead): from ``exact_items`` when given, else from
+        the beads (q and Omega of each body's first
         bead, V = v_k - Omega x r_k averaged over the beads, R_g the centre of the beads)."""
         s = self.state
         if exact and all(k in exact for k in self.exact_items()):
@@ -599,6 +662,7 @@ def build_bodies(cfg, p, rng) -> RigidBodies:
     bodies = RigidBodies.assemble(X, body, body_species, M, R, I, q, v0[body_species],
                                   w0[body_species], box=box,
                                   gravity=_gravity(cfg, M, rho_p), **per_body)
+    bodies.gravity_of = lambda masses: _gravity(cfg, masses, rho_p)
     p.R_raw[:] = X
     p.R[:] = _wrap(X.copy(), box)
     p.q[:] = bodies.state.q[body]
