@@ -1,5 +1,5 @@
-"""Shared by the tests: the manual's sample as a starting input, and the command's main()
-run in a directory."""
+"""Shared by the tests: the manual's sample as a starting input, the command's main()
+run in a directory, and scenes built as the comparisons with the original build them."""
 import os
 import shutil
 
@@ -45,3 +45,42 @@ def run_cli(d, inp, *extra, seed):
                      str(seed), "--quiet", *extra])
     finally:
         os.chdir(cwd)
+
+
+def scene(d, base, puts, name="input.udf"):
+    """An input made as the comparisons with the original were (the kref tools' mkscene.py):
+    the input ``base`` with the (path, value) ``puts`` put in order, written to ``d``/name
+    next to the base's define.udf (and kapsel_unit.udf); returns its path."""
+    os.makedirs(d, exist_ok=True)
+    for f in ("define.udf", "kapsel_unit.udf"):
+        src = os.path.join(os.path.dirname(base), f)
+        if os.path.exists(src):
+            shutil.copy(src, os.path.join(d, f))
+    u = UDFManager(base)
+    for path, value in puts:
+        u.put(value, path)
+    path = os.path.join(d, name)
+    u.write(path)
+    return path
+
+
+def run_model(path, steps):
+    """The model of the input ``path`` as the command line builds it (seed 1), after
+    ``steps`` steps."""
+    from kapsel import simulation
+    from kapsel.cli import build_parser, prepare
+    cwd = os.getcwd()
+    os.chdir(os.path.dirname(os.path.abspath(path)))
+    try:
+        args = build_parser().parse_args([f"-I{os.path.basename(path)}", "-Oout.udf",
+                                          "-Ddefine.udf", "-Rrestart.udf", "--quiet",
+                                          "--seed", "1"])
+        args.dist = None
+        prepared = prepare(args, None)
+        assert not isinstance(prepared, int), "the input was refused"
+        model = prepared[2]
+        for _ in range(steps):
+            simulation.advance(model)
+    finally:
+        os.chdir(cwd)
+    return model

@@ -1,15 +1,16 @@
 """Self-propelled particles (kapsel.particles.janus): squirmers, tumblers, obstacles.
 
-Measured (spectral, L = 32, A = 4, XI = 2, B1 = 0.01, FIX_CELL on, SLIP_tol 1e-3, 4 iter.):
-a neutral squirmer swims at U / B1 = 0.5924 with dt = 1/pi^2 (t = 105) and 0.6514 with
-dt = 0.5/pi^2 (t = 100): like the SPM drag (tests/test_spm_validation.py) the imposed
-slip is the more effective the smaller nu dt / XI^2.  Finite-box correction: U_L =
-(2/3) B1 (1 - c), c = 4/3 pi A^3 / L^3 (first order in c: the periodic images of the
-source dipole D = B1 a^3 / 3 add c B1 / 3 at the swimmer, the zero-mean-flow of FIX_CELL
-removes c (U + B1 / 3)); c = 0.0082 at L = 32.  Checked by the box size (dt = 0.5/pi^2,
-t = 100, test_neutral_squirmer_box_size_extrapolation): U / B1 = 0.65143 (L = 32), 0.65414
-(L = 64); extrapolated in 1/L^3 to 0.65453 = 0.982 (2/3); with (1 - c): 0.985 (L = 32),
-0.982 (L = 64).  (The sub-grid position of the centre moves U by ~0.5%.)
+Measured (spectral, L = 32, A = 4, XI = 2, B1 = 0.01, FIX_CELL on, SLIP_tol 1e-3, 4 iter.;
+the slip flow 2/3-rule truncated as the original's Solenoidal_u, 2026-12-01): a neutral
+squirmer swims at U / (2/3 B1 (1 - c)) = 0.945 with dt = 1/pi^2 (t = 100) and 1.090 with
+dt = 0.5/pi^2 (t = 100; L = 64: 1.076, extrapolated in 1/L^3: 1.074 of 2/3 B1),
+c = 4/3 pi A^3 / L^3 = 0.0082 the first-order finite-box
+correction (the periodic images of the source dipole D = B1 a^3 / 3 add c B1 / 3 at the
+swimmer, the zero-mean-flow of FIX_CELL removes c (U + B1 / 3)).  Like the SPM drag
+(tests/test_spm_validation.py) the swimming speed depends on nu dt / XI^2; the untruncated
+slip flow kapsel-py imposed before swam 12 % slower than the original on the same document
+(0.89 and 0.985 of 2/3 B1 (1 - c) here; 6.09e-3 against the original's 6.93e-3 in issue 24)
+and now agrees with it to round-off (test_squirmer_and_tumbler_move_as_in_the_original).
 """
 import os
 import shutil
@@ -19,7 +20,7 @@ import sys
 import numpy as np
 import pytest
 
-from runs import continue_input
+from runs import continue_input, run_model, scene
 from kapsel.fluid.spectral import SpectralNS
 from kapsel.grid import Grid
 from kapsel.particles.forces import pair_forces
@@ -64,7 +65,10 @@ def test_slip_is_blake_mode_and_shell_weight_is_local():
     assert w[0, 0] == 0 and w[0, -1] == 0 and w[0, 2] == pytest.approx(0.5)
 
 
-def test_squirmer_swims_along_its_rotated_axis_and_conserves_momentum():
+def test_squirmer_swims_along_its_rotated_axis():
+    """(It also asserted the total momentum RHO DX^3 sum u + sum (M - RHO V_p) V constant to
+    round-off: an identity of kapsel-py's former grid masses, M = RHO V_p + excess; with the
+    original's masses M = MASS_RATIO RHO 4/3 pi A^3 and FIX_CELL on it does not hold.)"""
     q = from_axis_angle(np.array([[0.0, 1.0, 0.0]]), np.array([np.pi / 2]))  # body z -> x
     spm, p, dt = _run([[16.3, 16.2, 15.8]], q, [JanusSpec("Z", "SQUIRMER", slip_vel=B1)])
     e3 = rotate(q, [0.0, 0.0, 1.0])[0]
@@ -72,7 +76,6 @@ def test_squirmer_swims_along_its_rotated_axis_and_conserves_momentum():
     spm.run(60)
     v = p.v[0]
     assert v @ e3 > 0.4 * B1 and np.linalg.norm(v - (v @ e3) * e3) < 0.02 * (v @ e3)
-    assert np.abs(spm.total_momentum()).max() < 1e-12
     assert p.f_slip[0] @ e3 != 0 and np.all(np.isfinite(p.torque_slip))
     assert 1 <= p.janus.iterations <= 4
 
@@ -127,6 +130,52 @@ def test_two_squirmers_head_on_do_not_overlap():
     assert p.v[0, 2] - p.v[1, 2] < 0.2 * v0         # stopped against each other
 
 
+_PS = "object_type.spherical_particle.Particle_spec[0]"
+_QA = [0.9238795325112867, 0.0, 0.3826834323650898, 0.0]      # 45 degrees about y
+_QB = [0.8660254037844387, 0.0, 0.0, 0.5]                     # 60 degrees about z
+_ONE = [("constitutive_eq.type", "Navier_Stokes"), ("constitutive_eq.Navier_Stokes.kBT", 0.0),
+        ("mesh.NPX", 5), ("mesh.NPY", 5), ("mesh.NPZ", 5), ("A_XI", 2.0),
+        ("switch.INIT_distribution.type", "user_specify"), ("time_increment.type", "manual"),
+        ("time_increment.manual.delta_t", 0.05), ("switch.LJ_truncate", "ON"),
+        ("object_type.type", "spherical_particle"), (f"{_PS}.Particle_number", 1),
+        (f"{_PS}.MASS_RATIO", 1.0), (f"{_PS}.janus_axis", "Z")]
+
+
+@pytest.mark.parametrize("kind", ["pusher", "tumbler"])
+def test_squirmer_and_tumbler_move_as_in_the_original(tmp_path, kind):
+    """One pusher (B1 = 0.01, alpha = -1, SLIP_tol 1e-4, 10 passes) swimming along its
+    axis turned 45 degrees about y, and one tumbler (body-frame force (0, 0, 0.5) and torque
+    (0.2, 0, 0), turned 60 degrees about z), A = 4 on 32^3, dt 0.05: the original's state
+    after 20 steps (its records, %.17g), to round-off."""
+    if kind == "pusher":
+        puts = _ONE + [(f"{_PS}.janus_propulsion", "SQUIRMER"), (f"{_PS}.janus_slip_vel", 0.01),
+                       ("switch.SLIP_tol", 0.0001), ("switch.SLIP_iter", 10), ("A", 4.0),
+                       ("switch.INIT_orientation", "user_specify"), ("gravity.G", 0.0),
+                       (f"{_PS}.janus_slip_mode", -1.0),
+                       ("switch.INIT_distribution.user_specify.Particles[]",
+                        np.array([[16.0, 16.0, 16.0, 0, 0, 0] + _QA + [0, 0, 0]]))]
+        R = [16.002578883146796, 16.0, 16.002578883146796]
+        v = [0.0032512510393637351, 0.0, 0.0032512510393637312]
+        w, q = [0.0, 0.0, 0.0], _QA
+    else:
+        puts = _ONE + [(f"{_PS}.janus_propulsion", "TUMBLER"), (f"{_PS}.janus_force.z", 0.5),
+                       (f"{_PS}.janus_torque.x", 0.2), ("A", 4.0),
+                       ("switch.INIT_orientation", "user_specify"), ("gravity.G", 0.0),
+                       ("switch.INIT_distribution.user_specify.Particles[]",
+                        np.array([[16.0, 16.0, 16.0, 0, 0, 0] + _QB + [0, 0, 0]]))]
+        R = [16.000000003015849, 15.999999998258794, 16.000435503299716]
+        v = [1.0054534455773885e-08, -5.8049881746327315e-09, 0.00074884608670031127]
+        w = [2.3298185475763423e-05, 4.0353640968177567e-05, 0.0]
+        q = [0.86602540369495917, 1.2449222745790887e-05, 7.1875621034833982e-06,
+             0.49999999994833894]
+    p = run_model(scene(tmp_path, os.path.join(SAMPLES, "input.udf"), puts), 20).particles
+    scale = np.abs(v).max()
+    assert np.abs(p.R_raw[0] - R).max() < 1e-13 * 16
+    assert np.abs(p.v[0] - v).max() < 1e-12 * scale
+    assert np.abs(p.omega[0] - w).max() < 1e-12 * max(np.abs(w).max(), scale)
+    assert np.abs(p.q[0] - q).max() < 1e-13
+
+
 def test_tumbler_torque_is_body_frame_and_obstacle_holds():
     q = from_axis_angle(np.array([[0.0, 1.0, 0.0]]), np.array([-np.pi / 2]))  # body x -> z
     spec = [JanusSpec("Z", "TUMBLER", force=(0.0, 0.0, 0.0), torque=(1.0, 0.0, 0.0)),
@@ -174,23 +223,26 @@ def _neutral_speed(L):
 
 @pytest.mark.slow
 def test_neutral_squirmer_swims_at_two_thirds_B1():
-    """U = (2/3) B1 (1 - c) within 5% (module docstring: the finite-box correction), L = 32,
-    dt = 0.5/pi^2, t = 100 (about 1-2 min on a loaded core)."""
+    """U = (2/3) B1 (1 - c) within 10% (module docstring: the finite-box correction; 1.090
+    measured), L = 32, dt = 0.5/pi^2, t = 100 (about 3 min on a loaded core)."""
     L = 32
     c = 4 / 3 * np.pi * A ** 3 / L ** 3
     ratio = _neutral_speed(L) / (2 / 3 * (1 - c))
     print(f"\nneutral squirmer: U / (2/3 B1 (1 - c)) = {ratio:.4f}")
-    assert abs(ratio - 1) < 0.05
+    assert abs(ratio - 1) < 0.1
+    assert ratio == pytest.approx(1.090, abs=0.005)
 
 
 @pytest.mark.slow
 def test_neutral_squirmer_box_size_extrapolation():
-    """U(L) = U_inf + k / L^3 from L = 32 and 64: U_inf within 5% of 2/3 B1 (about 12 min)."""
+    """U(L) = U_inf + k / L^3 from L = 32 and 64: U_inf within 10% of 2/3 B1 (measured
+    U / B1 = 0.72085 (L = 32), 0.71680 (L = 64), U_inf = 1.074 (2/3 B1); about 12 min)."""
     u32, u64 = _neutral_speed(32), _neutral_speed(64)
     u_inf = u64 + (u64 - u32) / 7.0
     print(f"\nU/B1: L=32 {u32:.5f}, L=64 {u64:.5f}, extrapolated {u_inf:.5f} "
           f"= {1.5 * u_inf:.4f} (2/3)")
-    assert abs(1.5 * u_inf - 1) < 0.05
+    assert abs(1.5 * u_inf - 1) < 0.1
+    assert 1.5 * u_inf == pytest.approx(1.074, abs=0.005)
 
 
 # ---------------------------------------------------------------------- configuration / runs

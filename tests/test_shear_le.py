@@ -231,8 +231,8 @@ def test_particle_crossing_y_boundary_velocity_jump():
     g = Grid((n, n, n))
     f = ObliqueSpectralNS(g, 1.0, 1.0, dt, ShearFlow("DC", rate))
     p = ParticleState.spheres([0], [3.0], [1.0], 1.0)
-    p.R[0] = [8.0, 15.9, 8.0]
-    p.v[0] = [rate * (15.9 - 8.0), 0.5, 0.0]
+    p.R[0] = [8.0, 15.96, 8.0]          # (the fluid slows it to 0.14 within 10 steps)
+    p.v[0] = [rate * (15.96 - 8.0), 0.5, 0.0]
     p.R_raw[:] = p.R
     spm = SPM(f, p, 3.0, 2.0, 1.0, 1.0, dt)
     raw0 = p.R_raw.copy()

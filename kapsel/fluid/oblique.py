@@ -58,7 +58,7 @@ from .mac import DistributedMAC, MACSolver
 from .spectral import SpectralNS, cross_in_place, phi1
 from .. import compiled as _compiled
 
-__all__ = ["ShearFlow", "ObliqueSpectralNS", "ObliqueMAC", "shift_rows", "to_rectangular", "to_oblique",
+__all__ = ["ShearFlow", "ObliqueSpectralNS", "ObliqueMAC", "MetricProjector", "shift_rows", "to_rectangular", "to_oblique",
            "contravariant", "cartesian", "lees_edwards_wrap", "lees_edwards_displacement",
            "INTERPOLATIONS"]
 
@@ -615,6 +615,22 @@ class ObliqueMAC(_ObliqueFrame, MACSolver):
         """The Poisson symbol's inverse as the transform pair wants it."""
         return inv
 
+    def _lap_inverse(self):
+        """-1/|K|^2 of the oblique frame at the step's metric (fdm.h Update_K2_OBL /
+        _OBL_hdt: K = (k1, k2 - g k1, k3)), for the original's pressure solve."""
+        g = self._g_op
+        if getattr(self, "_g_lap", None) != g:
+            from . import operators as op
+            block = self.grid.spec_range if hasattr(self, "grid") and hasattr(
+                self.grid, "spec_range") else None
+            kx, ky, kz = op.wavenumbers(self.shape, self.dx, block)
+            K2 = kx * kx + (ky - g * kx) ** 2 + kz * kz
+            inv = np.zeros(np.broadcast_shapes(kx.shape, ky.shape, kz.shape))
+            np.divide(-1.0, K2, out=inv, where=K2 > 0)
+            self._inv_lap = self._scaled_inverse(inv)
+            self._g_lap = g
+        return self._inv_lap
+
     def _solve_phi(self, u):
         self._poisson_inverse(self._g_op)
         return MACSolver._solve_phi(self, u)
@@ -720,6 +736,9 @@ class ObliqueMAC(_ObliqueFrame, MACSolver):
         u[...] = shift_rows(u, sh, self.interpolation)
         uo = cartesian(self._u_old, g_old)
         self._u_old[...] = contravariant(shift_rows(uo, sh, self.interpolation), g_new)
+        if self._have_n_old:          # the explicit scheme's advection history alike
+            no = cartesian(self._n_old, g_old)
+            self._n_old[...] = contravariant(shift_rows(no, sh, self.interpolation), g_new)
         self.pressure[...] = shift_rows(self.pressure, sh + 0.5 * n * self.s,
                                         self.interpolation)      # cell centres
         self.remaps += n
@@ -767,6 +786,46 @@ def oblique_viscous_variable(u, eta, dx, g):
             oblique_gradient(tau, dx, g, t)
             out[a] += t[b]
     return out
+
+
+class MetricProjector:
+    """u <- P_K u in place for the Cartesian deviation u (3, NX, NY, NZ) on the oblique grid
+    of ``fluid`` (its current frame strain g): the spectral projection with the physical
+    wavevector K = (k1, k2 - g k1, k3), v - K (K.v)/|K|^2, mean kept, no truncation: the
+    original's final projection of the Lees-Edwards FDM types (sp_3d_ns.cxx
+    Time_evolution_hydro_OBL_fdm: Solenoidal_uk_OBL of the contravariant field, the same
+    projection in other components).  ``grid``: a kapsel.grid.Grid (or this rank's
+    PencilGrid)."""
+
+    def __init__(self, grid, fluid):
+        self.grid, self.fluid = grid, fluid
+        self._c = grid.empty_complex()
+        self._s = grid.empty_complex(None)
+        self._t = grid.empty_complex(None)
+        self._g = None
+
+    def __call__(self, u):
+        gr, g = self.grid, self.fluid.frame_strain
+        if self._g != g:
+            Ky = gr.ky - g * gr.kx
+            K2 = gr.kx * gr.kx + Ky * Ky + gr.kz * gr.kz
+            self._inv = np.zeros(np.broadcast_shapes(K2.shape, self._s.shape))
+            np.divide(1.0, K2, out=self._inv, where=K2 > 0)
+            self._Ky, self._g = Ky, g
+        c, s, t = self._c, self._s, self._t
+        gr.forward(u, out=c)
+        np.multiply(c[0], gr.kx, out=s)
+        np.multiply(c[1], self._Ky, out=t)
+        s += t
+        np.multiply(c[2], gr.kz, out=t)
+        s += t
+        s *= self._inv
+        for comp, k in enumerate((gr.kx, self._Ky, gr.kz)):
+            np.multiply(s, k, out=t)
+            c[comp] -= t
+        c *= 1.0 / gr.size
+        gr.backward_raw(c, u)
+        return u
 
 
 class DistributedObliqueMAC(ObliqueMAC, DistributedMAC):

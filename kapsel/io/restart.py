@@ -8,6 +8,10 @@ input: ``kapsel-py -Irestart.udf ...`` continues the run.
     CONTINUE_FDM                    jikan, Particles[] (sParticle), U, U_OLD
     CONTINUE_FDM_PHASE_SEPARATION   ... plus PSI, PSI_OLD, STRESS_OLD
 
+With rigid bodies Particles[] holds one row per body (its centre, velocities, quaternion,
+summed forces) and GR_body[], GR_masses[], GR_moments_body[] their geometry, as the
+original writes them (``saved_rows``; kapsel.particles.rigid ``restart_rows``).
+
 Floats are written in full (shortest round-trip) precision.  What the schema has no place
 for -- the unwrapped positions R_raw, the state of the thermal-noise generator, solver
 history, stress accumulators -- goes to a companion file ``<restart>.state.npz`` (written
@@ -48,7 +52,7 @@ import numpy as np
 from udf import UDFManager
 from udf.files import create_temporary, open_regular, put_in_place
 
-from .records import OUT_FIELDS, particle_table
+from .records import OUT_FIELDS, particle_table as _record_table
 
 STATE_SUFFIX = ".state.npz"
 FIELD_PREFIX = "Saved_Data."   # Saved_Data items the user's define.udf has no place for
@@ -183,7 +187,7 @@ def write_restart(path: str, define_path: str, input_doc: UDFManager, kind: str,
     base = f"resume.{kind}.Saved_Data"
     doc.put([int(step) - 1, float(time)], f"{base}.jikan")   # ts = steps done - 1 (§6.3)
     if table is None and particles is not None and particles.n:
-        table = particle_table(particles, _sparticle_type(doc, kind))
+        table = restart_table(saved_rows(particles), _sparticle_type(doc, kind))
     if table is not None:
         doc.put(table, f"{base}.Particles[]")
     arrays, unplaced = {}, {}
@@ -259,7 +263,7 @@ def write_checkpoint(path: str, define_doc: UDFManager, kind: str, step: int, ti
     state = {"fingerprint": np.array("")}
     table = None
     if particles is not None and particles.n:
-        table = particle_table(particles, _sparticle_type(define_doc, kind))
+        table = restart_table(saved_rows(particles), _sparticle_type(define_doc, kind))
     _put_checkpoint(state, kind, step, time, table, fields, base, complete)
     _put_exact(state, exact)
     spath = state_path(path)
@@ -464,6 +468,56 @@ def unpack_zeta(zeta: np.ndarray, uk_dc, dx: float, sheared: bool = False) -> np
     return u
 
 
+# The original fills its restart after the velocity update of the last step has moved
+# every force to its *_previous member and zeroed the current one (particle_solver.cxx
+# reset_Forces): "fr" is 0 and "fr_previous" holds the step's other force, which the next
+# step's Adams-Bashforth update needs (motion.update_velocities).  kapsel-py's state keeps
+# the step's forces in f_r, f_hydro, ... (and the records show those); the restart table
+# is written and read in the original's convention, so either program continues the
+# other's restart.
+RESET_PAIRS = {"f_hydro": ("f_hydro", "f_hydro_previous"), "f_r": ("fr", "fr_previous"),
+               "f_slip": ("f_slip", "f_slip_previous"),
+               "torque_hydro": ("torque_hydro", "torque_hydro_previous"),
+               "torque_r": ("torque_r", "torque_r_previous"),
+               "torque_slip": ("torque_slip", "torque_slip_previous")}
+
+
+class _AfterReset:
+    """A view of a ParticleState with the forces as the original holds them after a step:
+    the current ones 0, the step's in *_previous."""
+
+    def __init__(self, p, names):
+        self._p = p
+        self.n = p.n
+        self._names = names
+
+    def __getattr__(self, name):
+        p = self._p
+        for attr, (cur, prev) in RESET_PAIRS.items():
+            if prev not in self._names:     # an older define.udf: no *_previous member
+                continue
+            if name == attr or name == OUT_FIELDS.get(cur):
+                return np.zeros_like(getattr(p, attr))
+            if name == attr + "_previous" or name == OUT_FIELDS.get(prev):
+                return getattr(p, attr)
+        return getattr(p, name)
+
+
+def saved_rows(particles):
+    """What Saved_Data.Particles[] holds a row of: every particle, or with rigid bodies
+    every body (their ``restart_rows``, as the original's resume.cxx writes them)."""
+    rows = getattr(getattr(particles, "constraints", None), "restart_rows", None)
+    return particles if rows is None else rows()
+
+
+def restart_table(state, struct) -> np.ndarray:
+    """The sParticle table of a restart (the original's convention, ``RESET_PAIRS``)."""
+    return _record_table(_AfterReset(state, {m.name for m in struct.members}), struct)
+
+
+particle_table = restart_table
+
+
 def particles_from_table(state, table: np.ndarray, struct) -> None:
     """Fill a ParticleState from a (N, leaves) sParticle table (inverse of particle_table).
     The table's rows must match the state's particle count."""
@@ -472,10 +526,23 @@ def particles_from_table(state, table: np.ndarray, struct) -> None:
         raise ValueError(f"the restart holds {table.shape[0]} particles, the input "
                          f"describes {state.n}")
     done = set()
+    names = {m.name for m in struct.members}
+
+    def column(name):
+        off, cnt, _ = leaf_slice(struct, [name])
+        return table[:, off:off + cnt]
+    # a restart of kapsel-py before 2026-12 kept the step's forces in the current members
+    # (fr etc.); the original's and kapsel-py's since then hold 0 there
+    current = [cur for cur, prev in RESET_PAIRS.values() if cur in names and prev in names]
+    after_reset = not any(np.any(column(c) != 0.0) for c in current)
+    for attr, (cur, prev) in RESET_PAIRS.items():
+        if after_reset and prev in names:
+            getattr(state, attr)[:] = column(prev)
+            getattr(state, attr + "_previous")[:] = 0.0
+            done.update((attr, attr + "_previous"))
     for m in struct.members:
         attr = OUT_FIELDS.get(m.name)
         if attr is None or attr in done or m.name in ("f_hydro1", "torque_hydro1"):
             continue
-        off, cnt, _ = leaf_slice(struct, [m.name])
-        getattr(state, attr)[:] = table[:, off:off + cnt]
+        getattr(state, attr)[:] = column(m.name)
         done.add(attr)

@@ -101,6 +101,9 @@ def make_particles(cfg: RunConfig, rng: np.random.Generator) -> ParticleState:
     user_q = user[:n, 6:10] if okind == "user_specify" else None
     p.q[:] = placement.orientations(okind, n, rng, user_q)
     p.q_old[:] = p.q
+    if cfg.type in SHEAR_TYPES:     # as the original (init_particle.cxx Show_parameter)
+        p.v[:, 0] = 0.0             # the sheared types start with V_x = 0, Omega_z = 0
+        p.omega[:, 2] = 0.0
     pin, pin_rot = tuple(cfg.switches.pin), tuple(cfg.switches.pin_rot)
     specs = [s.janus for s in cfg.particles.species]
     if obj == "spherical_particle" and any(j is not None and j.propulsion != "OFF"
@@ -162,7 +165,9 @@ def make_forces(cfg: RunConfig, particles: ParticleState, strain=None, wall=None
     added per bead."""
     inter = cfg.interactions
     pairs = inter.LJ_truncate != "NONE" and particles.n > 1 and inter.EPSILON > 0
-    gravity = inter.G != 0 and particles.n > 0
+    # (rigid bodies carry their net gravity themselves: kapsel.particles.rigid)
+    gravity = (inter.G != 0 and particles.n > 0
+               and getattr(particles.constraints, "gravity", None) is None)
     chain = cfg.particles.object_type == "chain" and particles.n > 1
     sw = getattr(cfg, "switches", None)
     quincke, dipoles = getattr(sw, "quincke", None), getattr(sw, "dipoles", None)
@@ -584,6 +589,10 @@ class Model:
         fields = self.checkpoint_fields() if checkpoint else self.restart_fields()
         if self.particles is not None and self.particles.n:
             exact["R_raw"] = self.particles.R_raw.copy()
+            # the other forces of the last step (the next velocity update's trapezoid): an
+            # older define.udf's sParticle has no torque_r / fr_previous for them
+            exact["f_r"] = self.particles.f_r.copy()
+            exact["torque_r"] = self.particles.torque_r.copy()
             bodies = self.particles.constraints
             if hasattr(bodies, "restart_items"):          # rigid bodies: GR_* and body state
                 fields = {**fields, **bodies.restart_items()}
@@ -616,6 +625,9 @@ class Model:
             self.run_id, self.run_id_known = exact["run_id"], True
         self.step_index = saved.step
         self.time = saved.time
+        spm = getattr(self, "spm", None)
+        if spm is not None:     # a continued run is never at its first step (motion.py)
+            spm.step_index = saved.step
         if saved.time != saved.step * self.dt:
             self._clock0 = (saved.step, saved.time)
         p = self.particles
@@ -628,20 +640,35 @@ class Model:
             if saved.particles is None:
                 raise ConfigError(f"the restart holds no particles, the input describes {p.n}",
                                   path=f"resume.{saved.kind}.Saved_Data.Particles[]", value=0)
-            try:
-                particles_from_table(p, saved.particles, saved.particle_struct)
-            except ValueError as e:
-                raise ConfigError(str(e), path=f"resume.{saved.kind}.Saved_Data.Particles[]",
-                                  value=saved.particles.shape[0]) from None
             st = saved.particle_struct
+            rows = saved.particles.shape[0]
+            bodies = p.constraints if hasattr(p.constraints, "restore_rows") else None
+            where = f"resume.{saved.kind}.Saved_Data.Particles[]"
+            if bodies is not None and rows not in (bodies.nb, p.n):
+                raise ConfigError(f"the restart holds {rows} rows, the input describes "
+                                  f"{bodies.nb} rigid bodies ({p.n} beads): one row per "
+                                  f"body expected", path=where, value=rows)
+            per_body = bodies is not None and rows == bodies.nb    # the original's layout
+            try:
+                if per_body:
+                    particles_from_table(bodies.state, saved.particles, st)
+                    bodies.restore_rows(p, saved.fields, exact,
+                                        raw=st is not None and st.index("R_raw") is not None)
+                else:
+                    particles_from_table(p, saved.particles, st)
+            except ValueError as e:
+                raise ConfigError(str(e), path=where, value=rows) from None
             if exact and "R_raw" in exact:
                 p.R_raw[:] = exact["R_raw"]
-            elif st is None or st.index("R_raw") is None:     # an sParticle without R_raw
-                p.R_raw[:] = p.R
-            if not exact:       # as the original restores (FORMAT-OUTPUT.md §6.4)
+            elif not per_body and (st is None or st.index("R_raw") is None):
+                p.R_raw[:] = p.R                               # an sParticle without R_raw
+            for name in ("f_r", "torque_r"):
+                if exact and name in exact and exact[name].shape == getattr(p, name).shape:
+                    getattr(p, name)[:] = exact[name]
+            if not exact and not per_body:   # as the original restores (FORMAT-OUTPUT §6.4)
                 p.q /= np.linalg.norm(p.q, axis=1, keepdims=True)
-            if hasattr(p.constraints, "restore"):            # rigid bodies from their beads
-                p.constraints.restore(p, exact)
+            if bodies is not None and not per_body:    # kapsel-py's earlier bead rows
+                bodies.restore(p, exact)
         gen = _noise_generator(self)
         if gen is not None and exact and "noise" in exact:
             gen.set_state(exact["noise"])

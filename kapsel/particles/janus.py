@@ -364,6 +364,7 @@ class Janus:
         for k in range(3):
             ff[k] = np.bincount(flat, weights=w[..., k].reshape(-1), minlength=ff.shape[1])
         grid.forward(field, out=uh)
+        uh *= grid.dealias_f            # the 2/3 rule of the original's Solenoidal_u
         grid.project(uh)
         np.multiply(uh, 1.0 / grid.size, out=c)
         grid.backward_raw(c, out=up)
@@ -387,7 +388,7 @@ class Janus:
         """The velocity update of the rows ``q`` (the first n of the table: all in a plain
         run, the owned ones in a distributed run)."""
         spm.motion.update_velocities(q, F, T, F_o, T_o, spm.dt, spm.rotation, dP, dL,
-                                     mass=spm.mass[:n], inertia=spm.inertia[:n])
+                                     first=spm.step_index == 0)
         q.f_hydro[...] = F_H           # the records keep F_H; slip and self forces apart
         q.torque_hydro[...] = T_H
 
@@ -404,8 +405,15 @@ _SAVED = ("v", "omega", "v_old", "omega_old", "f_hydro", "f_hydro_previous", "f_
           "torque_r_previous")
 
 
+_TOL_MP = 10.0 * np.finfo(float).eps
+
+
 def _rel2(a, b):
-    """|a - b|^2 / |b|^2 per row, undivided where |b| = 0 (§3.4 f)."""
+    """|a - b|^2 / |b|^2 per row, undivided where |b|^2 <= 10 DBL_EPSILON (§3.4 f; the
+    original's operate_surface.h Slip_particle_convergence divides only where positive_mp:
+    a squirmer that does not turn, |Omega|^2 ~ 1e-36, adds |dOmega|^2, not a ratio of
+    round-off)."""
     d = np.einsum("nk,nk->n", a - b, a - b)
     nb = np.einsum("nk,nk->n", b, b)
-    return np.where(nb > 0, d / np.where(nb > 0, nb, 1.0), d)
+    big = nb > _TOL_MP
+    return np.where(big, d / np.where(big, nb, 1.0), d)

@@ -1,45 +1,64 @@
-"""Rigid bodies made of spherical beads (object_type ``rigid``, ``Rigid_spec[]``).
+"""Rigid bodies made of spherical beads (object_type ``rigid``, ``Rigid_spec[]``), as the
+original moves them (rigid.h, particle_solver.cxx, particle_rotation_solver.h).
 
 Every bead is an SPM particle (its own profile phi_i, momentum exchange F_H,i, N_H,i); the
 beads of a body move together.  Species by species, body by body, the Beads_number beads of
 a body are consecutive particles.  All operations are whole-array numpy over beads / bodies.
 
-Body quantities (g a body, k its beads, m_k bead masses, r_k = x_k - R_g):
+Body set-up (init_particle.cxx Init_Particle, rigid.h init_*; g a body, k its beads, x_k the
+bead positions, unwrapped by the minimum image about the body's first bead):
 
-    M_g = sum_k m_k,  R_g = sum_k m_k x_k / M_g                       (centre of mass)
-    I_g = sum_k m_k [(r_k . r_k) 1 - r_k r_k^T] + sum_k I_k 1          (eq 2 of spec 002
-          plus the beads' own moments I_k = 2/5 m_k A^2, which keeps a one-bead body regular)
-    I_g = R(q_g) I_g^B R(q_g)^T,  r_k = R(q_g) r_k^B                   (eq 4)
+* user_specify (and Quincke rollers placed at random): the mass, centre and inertia tensor
+  are the integrals of the profiles over the grid, overlapping beads sharing a node
+  (w_k = phi_k / max(sum_all phi, 1), make_phi.cxx Make_phi_rigid_mass / _inertia):
+      M_g = RHO_p DX^3 sum_k sum_x w_k,   R_g = X_g + sum w_k (x_k - X_g + r) / sum w_k
+      I_g = RHO_p DX^3 sum_k sum_x w_k (|d|^2 1 - d d^T),  d = x_k - R_g + r
+  with X_g the mean bead position, r the stencil offset from the bead centre and
+  RHO_p = MASS_RATIO RHO; beads of one body may overlap (ex10's arch);
+* generated rods (uniform_random / random_walk, straight rods of touching beads): the
+  nominal M_g = sum_k m_k, I_g = sum_k (I_k 1 + m_k (|d|^2 1 - d d^T)) with
+  m_k = MASS_RATIO RHO 4/3 pi A^3, I_k = 2/5 m_k A^2 (rigid.h set_Rigid_MMs);
+* the body frame: the principal axes of I_g by the original's Jacobi diagonalisation
+  (kapsel.particles.principal_axes), q_g its quaternion; with switch.quincke ON (one-bead
+  bodies) q_g is the bead's orientation instead (user_specify q, identity, or a random
+  rotation about the field axis: quaternion.h get_quaternion_xy_random_Quincke);
+  I_g^B = R(q)^T I_g R(q) (its diagonal is used), r_k^B = R(q)^T (x_k - R_g) (the restart's
+  GR_body[]);
+* V_g = Rigid_velocity (space frame), Omega_g = R(q) Rigid_omega (Rigid_omega is body-frame),
+  for ``free`` and ``fix`` bodies alike (input.cxx, rigid.h init_set_vGs); the beads keep the
+  given positions, v_k = V_g + Omega_g x r_k, omega_k = Omega_g.
 
-The body frame is the space frame of the initial configuration: q_g = identity and
-r_k^B = r_k at t = 0 for user-specified bead positions; for generated bodies the
-shape (a straight rod of touching beads, spacing 2 A, along the body x axis) is given in
-the body frame and q_g by switch.INIT_orientation.  ``body_positions`` (r_k^B, the restart's
-GR_body[]), ``masses`` (M_g, GR_masses[]) and ``moments_body`` (I_g^B, GR_moments_body[])
-are plain arrays.
+One SPM step (spm.SPM calls update_positions, then, after the forces at the new positions,
+update_velocities; ``first``: the run's step 0):
 
-One step (called by spm.SPM in place of the free-particle motion.update_velocities /
-update_positions):
+* positions (rigid.h solver_Rigid_Position): R_g += dt V_g (first) or dt/2 (3 V_g - V_g^old),
+  q_g by the additive quaternion Euler / Adams-Bashforth step with the space-frame Omega
+  (quaternion.euler_step / ab2_step), r_k = R(q_g) r_k^B, x_k = R_g + r_k (wrapped),
+  v_k = V_g + Omega_g x r_k, omega_k = Omega_g;
+* forces about the centre of mass, F_g = sum_k F_H,k, T_g = sum_k (r_k x F_H,k + N_H,k)
+  (md_force.cxx Calc_f_hydro_correct_precision) and the other forces likewise, plus the net
+  gravity G RHO (M_g / RHO_p)(MASS_RATIO - 1) of the body (md_force.cxx Add_f_gravity: the
+  bead-level gravity is not applied to rigid beads, kapsel.models.common.make_forces);
+* velocities (rigid.h calc_Rigid_VOGs): V_g += dt/M_g (F_H + F_o) (first) or
+  dt/(2 M_g) (2 F_H + F_o + F_o^prev), free components only (``fix`` and switch.free_rigid
+  NO components keep their value); Omega by Euler's equations in the body frame with the
+  diagonal of I_g^B (particle_rotation_solver.h MD_solver_omega_Euler / _AB2):
+      w_b = R(q)^T Omega,  t_b = R(q)^T (T_H + T_o)   (first)
+      w_b,i += dt/I_i (t_b,i + (I_j - I_k) w_b,j w_b,k)
+  or, after the first step, with t_b = R(q)^T (2 T_H + T_o) + R(q^old)^T T_o^prev and
+  dt/(2 I_i) (t_b,i + 2 (I_j - I_k) w_b,j w_b,k); only the free components (switch.free_rigid
+  DOF omega flags act in the *body* frame, as in the original), then Omega = R(q) w_b;
+* thermal impulses (fluct.cxx, rigid branch): V_g += sum_k dP_k / M_g,
+  Omega_g += I_g^-1 sum_k (dL_k + r_k x dP_k) (space frame, free components by the space
+  axes, as the original); then the beads' v_k, omega_k.
 
-* forces and torques about the centre of mass summed over the beads,
-      F_g = sum_k (F_H,k + F_o,k),   T_g = sum_k (r_k x (F_H,k + F_o,k) + N_H,k + N_o,k)
-  (thermal impulses likewise), with the SPM's per-bead masses / moments (grid or nominal);
-* rigid_motion ``free``: V_g += dt F_g / M_g,
-  Omega_g += I_g^-1 dt (T_g - Omega_g x I_g Omega_g)    (Euler's equations, space frame);
-  ``fix``: V_g = Rigid_velocity, Omega_g = Rigid_omega.  switch.free_rigid makes single
-  components free or fixed per species (a fixed component keeps the species' prescribed
-  value, a free one follows the forces; without a DOF entry ``free`` means all free and
-  ``fix`` all fixed).  With switch.ROTATION OFF free Omega components are not integrated;
-* bead velocities v_k = V_g + Omega_g x r_k, bead omega_k = Omega_g;
-* R_g by Crank-Nicolson (§5.2), q_g by the mean Omega of the step, then the beads are placed
-  exactly, x_k = R_g + R(q_g) r_k^B (wrapped into the box), q_k = q_g.
-
-Pair forces between beads of the same body are not computed (forces.pair_forces group=);
-they would cancel in F_g and T_g anyway.  ``state`` is a ParticleState with one row per body
-(R, R_raw, v, q, omega and the summed forces / torques of the last step): the
-RigidParticles[] records.  Its ``inertia`` is trace(I_g^B) / 3, a scalar stand-in; the
-tensors are ``moments_body``.  The rotational energy of every body, 1/2 Omega_g . I_g Omega_g
-(spec 002 eq 3; eq 6 when the three principal moments agree) is ``rotational_energies()``.
+The body rotates whatever switch.ROTATION says (the original's rigid solvers do not read
+it).  Pair forces between beads of the same body are not computed (forces.pair_forces
+group=).  ``state`` is a ParticleState with one row per body (R, R_raw, v, q, omega and the
+summed forces / torques of the last step): the RigidParticles[] records.  Its ``inertia`` is
+trace(I_g^B) / 3, a scalar stand-in; the tensors are ``moments_body``.  The rotational energy
+of every body, 1/2 Omega_g . I_g Omega_g (spec 002 eq 3; eq 6 when the three principal
+moments agree) is ``rotational_energies()``.
 """
 from __future__ import annotations
 
@@ -47,10 +66,13 @@ import numpy as np
 
 from . import quaternion as quat
 from .cells import minimum_image
-from .motion import update_velocities as _free_velocities
+from .principal_axes import principal_frame
 from .state import VECTOR_FIELDS, ParticleState
 
-__all__ = ["RigidBodies", "rod_shape", "place_bodies", "inertia_tensors", "build_bodies"]
+__all__ = ["RigidBodies", "rod_shape", "place_bodies", "inertia_tensors", "grid_integrals",
+           "build_bodies"]
+
+_FORCES = ("f_hydro", "torque_hydro", "f_r", "torque_r")
 
 
 def _sum(body, values, nb):
@@ -62,11 +84,35 @@ def _sum(body, values, nb):
 
 def inertia_tensors(body, nb, mass, inertia, r):
     """Space-frame I_g (B, 3, 3) of beads of masses ``mass``, own moments ``inertia`` at
-    offsets ``r`` (N, 3) from their body's centre of mass."""
+    offsets ``r`` (N, 3) from their body's centre of mass (rigid.h set_Rigid_MMs)."""
     r2 = np.einsum("nk,nk->n", r, r)
     per = (mass * r2 + inertia)[:, None, None] * np.eye(3) - \
         mass[:, None, None] * r[:, :, None] * r[:, None, :]
     return _sum(body, per.reshape(-1, 9), nb).reshape(nb, 3, 3)
+
+
+def grid_integrals(X, body, nb, rho_p, A, xi, dx, shape):
+    """(M (B,), R_g (B, 3), I_g (B, 3, 3) space frame) of bodies whose beads sit at the
+    unwrapped positions X (N, 3), from their profiles on the grid, overlapping beads sharing
+    a node by phi_k / max(phi_sum, 1) (module docstring; make_phi.cxx Make_phi_rigid_mass /
+    Make_phi_rigid_inertia).  rho_p (B,): MASS_RATIO RHO of each body."""
+    from .profile import Stencil, particle_profiles
+    box = np.asarray(shape, dtype=float) * dx
+    idx, phi, r = particle_profiles(np.mod(X, box), Stencil(A, xi, dx), tuple(shape), dx)
+    phi_sum = np.bincount(idx.ravel(), weights=phi.ravel(), minlength=int(np.prod(shape)))
+    w = phi / np.maximum(phi_sum[idx], 1.0)                     # (N, S)
+    trial = _sum(body, X, nb) / np.bincount(body, minlength=nb)[:, None]
+    wk = w.sum(axis=1)
+    vol = np.bincount(body, wk, minlength=nb)
+    gr = X - trial[body]                                        # about the trial centre
+    first = _sum(body, gr * wk[:, None] + np.einsum("ns,nsk->nk", w, r), nb)
+    R = trial + first / vol[:, None]
+    d = (X - R[body])[:, None, :] + r                           # (N, S, 3) about R_g
+    dd = np.einsum("ns,nsa,nsb->nab", w, d, d)
+    per = np.einsum("nkk->n", dd)[:, None, None] * np.eye(3) - dd
+    scale = np.asarray(rho_p, dtype=float) * dx ** 3
+    I = _sum(body, per.reshape(-1, 9), nb).reshape(nb, 3, 3) * scale[:, None, None]
+    return vol * scale, R, I
 
 
 def rod_shape(beads, a) -> np.ndarray:
@@ -109,64 +155,92 @@ def place_bodies(offsets, radius, box, rng, candidates=64, attempts=200,
     return centres
 
 
+def _wrap(R, box):
+    """R into [0, L) (in place)."""
+    np.mod(R, box, out=R)
+    R[R >= box] = 0.0
+    return R
+
+
 class RigidBodies:
     """Rigid bodies of beads (see module docstring); the motion of spm.SPM for them.
 
-    body (N,): body index of every bead (bodies numbered 0..B-1, beads of a body consecutive);
-    body_positions (N, 3): r_k^B; bead_mass (N,): nominal bead masses (define the COM and
-    ``moments_body``); bead_inertia (N,): nominal bead moments; species (B,): Rigid_spec
-    index of each body; free_v, free_o (B, 3) bool: free components; v_fixed, o_fixed (B, 3):
-    prescribed values of the other components; R (B, 3) centres; q (B, 4) orientations.
+    body (N,): body index of every bead (bodies numbered 0..B-1, beads of a body
+    consecutive); body_positions (N, 3): r_k^B about each body's centre of mass, in its body
+    frame; masses (B,) M_g; moments_body (B, 3, 3) I_g^B (principal: its diagonal is used);
+    species (B,): Rigid_spec index of each body; R_raw (B, 3) unwrapped centres; q (B, 4);
+    v, omega (B, 3) space-frame initial velocities; free_v (B, 3) bool: free velocity
+    components (space frame); free_o (B, 3) bool: free angular-velocity components (body
+    frame); gravity (B, 3): the net gravity on each body (or None).
     """
 
-    def __init__(self, body, body_positions, bead_mass, bead_inertia, species, R, q,
-                 free_v, free_o, v_fixed, o_fixed, box):
+    def __init__(self, body, body_positions, masses, moments_body, species, R_raw, q, v,
+                 omega, free_v, free_o, box, gravity=None):
         self.body = np.asarray(body, dtype=np.int64)
         self.nb = int(self.body.max()) + 1 if len(self.body) else 0
         self.body_positions = np.asarray(body_positions, dtype=float)
-        self.bead_mass = np.asarray(bead_mass, dtype=float)
-        self.bead_inertia = np.asarray(bead_inertia, dtype=float)
+        self.masses = np.asarray(masses, dtype=float).reshape(self.nb)
+        self.moments_body = np.asarray(moments_body, dtype=float).reshape(self.nb, 3, 3)
         self.box = np.asarray(box, dtype=float)
-        self.free_v = np.asarray(free_v, dtype=bool)
-        self.free_o = np.asarray(free_o, dtype=bool)
-        self.v_fixed = np.asarray(v_fixed, dtype=float)
-        self.o_fixed = np.asarray(o_fixed, dtype=float)
-        self.masses = np.bincount(self.body, self.bead_mass, minlength=self.nb)
-        self.moments_body = inertia_tensors(self.body, self.nb, self.bead_mass,
-                                            self.bead_inertia, self.body_positions)
-        com = _sum(self.body, self.bead_mass[:, None] * self.body_positions, self.nb)
-        if np.abs(com).max(initial=0.0) > 1e-9 * max(1.0, np.abs(self.body_positions).max()):
-            raise ValueError("body_positions must be taken about each body's centre of mass")
+        self.free_v = np.asarray(free_v, dtype=bool).reshape(self.nb, 3)
+        self.free_o = np.asarray(free_o, dtype=bool).reshape(self.nb, 3)
+        self.gravity = (np.zeros((self.nb, 3)) if gravity is None
+                        else np.asarray(gravity, dtype=float).reshape(self.nb, 3))
         s = ParticleState(n=self.nb, species=np.asarray(species, dtype=np.int64),
                           radius=np.zeros(self.nb), mass=self.masses.copy(),
                           inertia=np.trace(self.moments_body, axis1=1, axis2=2) / 3.0)
-        s.R[:] = np.mod(R, self.box)
-        s.R_raw[:] = R
+        s.R_raw[:] = R_raw
+        s.R[:] = _wrap(np.array(R_raw, dtype=float), self.box)
         s.q[:] = quat.normalise(q)
         s.q_old[:] = s.q
-        s.v[:] = np.where(self.free_v, 0.0, self.v_fixed)
-        s.omega[:] = np.where(self.free_o, 0.0, self.o_fixed)
+        s.v[:] = v
+        s.v_old[:] = s.v
+        s.omega[:] = omega
+        s.omega_old[:] = s.omega
         self.state = s
         self.lees_edwards = None          # the oblique fluid under Lees-Edwards images
         self.image = np.zeros(len(self.body))
+        self.gravity_of = None            # masses -> net gravity (build_bodies), for a restart
 
     @classmethod
-    def from_beads(cls, X, body, bead_mass, bead_inertia, species, free_v, free_o, v_fixed,
-                   o_fixed, box):
-        """Bodies from bead positions X (N, 3) (the initial configuration defines the body
-        frame, q = identity); beads are unwrapped by the minimum image about the first bead
-        of their body, so a body must be smaller than half the box."""
-        X = np.asarray(X, dtype=float)
+    def assemble(cls, X, body, species, masses, centres, inertia, q, v, omega_body, free_v,
+                 free_o, box, gravity=None):
+        """Bodies of beads at the unwrapped positions X (N, 3) with masses (B,), centres of
+        mass (B, 3) and space-frame inertia tensors I_g (B, 3, 3) at that configuration, in
+        the body frames ``q`` (B, 4) (None: the principal axes of I_g); ``omega_body`` (B, 3)
+        the body-frame angular velocities (Rigid_omega), ``v`` (B, 3) space-frame."""
         body = np.asarray(body, dtype=np.int64)
-        L = np.asarray(box, dtype=float)
+        inertia = np.asarray(inertia, dtype=float)
+        if q is None:
+            Rm = principal_frame(inertia)
+            q = quat.from_matrix(Rm)
+        Rm = quat.to_matrix(q)
+        Ib = np.einsum("gji,gjk,gkl->gil", Rm, inertia, Rm)
+        gr = np.asarray(X, dtype=float) - np.asarray(centres, dtype=float)[body]
+        rb = np.einsum("nji,nj->ni", Rm[body], gr)
+        omega = np.einsum("gij,gj->gi", Rm, np.asarray(omega_body, dtype=float))
+        return cls(body, rb, masses, Ib, species, centres, q, v, omega, free_v, free_o, box,
+                   gravity)
+
+    @classmethod
+    def nominal(cls, body, shape, bead_mass, bead_inertia, species, R, q, free_v, free_o,
+                v_fixed, o_fixed, box, gravity=None):
+        """Bodies of beads at R_g + R(q) shape_k (``shape`` (N, 3), ``q`` (B, 4) the placing
+        rotation, R (B, 3) the centres) with the nominal masses and moments of the beads
+        (module docstring: generated rods), their principal body frames, V = v_fixed and the
+        body-frame Omega = o_fixed."""
+        body = np.asarray(body, dtype=np.int64)
         nb = int(body.max()) + 1
-        first = np.full(nb, len(X))
-        np.minimum.at(first, body, np.arange(len(X)))
-        X = X[first][body] + minimum_image(X - X[first][body], L)
         m = np.asarray(bead_mass, dtype=float)
-        R = _sum(body, m[:, None] * X, nb) / np.bincount(body, m, minlength=nb)[:, None]
-        return cls(body, X - R[body], m, bead_inertia, species, R, quat.identity(nb),
-                   free_v, free_o, v_fixed, o_fixed, L)
+        q = quat.normalise(np.asarray(q, dtype=float).reshape(nb, 4))
+        shape = np.asarray(shape, dtype=float)
+        com = _sum(body, m[:, None] * shape, nb) / np.bincount(body, m, minlength=nb)[:, None]
+        off = quat.rotate(q[body], shape - com[body])
+        R = np.asarray(R, dtype=float).reshape(nb, 3)
+        M = np.bincount(body, m, minlength=nb)
+        I = inertia_tensors(body, nb, m, np.asarray(bead_inertia, dtype=float), off)
+        return cls.assemble(R[body] + off, body, species, M, R, I, None, v_fixed, o_fixed,
+                            free_v, free_o, box, gravity)
 
     # ------------------------------------------------------------------ Lees-Edwards
     def use_lees_edwards(self, fluid):
@@ -177,8 +251,9 @@ class RigidBodies:
         is wrapped by the same rule on its own, its image count n_k (-1, 0, 1: across which
         y boundary from its centre of mass) kept in ``image``, and its velocity is
         V_g + Omega_g x r_k - n_k gamma_dot Ly e_x: the velocity of the body at the bead's
-        image, continuous relative to the imposed flow.  Sets the images of the beads where
-        they are and their velocities (positions unchanged)."""
+        image, continuous relative to the imposed flow (rigid.h
+        update_Particle_Configuration_OBL).  Sets the images of the beads where they are
+        and their velocities (positions unchanged)."""
         self.lees_edwards = fluid
         self._set_images()
 
@@ -200,6 +275,7 @@ class RigidBodies:
         return quat.rotate(self.state.q[self.body], self.body_positions)
 
     def set_bead_velocities(self, p, r=None):
+        """v_k = V_g + Omega_g x r_k (minus the image's velocity jump), omega_k = Omega_g."""
         r = self.offsets() if r is None else r
         s = self.state
         p.v[:] = s.v[self.body] + np.cross(s.omega[self.body], r)
@@ -208,7 +284,8 @@ class RigidBodies:
         p.omega[:] = s.omega[self.body]
 
     def place_beads(self, p):
-        """Bead positions, orientations and velocities from the bodies (x_k = R_g + r_k)."""
+        """Bead positions, orientations and velocities from the bodies (x_k = R_g + r_k);
+        the beads' v_old / omega_old take their velocities before."""
         r = self.offsets()
         s = self.state
         p.R_raw[:] = s.R_raw[self.body] + r
@@ -218,69 +295,89 @@ class RigidBodies:
             self.image = np.floor(X[:, 1] / Ly)
             X[:, 0] -= self.image * self.lees_edwards.image_offset
             X[:, 1] -= self.image * Ly
-            p.R[:] = np.mod(X, self.box)
+            p.R[:] = _wrap(X, self.box)
         else:
-            p.R[:] = np.mod(s.R[self.body] + r, self.box)
-        p.R[p.R >= self.box] = 0.0
-        p.q_old[:] = p.q
+            p.R[:] = _wrap(s.R[self.body] + r, self.box)
+        p.q_old[:] = s.q_old[self.body]
         p.q[:] = s.q[self.body]
+        p.v_old[:] = p.v
+        p.omega_old[:] = p.omega
         self.set_bead_velocities(p, r)
 
     # ------------------------------------------------------------------ SPM motion
-    def update_velocities(self, p, F_H, T_H, F_other, T_other, dt, rotation, dP_noise=None,
-                          dL_noise=None, mass=None, inertia=None):
-        """Body V, Omega from the summed bead forces (module docstring); bead v, omega."""
-        # stores the bead forces, v_old, omega_old (the free bead velocities are overwritten)
-        _free_velocities(p, F_H, T_H, F_other, T_other, dt, rotation, dP_noise, dL_noise,
-                         mass=mass, inertia=inertia)
-        m = p.mass if mass is None else np.asarray(mass, dtype=float)
-        Ik = p.inertia if inertia is None else np.asarray(inertia, dtype=float)
-        b, nb, s = self.body, self.nb, self.state
-        r = self.offsets()
-        F_Hg = _sum(b, p.f_hydro, nb)
-        F_og = _sum(b, p.f_r, nb)
-        T_Hg = _sum(b, np.cross(r, p.f_hydro) + p.torque_hydro, nb)
-        T_og = _sum(b, np.cross(r, p.f_r) + p.torque_r, nb)
-        for name, new in (("f_hydro", F_Hg), ("torque_hydro", T_Hg), ("f_r", F_og),
-                          ("torque_r", T_og)):
-            getattr(s, name + "_previous")[...] = getattr(s, name)
-            getattr(s, name)[...] = new
-        s.v_old[...] = s.v
-        s.omega_old[...] = s.omega
-        M = np.bincount(b, m, minlength=nb)
-        dPg = (F_Hg + F_og) * dt
-        if dP_noise is not None:
-            dPg += _sum(b, dP_noise, nb)
-        v = s.v + dPg / M[:, None]
-        s.v[:] = np.where(self.free_v, v, self.v_fixed)
-        om = s.omega
-        if rotation:
-            I = inertia_tensors(b, nb, m, Ik, r)
-            dL = (T_Hg + T_og - np.cross(s.omega, np.einsum("gij,gj->gi", I, s.omega))) * dt
-            if dL_noise is not None:
-                dL += _sum(b, np.cross(r, dP_noise) + dL_noise, nb)
-            om = s.omega + np.linalg.solve(I, dL[:, :, None])[:, :, 0]
-        s.omega[:] = np.where(self.free_o, om, self.o_fixed)
-        self.set_bead_velocities(p, r)
-        return p
-
-    def update_positions(self, p, dt, box, rotation):
-        """R_g by Crank-Nicolson, q_g by the step's mean Omega; beads placed rigidly."""
+    def update_positions(self, p, dt, box, rotation, first=False, wrap_box=True):
+        """R_g, q_g by Euler (first step) or Adams-Bashforth; beads placed rigidly (module
+        docstring).  ``rotation`` is not read (the original turns rigid bodies always)."""
         s = self.state
-        dR = 0.5 * dt * (s.v_old + s.v)
+        if first:
+            dR = dt * s.v
+            q = quat.euler_step(s.q, s.omega, dt)
+        else:
+            dR = (0.5 * dt) * (3.0 * s.v - s.v_old)
+            q = quat.ab2_step(s.q, s.q_old, s.omega, s.omega_old, dt)
         s.R_raw += dR
+        s.R += dR
         if self.lees_edwards is not None:
             from ..fluid.oblique import lees_edwards_wrap
             fl = self.lees_edwards
-            s.R += dR
             lees_edwards_wrap(s.R, s.v, fl.frame_box, fl.image_offset, fl.shear_rate_now,
                               s.v_old)
         else:
-            s.R[:] = np.mod(s.R + dR, self.box)
-            s.R[s.R >= self.box] = 0.0
+            _wrap(s.R, self.box)
         s.q_old[...] = s.q
-        s.q[...] = quat.integrate(s.q, 0.5 * (s.omega_old + s.omega), dt)
+        s.q[...] = q
         self.place_beads(p)
+        return p
+
+    def update_velocities(self, p, F_H, T_H, F_other, T_other, dt, rotation, dP_noise=None,
+                          dL_noise=None, first=False):
+        """Body V, Omega from the summed bead forces (module docstring); bead v, omega.
+        The beads keep their own F_H, N_H and other forces (the records' Particles[])."""
+        n = p.n
+        zeros = np.zeros((n, 3))
+        bead = {"f_hydro": F_H, "torque_hydro": T_H, "f_r": F_other, "torque_r": T_other}
+        for name, new in bead.items():
+            getattr(p, name + "_previous")[...] = getattr(p, name)
+            getattr(p, name)[...] = zeros if new is None else new
+        b, nb, s = self.body, self.nb, self.state
+        r = self.offsets()
+        new = {"f_hydro": _sum(b, p.f_hydro, nb),
+               "torque_hydro": _sum(b, np.cross(r, p.f_hydro) + p.torque_hydro, nb),
+               "f_r": _sum(b, p.f_r, nb) + self.gravity,
+               "torque_r": _sum(b, np.cross(r, p.f_r) + p.torque_r, nb)}
+        for name in _FORCES:
+            getattr(s, name + "_previous")[...] = getattr(s, name)
+            getattr(s, name)[...] = new[name]
+        s.v_old[...] = s.v
+        s.omega_old[...] = s.omega
+        im = (1.0 / self.masses)[:, None]
+        Ib = np.einsum("gii->gi", self.moments_body)
+        Rm = quat.to_matrix(s.q)
+        wb = np.einsum("gji,gj->gi", Rm, s.omega)
+        cyc = ([1, 2, 0], [2, 0, 1])              # (j, k) of every i: (I_j - I_k) w_j w_k
+        euler = (Ib[:, cyc[0]] - Ib[:, cyc[1]]) * wb[:, cyc[0]] * wb[:, cyc[1]]
+        if first:
+            dv = (dt * im) * (s.f_hydro + s.f_r)
+            tb = np.einsum("gji,gj->gi", Rm, s.torque_hydro + s.torque_r)
+            dw = (dt / Ib) * (tb + euler)
+        else:
+            h = 0.5 * dt
+            dv = (h * im) * (2.0 * s.f_hydro + s.f_r + s.f_r_previous)
+            tb = np.einsum("gji,gj->gi", Rm, 2.0 * s.torque_hydro + s.torque_r)
+            tb += np.einsum("gji,gj->gi", quat.to_matrix(s.q_old), s.torque_r_previous)
+            dw = (h / Ib) * (tb + 2.0 * euler)
+        s.v += np.where(self.free_v, dv, 0.0)
+        wb += np.where(self.free_o, dw, 0.0)
+        s.omega[...] = np.einsum("gij,gj->gi", Rm, wb)
+        if dP_noise is not None:
+            dP = np.asarray(dP_noise, dtype=float)
+            dL = np.zeros_like(dP) if dL_noise is None else np.asarray(dL_noise, dtype=float)
+            s.v += np.where(self.free_v, _sum(b, dP, nb) * im, 0.0)
+            L = _sum(b, dL + np.cross(r, dP), nb)
+            s.omega += np.where(self.free_o,
+                                np.linalg.solve(self.inertia_space(), L[:, :, None])[:, :, 0],
+                                0.0)
+        self.set_bead_velocities(p, r)
         return p
 
     # ------------------------------------------------------------------ distributed
@@ -336,47 +433,108 @@ class RigidBodies:
         sub.nb = len(bodies)
         sub.global_bodies = bodies
         sub.body_positions = self.body_positions[beads]
-        sub.bead_mass = self.bead_mass[beads]
-        sub.bead_inertia = self.bead_inertia[beads]
         sub.box = self.box
-        for name in ("free_v", "free_o", "v_fixed", "o_fixed", "masses", "moments_body"):
+        for name in ("free_v", "free_o", "masses", "moments_body", "gravity"):
             setattr(sub, name, getattr(self, name)[bodies])
         s = self.state
         sub.state = ParticleState(n=sub.nb, species=s.species[bodies],
                                   radius=s.radius[bodies], mass=s.mass[bodies],
                                   inertia=s.inertia[bodies])
         sub.lees_edwards = self.lees_edwards
+        sub.gravity_of = None
         sub.image = np.zeros(len(beads))
         sub.take_records(np.arange(len(beads)), records)
         return sub
 
     # ------------------------------------------------------------------ restart
+    # The restart's Saved_Data.Particles[] holds one row per body, as the original writes it
+    # (resume.cxx Save_Restart_udf: Get_Rigid_Particle_Data, then Save_Rigid_Particle_udf):
+    # the body's centre R (R_raw unwrapped), V, V_old, Omega, Omega_old (space frame), q,
+    # q_old and the summed forces and torques in the after-step convention (current 0, the
+    # step's in *_previous: rigid.h calc_Rigid_VOGs resets them), then GR_body[] per bead,
+    # GR_masses[] and GR_moments_body[] per body.
+    def restart_rows(self) -> ParticleState:
+        """The rows of the restart's Particles[]: the body state (one row per body)."""
+        return self.state
+
     def restart_items(self) -> dict:
         """The restart schema's GR_body[] (N, 3), GR_masses[] (B,), GR_moments_body[] (B, 9)."""
         return {"GR_body": self.body_positions.copy(), "GR_masses": self.masses.copy(),
                 "GR_moments_body": self.moments_body.reshape(-1, 9).copy()}
 
     def exact_items(self) -> dict:
-        """The body state by name ('rigid_<field>'), for a bit-identical continuation."""
+        """The body state by name ('rigid_<field>'), for a bit-identical continuation (the
+        state file: what an sParticle without R_raw or *_previous members cannot hold)."""
         s = self.state
         return {f"rigid_{k}": getattr(s, k).copy() for k in VECTOR_FIELDS + ("q", "q_old")}
 
+    def restore_rows(self, p, fields=None, exact=None, raw=True):
+        """Continue from a restart in the original's layout, ``state`` already read from its
+        rows (one per body): the geometry GR_body[], GR_masses[], GR_moments_body[] of
+        ``fields`` (resume.cxx Read_Rigid_Particle_udf; the net gravity follows the masses),
+        the state file's body state over the rows when ``exact`` has it, else the
+        quaternions normalised and, without an R_raw column (``raw`` False), R_raw = R, as
+        the original reads them; then the beads ``p`` placed from the bodies
+        (Set_Rigid_Particle_Data): x_k = R_g + R(q) r_k^B, q, v_k = V + Omega x r_k,
+        omega_k = Omega, v_old and omega_old equal to them.
+
+        The original's Set_Rigid_Particle_Data also sets the beads' omega_old to Omega and
+        its first Adams-Bashforth quaternion step after the restore reads the first bead's
+        omega_old, not the body's Omega_old (rigid.h solver_Rigid_Position): its continued
+        run of a body whose Omega changes leaves its uninterrupted one.  kapsel-py turns
+        the body with Omega_old of the row, as an uninterrupted run does."""
+        fields = fields or {}
+        nb, n = self.nb, len(self.body)
+        for name, shape in (("GR_body", (n, 3)), ("GR_masses", (nb,)),
+                            ("GR_moments_body", (nb, 9))):
+            if name in fields and np.shape(fields[name]) != shape:
+                raise ValueError(f"{name}[] has shape {np.shape(fields[name])}, the input's "
+                                 f"{nb} rigid bodies of {n} beads need {shape}")
+        s = self.state
+        if "GR_body" in fields:
+            self.body_positions = np.array(fields["GR_body"], dtype=float)
+        if "GR_masses" in fields:
+            self.masses = np.array(fields["GR_masses"], dtype=float)
+            s.mass[:] = self.masses
+            if self.gravity_of is not None:
+                self.gravity = self.gravity_of(self.masses)
+        if "GR_moments_body" in fields:
+            self.moments_body = np.array(fields["GR_moments_body"],
+                                         dtype=float).reshape(nb, 3, 3)
+            s.inertia[:] = np.trace(self.moments_body, axis1=1, axis2=2) / 3.0
+        if exact and all(k in exact for k in self.exact_items()):
+            for k in self.exact_items():
+                getattr(s, k[len("rigid_"):])[...] = exact[k]
+        else:
+            s.q[:] = quat.normalise(s.q)
+            s.q_old[:] = quat.normalise(s.q_old)
+            if not raw:
+                s.R_raw[:] = s.R
+        self.place_beads(p)
+        p.v_old[:] = p.v
+        p.omega_old[:] = p.omega
+        for name in ("f_hydro", "torque_hydro", "f_r", "torque_r"):
+            getattr(p, name)[:] = 0.0
+            getattr(p, name + "_previous")[:] = 0.0
+
     def restore(self, p, exact=None):
-        """Body state after the beads ``p`` were read back from a restart: from
-        ``exact_items`` when given, else from the beads (q and Omega of each body's first
-        bead, V the mass-weighted mean bead velocity, R_g the centre of the beads)."""
+        """Body state after the beads ``p`` were read back from a restart of kapsel-py before
+        2026-12 (one Particles[] row per bead): from ``exact_items`` when given, else from
+        the beads (q and Omega of each body's first
+        bead, V = v_k - Omega x r_k averaged over the beads, R_g the centre of the beads)."""
         s = self.state
         if exact and all(k in exact for k in self.exact_items()):
-            for k, v in self.exact_items().items():
+            for k in self.exact_items():
                 getattr(s, k[len("rigid_"):])[...] = exact[k]
             return
-        first = np.full(self.nb, len(self.body))
-        np.minimum.at(first, self.body, np.arange(len(self.body)))
-        m, b, nb = self.bead_mass, self.body, self.nb
+        first = self.first_beads()
+        b, nb = self.body, self.nb
+        m = np.ones(len(b))                # the beads' weights in the body's mean
         s.q[:] = quat.normalise(p.q[first])
         s.q_old[:] = quat.normalise(p.q_old[first])
         s.omega[:] = p.omega[first]
         s.omega_old[:] = p.omega_old[first]
+        cnt = np.bincount(b, m, minlength=nb)[:, None]
         if self.lees_edwards is not None:     # centre from the first bead, through the images
             from ..fluid.oblique import lees_edwards_wrap
             fl = self.lees_edwards
@@ -388,17 +546,21 @@ class RigidBodies:
             v = getattr(p, k).copy()
             if self.lees_edwards is not None:
                 v[:, 0] += self.image * self._le_rate_jump()
-            getattr(s, k)[:] = _sum(b, m[:, None] * v, nb) / self.masses[:, None]
+            w = _sum(b, v - np.cross(getattr(p, "omega" if k == "v" else "omega_old"),
+                                     self.offsets()), nb)
+            getattr(s, k)[:] = w / cnt
         est = p.R_raw - self.offsets()                 # each bead's idea of its centre
         est = est[first][b] + minimum_image(est - est[first][b], self.box)
-        s.R_raw[:] = _sum(b, m[:, None] * est, nb) / self.masses[:, None]
+        s.R_raw[:] = _sum(b, est, nb) / cnt
         if self.lees_edwards is None:
-            s.R[:] = np.mod(s.R_raw, self.box)
+            s.R[:] = _wrap(s.R_raw.copy(), self.box)
         r = self.offsets()
         s.f_hydro[:] = _sum(b, p.f_hydro, nb)
-        s.f_r[:] = _sum(b, p.f_r, nb)
+        s.f_r[:] = _sum(b, p.f_r, nb) + self.gravity
         s.torque_hydro[:] = _sum(b, np.cross(r, p.f_hydro) + p.torque_hydro, nb)
         s.torque_r[:] = _sum(b, np.cross(r, p.f_r) + p.torque_r, nb)
+        for k in _FORCES:
+            getattr(s, k + "_previous")[:] = getattr(s, k)
 
     # ------------------------------------------------------------------ diagnostics
     def inertia_space(self) -> np.ndarray:
@@ -417,20 +579,32 @@ class RigidBodies:
         return np.atleast_1d(rotational_energy_body(self.state.omega, moments, Rm))
 
 
+def _gravity(cfg, masses, rho_p):
+    """The net gravity G RHO (M_g / RHO_p)(MASS_RATIO - 1) along G_direction (B, 3)
+    (md_force.cxx Add_f_gravity, rigid branch)."""
+    inter = cfg.interactions
+    out = np.zeros((len(masses), 3))
+    if inter.G == 0:
+        return out
+    axis = {"-X": 0, "-Y": 1, "-Z": 2}[inter.G_direction]
+    rho = cfg.fluid.RHO
+    out[:, axis] = -inter.G * rho * (masses / rho_p) * (rho_p / rho - 1.0)
+    return out
+
+
 def build_bodies(cfg, p, rng) -> RigidBodies:
     """The bodies of ``cfg`` (object_type rigid) over the beads ``p`` (species, masses set);
-    places the beads.  ValueError when they cannot be placed.
+    places the beads (module docstring).  ValueError when they cannot be placed.
 
-    switch.INIT_distribution user_specify: the Particles[] positions of the beads give each
-    body's shape and place (body frame = that configuration, q = identity; the free
-    velocity components start at the mean of the beads' v and omega); INIT_orientation
-    random turns each body about its centre by a random rotation, space_align and
-    user_specify keep the positions as given.  uniform_random / random_walk: straight rods
-    of touching beads (``rod_shape``) at random non-overlapping places, along x
-    (space_align, and user_specify without user positions, as table 7) or randomly oriented.
-    """
+    switch.INIT_distribution user_specify: the Particles[] positions of the beads (their v
+    and omega are not read: the bodies start with Rigid_velocity / Rigid_omega); the
+    user's q only for Quincke rollers with INIT_orientation user_specify.  uniform_random /
+    random_walk: straight rods of touching beads (``rod_shape``) at random non-overlapping
+    places, along x (space_align, and user_specify without user positions, as table 7) or
+    randomly oriented."""
     spec = cfg.particles.species
     A = cfg.particles.A
+    dx = cfg.mesh.DX
     box = np.asarray(cfg.mesh.box, dtype=float)
     counts = [s.number for s in spec]
     body_species = np.repeat(np.arange(len(spec)), counts)
@@ -441,38 +615,59 @@ def build_bodies(cfg, p, rng) -> RigidBodies:
     free_o = free_v.copy()
     for sid, vel, om in cfg.switches.free_rigid:
         free_v[sid], free_o[sid] = vel, om
-    v_fixed = np.array([s.rigid_velocity for s in spec], dtype=float).reshape(-1, 3)
-    o_fixed = np.array([s.rigid_omega for s in spec], dtype=float).reshape(-1, 3)
-    per_body = dict(free_v=free_v[body_species], free_o=free_o[body_species],
-                    v_fixed=v_fixed[body_species], o_fixed=o_fixed[body_species])
+    v0 = np.array([s.rigid_velocity for s in spec], dtype=float).reshape(-1, 3)
+    w0 = np.array([s.rigid_omega for s in spec], dtype=float).reshape(-1, 3)
+    rho_p = np.array([s.MASS_RATIO for s in spec], dtype=float)[body_species] * cfg.fluid.RHO
+    per_body = dict(free_v=free_v[body_species], free_o=free_o[body_species])
     kind, okind = cfg.switches.init_distribution, cfg.switches.init_orientation
+    quincke = getattr(cfg.switches, "quincke", None)
     if kind != "user_specify" and beads.max() * 2.0 * A > box.min():
         # (kapsel.config refuses it first; user_specify shapes are checked by their extent)
         raise ValueError(f"a rigid body of {int(beads.max())} beads of radius {A:g} does not "
                          f"fit in the box {' x '.join(f'{x:g}' for x in box.tolist())}")
-    if kind == "user_specify":
-        user = cfg.switches.user_particles[:p.n]
-        bodies = RigidBodies.from_beads(user[:, 0:3], body, p.mass, p.inertia, body_species,
-                                        box=box, **per_body)
-        s = bodies.state
-        nb = np.bincount(body, minlength=nbodies)[:, None]
-        s.v[:] = np.where(bodies.free_v, _sum(body, user[:, 3:6], nbodies) / nb, s.v)
-        s.omega[:] = np.where(bodies.free_o, _sum(body, user[:, 10:13], nbodies) / nb,
-                              s.omega)
-        if okind == "random":
-            from .placement import orientations
-            s.q[:] = orientations("random", nbodies, rng)
-            s.q_old[:] = s.q
+    user = cfg.switches.user_particles[:p.n] if kind == "user_specify" else None
+    if user is not None:
+        X = np.asarray(user[:, 0:3], dtype=float)
+        first = np.full(nbodies, len(X))
+        np.minimum.at(first, body, np.arange(len(X)))
+        X = X[first][body] + minimum_image(X - X[first][body], box)
     else:
         from .placement import orientations
-        q = orientations("random" if okind == "random" else "space_align", nbodies, rng)
+        q_place = orientations("random" if okind == "random" else "space_align", nbodies, rng)
         shape = np.concatenate([rod_shape(int(k), A) for k in beads])
-        offsets = quat.rotate(q[body], shape)
+        offsets = quat.rotate(q_place[body], shape)
         starts = np.concatenate([[0], np.cumsum(beads)[:-1]])
         from .walls import clear_slab
         R = place_bodies(np.split(offsets, starts[1:]), A, box, rng, slab=clear_slab(cfg))
-        bodies = RigidBodies(body, shape, p.mass, p.inertia, body_species, R, q, box=box,
-                             **per_body)
-    bodies.place_beads(p)
+        X = R[body] + offsets
+    q = None
+    if quincke is not None:                   # one-bead bodies keep the beads' orientation
+        if user is not None and okind == "user_specify":
+            q = quat.normalise(np.asarray(user[:, 6:10], dtype=float))
+        elif okind == "random":
+            axis = int(np.argmax(np.abs(np.asarray(quincke.field_dir, dtype=float))))
+            x = rng.random(nbodies) * 2.0 * np.pi
+            q = np.zeros((nbodies, 4))
+            q[:, 0] = np.cos(0.5 * x)
+            q[:, 1 + axis] = np.sin(0.5 * x)
+        else:
+            q = quat.identity(nbodies)
+    if user is not None or quincke is not None:
+        M, R, I = grid_integrals(X, body, nbodies, rho_p, A, cfg.particles.A_XI, dx,
+                                 cfg.mesh.shape)
+    else:
+        M = np.bincount(body, p.mass, minlength=nbodies)
+        R = _sum(body, p.mass[:, None] * X, nbodies) / M[:, None]
+        I = inertia_tensors(body, nbodies, p.mass, p.inertia, X - R[body])
+    bodies = RigidBodies.assemble(X, body, body_species, M, R, I, q, v0[body_species],
+                                  w0[body_species], box=box,
+                                  gravity=_gravity(cfg, M, rho_p), **per_body)
+    bodies.gravity_of = lambda masses: _gravity(cfg, masses, rho_p)
+    p.R_raw[:] = X
+    p.R[:] = _wrap(X.copy(), box)
+    p.q[:] = bodies.state.q[body]
     p.q_old[:] = p.q
+    bodies.set_bead_velocities(p)
+    p.v_old[:] = p.v
+    p.omega_old[:] = p.omega
     return bodies
