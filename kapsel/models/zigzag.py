@@ -167,6 +167,7 @@ class ZigzagStress:
         self.inertia = 0.0
         self.moment_old = 0.0         # M of the previous step (0 before the first: rhop = 0)
         self.sum, self.n = 0.0, 0     # the record's mean since the previous record
+        self._ux = None               # u_x in real space (AC with heavy particles)
 
     def _sum(self, values):
         return self.grid.sums(values) if self.dist else [float(v) for v in values]
@@ -200,7 +201,9 @@ class ZigzagStress:
         if ac:
             local.append(self.rho * moment_u)
             if self.heavy:         # (a collective when distributed: on every rank)
-                ux = self.grid.irfft_scalar(u_hat[0])
+                if self._ux is None:
+                    self._ux = self.grid.empty_real(None)
+                ux = self.grid.irfft_scalar(u_hat[0], out=self._ux)
                 local.append(self._at_profiles(spm, ux)[1])
             else:
                 local.append(0.0)
