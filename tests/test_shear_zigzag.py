@@ -149,7 +149,7 @@ def brute_force_stress(m, delta, ux_new, ux_old_moment):
     rho = cfg.fluid.RHO + (cfg.particles.species[0].MASS_RATIO - 1.0) * cfg.fluid.RHO * m.spm.phi()
     dx = cfg.mesh.DX
     y = (np.arange(m.grid.shape[1]) * dx)[None, :, None]
-    N, V = m.grid.size, m.grid.volume
+    V = m.grid.volume
     f = rho * delta
     stress = -dx ** 3 / (V * m.dt) * float(((f - f.mean()) * y).sum())
     M = float((y * rho * ux_new).sum())

@@ -65,7 +65,7 @@ TABLE_AC = ("time", "shear_rate_temporal", "shear_strain_temporal", "shear_stres
 
 
 def zigzag_profile(ny: int, dx: float, rate: float) -> np.ndarray:
-    """The AC pin's u_x(j) for unit amplitude factor (fluid_solver.cxx
+    """The zigzag u_x(j) the AC pin sets before its factor cos(w n dt) (fluid_solver.cxx
     Mean_shear_sustaining_kforce_PBC): -rate y on [0, Ly/4), rate (Ly - y) on [3Ly/4, Ly),
     rate (y - Ly/2) between, y = j DX."""
     Ly = ny * dx
@@ -86,8 +86,7 @@ class ZigzagPin:
         self.kind, self.rate, self.omega = kind, float(rate), float(frequency)
         self.step_of = step_of
         nx, ny, nz = g.shape
-        (y0, y1) = g.real_range[1] if hasattr(g, "real_range") else (0, ny)
-        self.rows = slice(y0, y1)              # this rank's rows of y
+        (y0, y1) = g.real_range[1] if hasattr(g, "real_range") else (0, ny)   # rank's rows
         j1, j2 = ny // 4, 3 * ny // 4
         a = self.rate * (0.25 * ny * g.dx)
         self.planes = [(j - y0, v) for j, v in ((j1, -a), (j2, a)) if y0 <= j < y1]
@@ -146,13 +145,11 @@ class ZigzagStress:
         (y0, y1) = g.real_range[1] if self.dist else (0, ny)
         self.y = np.arange(y0, y1) * g.dx                    # this rank's y = j DX
         self.y_sum = nx * nz * g.dx * ny * (ny - 1) / 2.0    # sum_x y over the whole mesh
-        # the (k_x, k_z) = 0 column of u_x^ on this rank: weights of its k_y modes for the
-        # rate (sum over the middle half of d_y) and for sum_x y u_x (both / N_x N_z folded)
+        # c = u_x^(0, k_y, 0), the modes of this rank (when it holds k_z = 0): the sum of u_x
+        # over a plane j is ifft_y(c)[j], so sum_j w_j(k_y) c(k_y) gives the sum over the
+        # middle half of d_y u_x (w_rate) and sum_x y u_x (w_moment)
         self.column = (not self.dist) or g.spec_range[2][0] == 0
-        if self.dist:
-            m0, m1 = g.spec_range[1]
-        else:
-            m0, m1 = 0, ny
+        m0, m1 = g.spec_range[1] if self.dist else (0, ny)
         ky = np.asarray(g.ky).reshape(-1)
         j = np.arange(ny)
         mid = j[(j >= ny // 4) & (j < 3 * ny // 4)]
