@@ -64,7 +64,10 @@ def test_slip_is_blake_mode_and_shell_weight_is_local():
     assert w[0, 0] == 0 and w[0, -1] == 0 and w[0, 2] == pytest.approx(0.5)
 
 
-def test_squirmer_swims_along_its_rotated_axis_and_conserves_momentum():
+def test_squirmer_swims_along_its_rotated_axis():
+    """(It also asserted the total momentum RHO DX^3 sum u + sum (M - RHO V_p) V constant to
+    round-off: an identity of kapsel-py's former grid masses, M = RHO V_p + excess; with the
+    original's masses M = MASS_RATIO RHO 4/3 pi A^3 and FIX_CELL on it does not hold.)"""
     q = from_axis_angle(np.array([[0.0, 1.0, 0.0]]), np.array([np.pi / 2]))  # body z -> x
     spm, p, dt = _run([[16.3, 16.2, 15.8]], q, [JanusSpec("Z", "SQUIRMER", slip_vel=B1)])
     e3 = rotate(q, [0.0, 0.0, 1.0])[0]
@@ -72,7 +75,6 @@ def test_squirmer_swims_along_its_rotated_axis_and_conserves_momentum():
     spm.run(60)
     v = p.v[0]
     assert v @ e3 > 0.4 * B1 and np.linalg.norm(v - (v @ e3) * e3) < 0.02 * (v @ e3)
-    assert np.abs(spm.total_momentum()).max() < 1e-12
     assert p.f_slip[0] @ e3 != 0 and np.all(np.isfinite(p.torque_slip))
     assert 1 <= p.janus.iterations <= 4
 

@@ -249,28 +249,143 @@ def test_project_divergence_free_keeps_mean(shape):
     assert np.abs(v - u).max() < 1e-13
 
 
-@pytest.mark.parametrize("fft", ["pyfftw", "scipy"])
-def test_explicit_step_is_divergence_free(fft):
+def _roll(a, s, ax):
+    return np.roll(a, -s, axis=ax)            # a[i + s]
+
+
+def _original_terms(u, dx):
+    """fdm.cxx U2advection ((u.grad)u, central) and U2laplacian, written independently."""
+    adv, lap = np.zeros_like(u), np.zeros_like(u)
+    for i in range(3):
+        for j in range(3):
+            adv[i] += u[j] * (_roll(u[i], 1, j) - _roll(u[i], -1, j)) / (2 * dx)
+            lap[i] += _roll(u[i], 1, j) - 2 * u[i] + _roll(u[i], -1, j)
+    return adv, lap / dx ** 2
+
+
+def _original_pressure_step(un, w, dt, dx):
+    """fdm.h Set_poisson_rhs_sub + Solve_poisson_dft + fdm.cxx Update_u_pressure:
+    lap p = RHO/dt D un - RHO D w (continuous -k^2), un - dt/RHO G p (B-grid D, G as
+    calc_gradient_o1_to_o2 / o2_to_o1: sums of 4 differences / (4 DX))."""
+    def D(v):
+        out = 0.0
+        for a in range(3):
+            b, c = [x for x in range(3) if x != a]
+            for sb in (0, 1):
+                for sc in (0, 1):
+                    t = _roll(_roll(v[a], sb, b), sc, c)
+                    out = out + (_roll(t, 1, a) - t) / (4 * dx)
+        return out
+
+    def G(p):
+        out = np.zeros((3,) + p.shape)
+        for a in range(3):
+            b, c = [x for x in range(3) if x != a]
+            for sb in (0, -1):
+                for sc in (0, -1):
+                    t = _roll(_roll(p, sb, b), sc, c)
+                    out[a] += (t - _roll(t, -1, a)) / (4 * dx)
+        return out
+    kx, ky, kz = op.wavenumbers(un.shape[1:], dx)
+    k2 = np.broadcast_to(kx ** 2 + ky ** 2 + kz ** 2, un.shape[1:3] + (un.shape[3] // 2 + 1,))
+    inv = np.where(k2 > 0, -1.0 / np.where(k2 > 0, k2, 1.0), 0.0)
+    s = RHO / dt * D(un) - RHO * D(w)
+    p = np.fft.irfftn(inv * np.fft.rfftn(s), s=un.shape[1:], axes=(0, 1, 2))
+    return un - dt / RHO * G(p)
+
+
+def test_explicit_step_is_the_originals():
+    """Three explicit steps against fdm.cxx NS_solver_slavedEuler_explicit written out
+    independently: Euler for the first two steps of a run, then Adams-Bashforth for the
+    advection; the pressure from the updated velocity (the original's right-hand side)."""
+    rng = np.random.default_rng(3)
+    sh, dt, dx = (12, 10, 8), 0.05, 1.0
+    s = MACSolver(sh, dx, RHO, ETA, dt)
+    u = 0.1 * rng.standard_normal((3,) + sh)
+    ref, adv_old = u.copy(), None
+    for n in range(3):
+        s.step(u)
+        adv, lap = _original_terms(ref, dx)
+        if n < 2:
+            un = ref - dt * adv
+        else:
+            un = ref - 0.5 * dt * (3 * adv - adv_old)
+        un = un + NU * dt * lap
+        ref = _original_pressure_step(un, adv - NU * lap, dt, dx)
+        adv_old = adv
+        assert np.abs(u - ref).max() < 1e-14 * np.abs(ref).max(), n
+
+
+def test_implicit_step_is_the_originals():
+    """One implicit step against fdm_matrix_solver.cxx NS_MAC_solver_implicit: with u* =
+    (3 u^n - u^{n-1})/2 and the pressure of eq 26, u^{n+1} solves u/dt + (u*.grad)u/2 -
+    nu lap u/2 = u^n/dt - (u*.grad)u^n/2 + nu lap u^n/2 - G p / RHO."""
+    rng = np.random.default_rng(5)
+    sh, dt, dx = (10, 12, 8), 0.1, 1.0
+    s = MACSolver(sh, dx, RHO, ETA, dt, scheme="implicit_scheme", tolerance=1e-13)
+    u0 = 0.1 * rng.standard_normal((3,) + sh)
+    u1 = 0.1 * rng.standard_normal((3,) + sh)
+    s.u_old = u0
+    u = u1.copy()
+    s.step(u)
+    us = 1.5 * u1 - 0.5 * u0
+    adv_s, lap_s = _original_terms(us, dx)
+    # the pressure step applied to a zero velocity gives -dt/RHO G p of the right-hand side
+    # RHO/dt D u1 - RHO D w: take the difference of two calls
+    gp = _original_pressure_step(u1, adv_s - NU * lap_s, dt, dx) - u1
+
+    def lin(a, w):
+        out = np.zeros_like(w)
+        for i in range(3):
+            for j in range(3):
+                out[i] += a[j] * (_roll(w[i], 1, j) - _roll(w[i], -1, j)) / (2 * dx)
+        return out
+    b = u1 - 0.5 * dt * lin(us, u1) + 0.5 * dt * NU * _original_terms(u1, dx)[1] + gp
+    Ax = u + 0.5 * dt * lin(us, u) - 0.5 * dt * NU * _original_terms(u, dx)[1]
+    assert np.abs(Ax - b).max() < 1e-11 * np.abs(b).max()
+
+
+def test_step_then_spectral_projection_is_divergence_free():
+    """The SPM step ends every FDM step with the original's Solenoidal_u (the spectral
+    projection with the 2/3 rule): spectrally divergence-free, mean kept."""
+    from kapsel.fluid.spectral import SpectralProjector
+    from kapsel.grid import Grid
     rng = np.random.default_rng(3)
     sh = (12, 12, 12)
-    s = MACSolver(sh, 1.0, RHO, ETA, 0.1, fft=fft)
-    u = 0.1 * rng.standard_normal((3,) + sh)
+    s = MACSolver(sh, 1.0, RHO, ETA, 0.1)
+    u = 0.1 * rng.standard_normal((3,) + sh) + 0.05
     s.step(u)
-    assert np.abs(s.divergence(u)).max() < 1e-13
+    mean = u.mean(axis=(1, 2, 3))
+    SpectralProjector(Grid(sh, 1.0))(u)
+    kx, ky, kz = op.wavenumbers(sh, 1.0)
+    uh = np.fft.rfftn(u, axes=(1, 2, 3))
+    div = kx * uh[0] + ky * uh[1] + kz * uh[2]
+    assert np.abs(div).max() < 1e-13 * np.abs(uh).max()
+    assert np.abs(u.mean(axis=(1, 2, 3)) - mean).max() < 1e-16
 
 
 @pytest.mark.parametrize("scheme", SCHEMES)
 @pytest.mark.parametrize("variable", [False, True])
-def test_momentum_conserved(scheme, variable):
+def test_momentum_changes_by_the_advection(scheme, variable):
+    """The original's advection (u.grad)u is not in conservative form (fdm.cxx
+    U2advection): the momentum changes by the sum of the advection term alone (the
+    viscous and pressure terms are differences of periodic fluxes and sum to zero).
+    Explicit (first step): dP = -RHO DX^3 dt sum (u.grad)u; implicit: dP = -RHO DX^3
+    dt/2 sum (u*.grad)(u^{n+1} + u^n), to the solver's tolerance."""
     rng = np.random.default_rng(4)
-    sh = (12, 12, 12)
+    sh, dt = (12, 12, 12), 0.05
     u = 0.2 * rng.standard_normal((3,) + sh) + np.array([0.5, -0.3, 0.2])[:, None, None, None]
     eta = (0.5 + rng.random(sh)) if variable else None
-    s = MACSolver(sh, 1.0, RHO, ETA, 0.05, scheme=scheme)
+    s = MACSolver(sh, 1.0, RHO, ETA, dt, scheme=scheme, tolerance=1e-13)
+    u0 = u.copy()
     p0 = s.momentum(u)
-    for _ in range(5):
-        s.step(u, eta_field=eta)
-    assert np.abs(s.momentum(u) - p0).max() < 1e-12 * np.abs(u).sum()
+    s.step(u, eta_field=eta)
+    if scheme == "explicit_scheme":
+        dP = -RHO * dt * op.advection_nc(u0, 1.0).sum(axis=(1, 2, 3))
+    else:
+        dP = -RHO * 0.5 * dt * op.advection_nc_linear(u0, u + u0, 1.0).sum(axis=(1, 2, 3))
+    assert np.abs(dP).max() > 1e-6 * np.abs(u0).sum()          # the test is not vacuous
+    assert np.abs(s.momentum(u) - p0 - dP).max() < 1e-12 * np.abs(u0).sum()
 
 
 @pytest.mark.parametrize("scheme", SCHEMES)
@@ -298,7 +413,9 @@ def test_uniform_eta_field_equals_constant_viscosity(case):
     b, _, _ = run(u0, k, "implicit_scheme", dx, r=0.2, eta_field=np.full((n, n, n), ETA), **kw)
     # the full form adds eta grad(div u) (discretely nonzero once advection has distorted the
     # ABC field at O(dx^2)); for the shear wave it vanishes identically
-    assert rel(b, a) < (1e-10 if case == "shear" else 1e-6)
+    # (1.4e-6 with the original's non-conservative advection, 2026-12: was < 1e-6 with the
+    # conservative form kapsel-py had)
+    assert rel(b, a) < (1e-10 if case == "shear" else 5e-6)
     # a uniform eta_field of 2 ETA is the constant-viscosity solver with ETA -> 2 ETA
     c, T, s = run(u0, k, "implicit_scheme", dx, r=0.2, eta_field=np.full((n, n, n), 2 * ETA),
                   **kw)
@@ -306,7 +423,7 @@ def test_uniform_eta_field_equals_constant_viscosity(case):
     d = u0.copy()
     for _ in range(int(round(T / s.dt))):
         s2.step(d)
-    assert rel(c, d) < (1e-10 if case == "shear" else 1e-6)
+    assert rel(c, d) < (1e-10 if case == "shear" else 5e-6)     # 2.9e-6 measured
     assert rel(c, spectral_reference(u0, 2 * NU, T, dx)) < 1e-2   # O((k dx)^2) at L = 16
 
 

@@ -65,34 +65,77 @@ def _two_pushed(fluid, mass_ratio):
     return p, (lambda q: (F, T))
 
 
+def _momentum_balance(spm, steps):
+    """The momentum the SPM step exchanges between fluid and particles, step by step.
+
+    With forces summing to zero, the particles' step (spm.py steps 2-6) changes the fluid
+    momentum by exactly  sum_i [RHO V_p,i dV_i + RHO dOmega_i x m_i - M_i dV_i]  with
+    V_p,i = DX^3 sum_x w_i and m_i = DX^3 sum_x w_i r the volume and first moment of the
+    step's coupling weights (F_H takes V^n, the rigidity force V^{n+1}, at the same
+    profiles).  It is not zero: M_i = MASS_RATIO RHO 4/3 pi A^3 (the original's) differs
+    from RHO V_p,i, which varies with the sub-grid position, and m_i != 0 off the grid's
+    symmetry points.  (kapsel-py used to conserve fluid + particle momentum to round-off
+    with masses from the grid volume and lever arms about the profile centroid; those were
+    its own, not the original's.)  Returns the largest relative deviation from the balance
+    and the largest relative change of the total RHO DX^3 sum u + sum M V."""
+    fl, p, rho, dx3 = spm.fluid, spm.p, spm.rho, spm.dx ** 3
+    after_fluid = {}
+    step = fl.step
+
+    def fluid_step(*a, **k):
+        r = step(*a, **k)
+        after_fluid["P"] = _fluid_momentum(spm)
+        return r
+    fl.step = fluid_step
+    worst = drift = 0.0
+    P0 = _fluid_momentum(spm) + (p.mass[:, None] * p.v).sum(axis=0)
+    scale = 0.0
+    for _ in range(steps):
+        v0, w0 = p.v.copy(), p.omega.copy()
+        spm.step()
+        dv, dw = p.v - v0, p.omega - w0
+        vp = spm.w.sum(axis=1) * dx3
+        m1 = np.einsum("ns,nsk->nk", spm.w, spm.r) * dx3
+        expect = (rho * vp[:, None] * dv + rho * np.cross(dw, m1)
+                  - p.mass[:, None] * dv).sum(axis=0)
+        got = _fluid_momentum(spm) - after_fluid["P"]
+        scale = max(scale, np.abs(p.mass[:, None] * p.v).sum())
+        worst = max(worst, np.abs(got - expect).max() / scale)
+        P = _fluid_momentum(spm) + (p.mass[:, None] * p.v).sum(axis=0)
+        drift = max(drift, np.abs(P - P0).max() / scale)
+    fl.step = step
+    return worst, drift
+
+
+def _fluid_momentum(spm):
+    return spm.fluid_momentum()
+
+
 @pytest.mark.parametrize("mass_ratio", [1.0, 2.5])
-def test_momentum_conservation_spectral(mass_ratio):
-    """Equal and opposite forces (and torques) on two particles, 50 steps: the total
-    momentum RHO DX^3 sum u + sum (M - RHO V_p) V (spm docstring) is constant to round-off."""
+def test_momentum_exchange_spectral(mass_ratio):
+    """Equal and opposite forces (and torques) on two particles, 50 steps: the fluid gains
+    what the particles' step gives it (``_momentum_balance``) to round-off; the total
+    momentum drifts by the balance's non-zero part (measured 1.5e-2 and 6e-4 of sum M |V|
+    for MASS_RATIO 1 and 2.5)."""
     dt = _auto_dt()
     fluid = _spectral(24, dt, fix_cell=False)
     p, forces = _two_pushed(fluid, mass_ratio)
     spm = SPM(fluid, p, A, XI, 1.0, 1.0, dt, forces=forces)
-    P0 = spm.total_momentum()
-    for _ in range(50):
-        spm.step()
-    P = spm.total_momentum()
-    moved = np.abs(p.R_raw - p.R).max() + np.abs(p.v).max()
-    assert moved > 0
-    scale = np.abs(p.mass[:, None] * p.v).sum()
-    assert np.abs(P - P0).max() < 1e-12 * max(scale, 1.0), (P - P0, scale)
+    worst, drift = _momentum_balance(spm, 50)
+    assert np.abs(p.R_raw - p.R).max() + np.abs(p.v).max() > 0
+    assert worst < 1e-12, worst
+    assert 1e-6 < drift < 5e-2, drift
 
 
-def test_momentum_conservation_mac():
+def test_momentum_exchange_mac():
     from kapsel.fluid.mac import MACSolver
     dt = 0.05
     mac = MACSolver((24, 24, 24), 1.0, 1.0, 1.0, dt)
     p, forces = _two_pushed(mac, 1.0)
     spm = SPM(mac, p, A, XI, 1.0, 1.0, dt, forces=forces)
-    P0 = spm.total_momentum()
-    for _ in range(50):
-        spm.step()
-    assert np.abs(spm.total_momentum() - P0).max() < 1e-12 * np.abs(p.mass[:, None] * p.v).sum()
+    worst, drift = _momentum_balance(spm, 50)
+    assert worst < 1e-12, worst
+    assert drift < 5e-2, drift
 
 
 def test_no_particles_is_plain_fluid():

@@ -44,7 +44,10 @@ def channel(axis, n=32, across=4):
 @pytest.mark.parametrize("solver,axis,steps", [("spectral", 0, 4000), ("mac", 2, 3400)])
 def test_pressure_driven_flow_between_walls_is_parabolic(solver, axis, steps):
     """Poiseuille flow from rest: mean velocity over the gap h = L - DH DX within 3 % of
-    g h^2 / (12 nu); the profile is the parabola; the velocity in the solid is exactly 0."""
+    g h^2 / (12 nu) (measured 0.14 % below (spectral), 2.3 % above (MAC)); the profile is
+    the parabola.  The walls hold the fluid by the SPM rigidity of the original (the solid
+    a body at rest; its projection leaves a little velocity in the solid: measured 0.59 %
+    (spectral) and 0.53 % (MAC) of max|u| at the end, below 0.8 % after the first step)."""
     shape, dt, g = channel(axis), 0.1 if solver == "spectral" else 0.15, 1e-3
     fa = (axis + 1) % 3                       # flow direction, along the walls
     wall = FlatWall(axis, 4, shape, 1.0, 2.0)
@@ -63,8 +66,9 @@ def test_pressure_driven_flow_between_walls_is_parabolic(solver, axis, steps):
     solid = wall.solid()
     for k in range(steps):
         spm.step()
-        if k % 500 == 0:
-            assert np.abs(spm.velocity()[:, solid]).max() < 1e-14
+        if k % 500 == 0 and k:
+            u = spm.velocity()
+            assert np.abs(u[:, solid]).max() < 0.01 * np.abs(u).max()
     u = spm.velocity()
     prof = u[fa].mean(axis=tuple(a for a in range(3) if a != axis))
     h = wall.gap
@@ -76,7 +80,7 @@ def test_pressure_driven_flow_between_walls_is_parabolic(solver, axis, steps):
     parab = g / 2.0 * (z - wall.lo) * (wall.hi - z)
     err = np.abs(prof[fluid_nodes] - parab[fluid_nodes]).max()
     assert err < 0.03 * parab.max()
-    assert np.abs(u[:, solid]).max() < 1e-14
+    assert np.abs(u[:, solid]).max() < 0.01 * np.abs(u).max()
     assert np.abs(u[axis]).max() < 1e-12      # no flow through the walls
 
 
@@ -221,14 +225,11 @@ def _wall_run_input(tmp_path, eq, n=2, steps=(5, 2)):
 @pytest.mark.parametrize("eq", ["Navier_Stokes", "Navier_Stokes_FDM"])
 def test_particles_settle_between_walls_in_a_run(tmp_path, eq):
     """ex14's walls (Z, DH 4, MANUAL 36:18, EPSILON 100) with two settling particles (G = 1):
-    placed between the walls; the fluid in the solid (phi_wall = 1) stays at rest to
-    round-off.  With the original's single projection of the combined rigidity increment the
-    particles' pressure gradient reached into the solid: up to 7 % of max|u| (measured 0.072
-    after 5 steps, 0.044 after 30) and a net solid momentum of 5 % (5 steps) to 2.1 % (30
-    steps) of the largest sum |u| of a component.  The projection onto divergence-free fields
-    that vanish on the solid (kapsel.particles.wall_rest) leaves 1.4e-15 (spectral) and
-    1e-16 (FDM) of max|u| after 5 steps, a net solid momentum below 4e-17 of sum |u|; the
-    bounds below are 1e-13 (round-off of the FFTs and of the small per-mode solves)."""
+    placed between the walls; the fluid in the solid (phi_wall = 1) is held by the
+    original's SPM rigidity, whose single projection of the combined increment lets the
+    particles' pressure gradient into the solid: measured 5.1 % (spectral) and 5.2 % (FDM)
+    of max|u| after 10 steps (the original: up to 7 %; kapsel-py held it at round-off with a
+    second, constrained projection before it took the original's algorithm)."""
     from kapsel import cli
     for f in ("define.udf", "kapsel_unit.udf"):
         shutil.copy(os.path.join(EX14, f), tmp_path / f)
@@ -245,63 +246,9 @@ def test_particles_settle_between_walls_in_a_run(tmp_path, eq):
     solid = model.wall.solid()
     u = model.velocity_field()
     assert np.abs(u).max() > 1e-6
-    assert np.abs(u[:, solid]).max() < 1e-13 * np.abs(u).max()
-    net = np.abs(u[:, solid].sum(axis=1)).max()
-    assert net < 1e-13 * np.abs(u).sum(axis=(1, 2, 3)).max()
+    assert np.abs(u[:, solid]).max() < 0.08 * np.abs(u).max()
     phi = model.snapshot().get("phi")
     assert phi.max() == 1.0 and np.all(phi[solid] == 1.0)
-
-
-@pytest.mark.parametrize("solver,axis", [("spectral", 2), ("spectral", 0), ("mac", 1)])
-def test_the_fluid_in_the_solid_is_held_by_the_exact_constrained_projection(solver, axis):
-    """kapsel.particles.wall_rest: for a field w that vanishes on the solid, u = P(w) plus
-    the walls' holding correction is divergence-free (the solver's own divergence), zero on
-    the solid, and w - u is orthogonal to every such field (the orthogonal projection onto
-    divergence-free fields vanishing on the solid).  The plain projection P w is not zero on
-    the solid (the leak of the original)."""
-    from kapsel.particles.wall_rest import SolidRest
-    shape = [11, 9, 7]                    # odd: no Nyquist modes (whose derivative is
-    shape[axis] = 15                      # ambiguous for real fields)
-    shape = tuple(shape)
-    wall = FlatWall(axis, 4, shape, 1.0, 2.0)
-    if solver == "spectral":
-        grid = Grid(shape, 1.0)
-
-        def project(f):
-            h = np.fft.rfftn(f, axes=(1, 2, 3))
-            grid.project(h)
-            return np.fft.irfftn(h, s=shape, axes=(1, 2, 3))
-
-        def div(u):                       # i k . u_hat, per unit of max|u_hat|
-            h = np.fft.rfftn(u, axes=(1, 2, 3))
-            return grid.divergence_hat(h) * (np.abs(u).max() / np.abs(h).max())
-    else:
-        mac = MACSolver(shape, 1.0, 1.0, 1.0, 0.1)
-
-        def project(f):
-            return mac.project(f.copy())
-
-        def div(u):
-            return mac.divergence(u)
-    rest = SolidRest(wall, project)
-    solid = wall.solid()
-    assert list(rest.planes) == [0, 1, 14]
-    rng = np.random.default_rng(5)
-
-    def held(w):
-        u = project(w)
-        return u + project(rest.force(u, np.zeros_like(u)))
-
-    w, v0 = rng.normal(size=(2, 3) + shape)
-    w[:, solid] = v0[:, solid] = 0.0
-    plain = project(w)
-    assert np.abs(plain[:, solid]).max() > 0.1 * np.abs(plain).max()
-    u, v = held(w), held(v0)
-    for f in (u, v):
-        assert np.abs(f[:, solid]).max() < 1e-13 * np.abs(f).max()
-        assert np.abs(div(f)).max() < 1e-12 * np.abs(f).max()
-    assert abs(np.vdot(w - u, v)) < 1e-12 * np.linalg.norm(w) * np.linalg.norm(v)
-    assert np.abs(held(u) - u).max() < 1e-13 * np.abs(u).max()      # idempotent
 
 
 def brenner(h_over_a, terms=60):

@@ -23,7 +23,8 @@ from .. import compiled as _c
 __all__ = [
     "shift_assign", "shift_add", "shift_sub", "cdiff_acc",
     "laplacian", "grad_central", "div_central", "div_b", "grad_b",
-    "advection", "advection_linear", "viscous_variable", "face_viscosities",
+    "advection", "advection_linear", "advection_nc", "advection_nc_linear",
+    "symbol_inverse_laplacian", "viscous_variable", "face_viscosities",
     "wavenumbers", "symbol_laplacian", "symbol_central", "symbol_div_grad_b",
     "b_grid_null_modes", "inverse_div_grad_b", "symbol_div_b", "symbol_grad_b",
 ]
@@ -239,6 +240,48 @@ def advection(u, dx, out=None, work=None):
                 _cdiff_acc(out[j], t, i)
     out *= 0.5 / dx
     return out
+
+
+def advection_nc(u, dx, out=None):
+    """Advection in the original's non-conservative form (u.grad)u at the nodes, central
+    differences: out_i = u_x D_x u_i + u_y D_y u_i + u_z D_z u_i, D_j f = (f[+e_j] -
+    f[-e_j]) / (2 DX) (fdm.cxx U2advection, its order of operations)."""
+    out = _buf(out, u.shape)
+    if _compiled(u, out) and u.ndim == 4:
+        _c.stencils.advection_nc(u, 1.0 / (2.0 * dx), out)
+        return out
+    return advection_nc_linear(u, u, dx, out)
+
+
+def advection_nc_linear(a, w, dx, out=None):
+    """(a.grad) w, non-conservative, central differences (fdm_matrix_solver.cxx
+    NS_MAC_solver_implicit: u_s . grad w)."""
+    out = _buf(out, w.shape)
+    inv = 1.0 / (2.0 * dx)
+    d = np.empty(w.shape[1:])
+    t = np.empty(w.shape[1:])
+    for i in range(3):
+        for j in range(3):
+            shift_assign(d, w[i], 1, j)
+            shift_assign(t, w[i], -1, j)
+            d -= t
+            d *= inv
+            if j == 0:
+                np.multiply(a[0], d, out=out[i])
+            else:
+                d *= a[j]
+                out[i] += d
+    return out
+
+
+def symbol_inverse_laplacian(shape, dx, block=None):
+    """-1/|k|^2 (continuous wavenumbers k = 2 pi m / L), 0 at k = 0: the pressure Poisson
+    solve of the original's FDM schemes (fdm.h Solve_poisson_dft)."""
+    kx, ky, kz = wavenumbers(shape, dx, block)
+    k2 = kx * kx + ky * ky + kz * kz
+    inv = np.zeros(np.broadcast_shapes(kx.shape, ky.shape, kz.shape))
+    np.divide(-1.0, k2, out=inv, where=k2 > 0)
+    return inv
 
 
 def advection_linear(a, w, dx, out=None, work=None):

@@ -46,7 +46,7 @@ import numpy as np
 from ..grid import Grid
 from .. import compiled as _compiled
 
-__all__ = ["SpectralNS", "phi1", "phi2"]
+__all__ = ["SpectralNS", "SpectralProjector", "phi1", "phi2"]
 
 
 def cross_in_place(u, w, n):
@@ -305,6 +305,11 @@ class SpectralNS:
         for _ in range(int(nsteps)):
             self.step()
 
+    def zero_mean(self):
+        """u_hat(k = 0) <- 0: no mean flow."""
+        if self._k0:
+            self.u_hat[:, 0, 0, 0] = 0.0
+
     def apply_fix_cell(self):
         """switch.FIX_CELL: zero the mean velocity along the flagged axes."""
         for c, on in enumerate(self.fix_cell):
@@ -312,14 +317,17 @@ class SpectralNS:
                 self.u_hat[c, 0, 0, 0] = 0.0
 
     def add_solenoidal(self, du, project=True):
-        """u_hat += P[FFT(du)] for a real increment du (3, NX, NY, NZ) (e.g. the SPM body
-        force phi f_p dt); the k = 0 mode (mean, momentum) of du is kept.  ``du`` may be
-        ``grid.real_buf`` or any array; it is not modified."""
+        """u_hat += P T[FFT(du)] for a real increment du (3, NX, NY, NZ) (e.g. the SPM body
+        force phi f_p dt), T the 2/3-rule truncation: the state stays truncated, as the
+        original's (operate_omega.h Solenoidal_u); the k = 0 mode (mean, momentum) of du is
+        kept.  ``du`` may be ``grid.real_buf`` or any array; it is not modified."""
         d = self._wh
         self.grid.forward(du, out=d)
         if project and _compiled.spectral is not None:
-            _compiled.spectral.project_add(d, self.u_hat, *self._k1, self.grid.inv_k2)
+            _compiled.spectral.project_add(d, self.u_hat, self.grid.dealias_f, *self._k1,
+                                           self.grid.inv_k2)
             return
+        d *= self.grid.dealias_f
         if project:
             self.grid.project(d, tmp=(self._s, self._t))
         self.u_hat += d
@@ -350,3 +358,26 @@ class SpectralNS:
         if self._dist:        # this rank's block, then the max over the ranks
             return self.grid.max(np.abs(self.grid.irfft_scalar(np.ascontiguousarray(d))).max())
         return float(np.abs(np.fft.irfftn(d, s=self.grid.shape, axes=(0, 1, 2))).max())
+
+
+class SpectralProjector:
+    """u <- P T u in place for a real field u (3, NX, NY, NZ): FFT, 2/3-rule truncation,
+    solenoidal projection (continuous wavenumbers), inverse FFT; the mean is kept.  The
+    original applies it to the whole velocity of the FDM types after the particles' force of
+    every step (operate_omega.h Solenoidal_u, sp_3d_ns.cxx Time_evolution_hydro_fdm).
+    ``grid``: a kapsel.grid.Grid (or a distributed PencilGrid: u is then this rank's block)."""
+
+    def __init__(self, grid):
+        self.grid = grid
+        self._c = grid.empty_complex()
+        self._s = grid.empty_complex(None)
+        self._t = grid.empty_complex(None)
+        self._mask_n = grid.dealias_f / grid.size
+
+    def __call__(self, u):
+        g = self.grid
+        g.forward(u, out=self._c)
+        self._c *= self._mask_n
+        g.project(self._c, tmp=(self._s, self._t))
+        g.backward_raw(self._c, u)
+        return u

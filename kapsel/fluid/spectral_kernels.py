@@ -127,8 +127,8 @@ def project_etd2(nl, nl_old, u_hat, E, a2, b2, kx, ky, kz, inv_k2):
 
 
 @njit(cache=True, nogil=True)
-def project_add(d, u_hat, kx, ky, kz, inv_k2):
-    """u_hat += P d  (d is left unchanged)."""
+def project_add(d, u_hat, mask, kx, ky, kz, inv_k2):
+    """u_hat += P (mask d)  (d is left unchanged)."""
     nx, ny, nzc = inv_k2.shape
     for i in range(nx):
         ki = kx[i]
@@ -136,8 +136,11 @@ def project_add(d, u_hat, kx, ky, kz, inv_k2):
             kj = ky[j]
             for k in range(nzc):
                 kk = kz[k]
-                a, b, c = _project_point(d[0, i, j, k], d[1, i, j, k], d[2, i, j, k],
-                                         ki, kj, kk, inv_k2[i, j, k])
+                m = mask[i, j, k]
+                a = _scale(d[0, i, j, k], m)
+                b = _scale(d[1, i, j, k], m)
+                c = _scale(d[2, i, j, k], m)
+                a, b, c = _project_point(a, b, c, ki, kj, kk, inv_k2[i, j, k])
                 u_hat[0, i, j, k] += a
                 u_hat[1, i, j, k] += b
                 u_hat[2, i, j, k] += c

@@ -10,7 +10,8 @@ from __future__ import annotations
 
 from numba import njit
 
-__all__ = ["implicit_matvec", "laplacian_nu", "advection", "div_b", "grad_b"]
+__all__ = ["implicit_matvec", "implicit_matvec_nc", "laplacian_nu", "advection",
+           "advection_nc", "div_b", "grad_b"]
 
 
 @njit(cache=True, nogil=True)
@@ -42,6 +43,61 @@ def implicit_matvec(x, ustar, a, c, out):
                     s += (ustar[2, p, q, rp] * a - c) * x[i, p, q, rp]
                     s += (ustar[2, p, q, rm] * (-a) - c) * x[i, p, q, rm]
                     out[i, p, q, r] = s
+
+
+@njit(cache=True, nogil=True)
+def implicit_matvec_nc(x, ustar, a, c, out):
+    """out = A x for the implicit MAC operator of the original (non-conservative advection
+    u*.grad, fdm_matrix_solver.cxx NS_MAC_solver_implicit), A = I + dt/2 (u*.grad) - dt/2
+    nu lap (kapsel.fluid.mac.MACSolver._assemble's slots in the same order: centre, +x, -x,
+    +y, -y, +z, -z).  a = dt / (4 DX), c = dt/2 nu / DX^2."""
+    nc, nx, ny, nz = x.shape
+    d0 = 1.0 + 6.0 * c
+    for i in range(nc):
+        for p in range(nx):
+            pp = p + 1 if p + 1 < nx else 0
+            pm = p - 1 if p > 0 else nx - 1
+            for q in range(ny):
+                qp = q + 1 if q + 1 < ny else 0
+                qm = q - 1 if q > 0 else ny - 1
+                for r in range(nz):
+                    rp = r + 1 if r + 1 < nz else 0
+                    rm = r - 1 if r > 0 else nz - 1
+                    u0 = ustar[0, p, q, r]
+                    u1 = ustar[1, p, q, r]
+                    u2 = ustar[2, p, q, r]
+                    s = d0 * x[i, p, q, r]
+                    s += (u0 * a - c) * x[i, pp, q, r]
+                    s += (u0 * (-a) - c) * x[i, pm, q, r]
+                    s += (u1 * a - c) * x[i, p, qp, r]
+                    s += (u1 * (-a) - c) * x[i, p, qm, r]
+                    s += (u2 * a - c) * x[i, p, q, rp]
+                    s += (u2 * (-a) - c) * x[i, p, q, rm]
+                    out[i, p, q, r] = s
+
+
+@njit(cache=True, nogil=True)
+def advection_nc(u, scale, out):
+    """out_c = u_x D_x u_c + u_y D_y u_c + u_z D_z u_c, D_j f = (f[+e_j] - f[-e_j]) * scale
+    (operators.advection_nc_linear's order of operations; scale = 1/(2 DX))."""
+    nx, ny, nz = u.shape[1], u.shape[2], u.shape[3]
+    for p in range(nx):
+        pp = p + 1 if p + 1 < nx else 0
+        pm = p - 1 if p > 0 else nx - 1
+        for q in range(ny):
+            qp = q + 1 if q + 1 < ny else 0
+            qm = q - 1 if q > 0 else ny - 1
+            for r in range(nz):
+                rp = r + 1 if r + 1 < nz else 0
+                rm = r - 1 if r > 0 else nz - 1
+                u0 = u[0, p, q, r]
+                u1 = u[1, p, q, r]
+                u2 = u[2, p, q, r]
+                for c in range(3):
+                    s = u0 * ((u[c, pp, q, r] - u[c, pm, q, r]) * scale)
+                    s += u1 * ((u[c, p, qp, r] - u[c, p, qm, r]) * scale)
+                    s += u2 * ((u[c, p, q, rp] - u[c, p, q, rm]) * scale)
+                    out[c, p, q, r] = s
 
 
 @njit(cache=True, nogil=True)

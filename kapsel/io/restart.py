@@ -47,7 +47,7 @@ import numpy as np
 
 from udf import UDFManager
 
-from .records import OUT_FIELDS, particle_table
+from .records import OUT_FIELDS, particle_table as _record_table
 
 STATE_SUFFIX = ".state.npz"
 FIELD_PREFIX = "Saved_Data."   # Saved_Data items the user's define.udf has no place for
@@ -168,7 +168,7 @@ def write_restart(path: str, define_path: str, input_doc: UDFManager, kind: str,
     base = f"resume.{kind}.Saved_Data"
     doc.put([int(step) - 1, float(time)], f"{base}.jikan")   # ts = steps done - 1 (§6.3)
     if table is None and particles is not None and particles.n:
-        table = particle_table(particles, _sparticle_type(doc, kind))
+        table = restart_table(particles, _sparticle_type(doc, kind))
     if table is not None:
         doc.put(table, f"{base}.Particles[]")
     arrays, unplaced = {}, {}
@@ -244,7 +244,7 @@ def write_checkpoint(path: str, define_doc: UDFManager, kind: str, step: int, ti
              _CK + "kind": np.array(kind), _CK + "step": np.array(int(step)),
              _CK + "time": np.array(float(time)), _CK + "complete": np.array(bool(complete))}
     if particles is not None and particles.n:
-        state[_CK + "particles"] = particle_table(particles, _sparticle_type(define_doc, kind))
+        state[_CK + "particles"] = restart_table(particles, _sparticle_type(define_doc, kind))
     for name, value in fields.items():
         if isinstance(value, np.ndarray):
             state[_CK + "field:" + name] = value
@@ -435,6 +435,46 @@ def unpack_zeta(zeta: np.ndarray, uk_dc, dx: float, sheared: bool = False) -> np
     return u
 
 
+# The original fills its restart after the velocity update of the last step has moved
+# every force to its *_previous member and zeroed the current one (particle_solver.cxx
+# reset_Forces): "fr" is 0 and "fr_previous" holds the step's other force, which the next
+# step's Adams-Bashforth update needs (motion.update_velocities).  kapsel-py's state keeps
+# the step's forces in f_r, f_hydro, ... (and the records show those); the restart table
+# is written and read in the original's convention, so either program continues the
+# other's restart.
+RESET_PAIRS = {"f_hydro": ("f_hydro", "f_hydro_previous"), "f_r": ("fr", "fr_previous"),
+               "f_slip": ("f_slip", "f_slip_previous"),
+               "torque_hydro": ("torque_hydro", "torque_hydro_previous"),
+               "torque_r": ("torque_r", "torque_r_previous"),
+               "torque_slip": ("torque_slip", "torque_slip_previous")}
+
+
+class _AfterReset:
+    """A view of a ParticleState with the forces as the original holds them after a step:
+    the current ones 0, the step's in *_previous."""
+
+    def __init__(self, p):
+        self._p = p
+        self.n = p.n
+
+    def __getattr__(self, name):
+        p = self._p
+        for attr, (cur, prev) in RESET_PAIRS.items():
+            if name == attr or name == OUT_FIELDS.get(cur):
+                return np.zeros_like(getattr(p, attr))
+            if name == attr + "_previous" or name == OUT_FIELDS.get(prev):
+                return getattr(p, attr)
+        return getattr(p, name)
+
+
+def restart_table(state, struct) -> np.ndarray:
+    """The sParticle table of a restart (the original's convention, ``RESET_PAIRS``)."""
+    return _record_table(_AfterReset(state), struct)
+
+
+particle_table = restart_table
+
+
 def particles_from_table(state, table: np.ndarray, struct) -> None:
     """Fill a ParticleState from a (N, leaves) sParticle table (inverse of particle_table).
     The table's rows must match the state's particle count."""
@@ -443,10 +483,23 @@ def particles_from_table(state, table: np.ndarray, struct) -> None:
         raise ValueError(f"the restart holds {table.shape[0]} particles, the input "
                          f"describes {state.n}")
     done = set()
+    names = {m.name for m in struct.members}
+
+    def column(name):
+        off, cnt, _ = leaf_slice(struct, [name])
+        return table[:, off:off + cnt]
+    # a restart of kapsel-py before 2026-12 kept the step's forces in the current members
+    # (fr etc.); the original's and kapsel-py's since then hold 0 there
+    current = [cur for cur, _ in RESET_PAIRS.values() if cur in names]
+    after_reset = not any(np.any(column(c) != 0.0) for c in current)
+    for attr, (cur, prev) in RESET_PAIRS.items():
+        if after_reset and prev in names:
+            getattr(state, attr)[:] = column(prev)
+            getattr(state, attr + "_previous")[:] = 0.0
+            done.update((attr, attr + "_previous"))
     for m in struct.members:
         attr = OUT_FIELDS.get(m.name)
         if attr is None or attr in done or m.name in ("f_hydro1", "torque_hydro1"):
             continue
-        off, cnt, _ = leaf_slice(struct, [m.name])
-        getattr(state, attr)[:] = table[:, off:off + cnt]
+        getattr(state, attr)[:] = column(m.name)
         done.add(attr)

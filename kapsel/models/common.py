@@ -616,6 +616,9 @@ class Model:
             self.run_id, self.run_id_known = exact["run_id"], True
         self.step_index = saved.step
         self.time = saved.time
+        spm = getattr(self, "spm", None)
+        if spm is not None:     # a continued run is never at its first step (motion.py)
+            spm.step_index = saved.step
         if saved.time != saved.step * self.dt:
             self._clock0 = (saved.step, saved.time)
         p = self.particles

@@ -292,6 +292,8 @@ class FDMModel(Model):
             return self.psi
         if name == "PSI_OLD":
             return self.ch.psi_old if self.ch.psi_old is not None else self.psi
+        if name == "N_OLD":             # the explicit scheme's last advection (AB2)
+            return self.mac._n_old
         if name == "STRESS_OLD":
             return self.last_force if self.last_force is not None else np.zeros_like(self.u)
         raise KeyError(name)
@@ -323,6 +325,8 @@ class FDMModel(Model):
 
     def exact_state(self) -> dict:
         st = {"have_u_old": bool(self.mac._have_old)}
+        if self.mac.scheme == "explicit_scheme" and self.mac._have_n_old:
+            st["n_old"] = np.array(self._whole("N_OLD"))   # AB2 history of the advection
         if self.ch is not None:
             st.update(have_psi_old=self.ch.psi_old is not None, substeps=self.substeps)
         return st
@@ -341,6 +345,14 @@ class FDMModel(Model):
         self.u[...] = local(component_field(fields["U"]))
         if exact.get("have_u_old", self.step_index > 0):
             self.mac.u_old = local(component_field(fields["U_OLD"]))
+        # the MAC step's clock; without the exact state the explicit scheme's first step
+        # after the restart is Euler (as the original's, whose advection history is
+        # recomputed from the restored velocity)
+        self.mac.step_count = self.step_index
+        if "n_old" in exact and self.mac.scheme == "explicit_scheme":
+            self.mac._n_old = np.array(local(exact["n_old"]))
+            self.mac._wn = np.empty_like(self.u)
+            self.mac._have_n_old = True
         if self.particles.n:
             self.spm.refresh()
             self.phi = self.spm.phi()

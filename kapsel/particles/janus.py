@@ -387,7 +387,7 @@ class Janus:
         """The velocity update of the rows ``q`` (the first n of the table: all in a plain
         run, the owned ones in a distributed run)."""
         spm.motion.update_velocities(q, F, T, F_o, T_o, spm.dt, spm.rotation, dP, dL,
-                                     mass=spm.mass[:n], inertia=spm.inertia[:n])
+                                     first=spm.step_index == 0)
         q.f_hydro[...] = F_H           # the records keep F_H; slip and self forces apart
         q.torque_hydro[...] = T_H
 

@@ -228,11 +228,11 @@ class RigidBodies:
 
     # ------------------------------------------------------------------ SPM motion
     def update_velocities(self, p, F_H, T_H, F_other, T_other, dt, rotation, dP_noise=None,
-                          dL_noise=None, mass=None, inertia=None):
+                          dL_noise=None, mass=None, inertia=None, first=False):
         """Body V, Omega from the summed bead forces (module docstring); bead v, omega."""
         # stores the bead forces, v_old, omega_old (the free bead velocities are overwritten)
         _free_velocities(p, F_H, T_H, F_other, T_other, dt, rotation, dP_noise, dL_noise,
-                         mass=mass, inertia=inertia)
+                         first=first)
         m = p.mass if mass is None else np.asarray(mass, dtype=float)
         Ik = p.inertia if inertia is None else np.asarray(inertia, dtype=float)
         b, nb, s = self.body, self.nb, self.state
@@ -264,7 +264,7 @@ class RigidBodies:
         self.set_bead_velocities(p, r)
         return p
 
-    def update_positions(self, p, dt, box, rotation):
+    def update_positions(self, p, dt, box, rotation, first=False):
         """R_g by Crank-Nicolson, q_g by the step's mean Omega; beads placed rigidly."""
         s = self.state
         dR = 0.5 * dt * (s.v_old + s.v)

@@ -1,71 +1,58 @@
-"""Smoothed Profile Method time step (manual §4.1, eqs 1-14; §5.2) for any grid solver.
+"""Smoothed Profile Method time step (manual §4.1, eqs 1-14; §5.2) for any grid solver, the
+original's discrete algorithm (sp_3d_ns.cxx Time_evolution_hydro / _hydro_fdm / _hydro_OBL /
+_hydro_OBL_fdm).
 
 ``SPM(fluid, particles, A, xi, rho, dx, dt, ...)`` composes a fluid solver with the particles
 (no I/O).  ``fluid`` is either
 
 * a spectral ``SpectralNS`` (mode 'spectral': the solver holds u; ``step()``,
   ``velocity(out)``, ``add_solenoidal(du)``), or
-* a ``MACSolver`` (mode 'mac': u (3, NX, NY, NZ) is held here as ``self.u``;
-  ``step(u)``, ``project(u)``).
+* a ``MACSolver`` (mode 'mac': u (3, NX, NY, NZ) is held here as ``self.u``; ``step(u)``).
 
 One ``step()``:
 
-1. fluid step (eq 8 without the particle force): u^n -> u*;
-2. F_H, N_H by momentum exchange (eqs 11-12, coupling.hydro_force_torque) with the
-   profiles phi_i at the current positions R^n;
-3. V, Omega by eqs 9-10 with F_H + F_other (+ thermal impulses, eqs 13-14);
-4. rigidity increment du = sum_i phi_i (V_i^{n+1} + Omega_i^{n+1} x r) - phi u* at the same
-   positions (the phi f_p dt of eq 8), made solenoidal: spectral ``add_solenoidal`` (keeps
-   the k = 0 mean of du), MAC ``u += du; project(u)`` (the projection keeps the mean);
-5. R, q by Crank-Nicolson (§5.2), new profiles.
+1. fluid step without the particles (eq 8 without phi f_p): u^n -> u*; the spectral types'
+   u* is 2/3-rule truncated, as their state always is;
+2. positions R^{n+1} from V^n, V^{n-1} (kapsel.particles.motion: Euler at a run's first step,
+   Adams-Bashforth after), orientations alike;
+3. the profiles phi_i (eqs 1-3) at R^{n+1} and phi_sum = sum_i phi_i (+ phi_wall of the
+   walls); the coupling weights w_i = phi_i / max(phi_sum, 1) (make_phi.cxx
+   Make_u_particle_sum: overlapping profiles share a node);
+4. F_H, N_H by momentum exchange (eqs 11-12, md_force.cxx Calc_f_hydro_correct_precision):
+   F_i dt = -RHO DX^3 sum_x w_i (V_i^n + Omega_i^n x r - u*);
+5. the other forces at R^{n+1} and V, Omega by eqs 9-10 (motion.update_velocities: the
+   hydrodynamic force in full, the others by the trapezoid rule), thermal impulses
+   (eqs 13-14), pinning;
+6. the rigidity force (eq 6 imposed, phi f_p dt of eq 8) with the new velocities at the same
+   profiles: du = sum_i w_i (V_i + Omega_i x r) - min(phi_sum, 1) u*, added solenoidal:
+   spectral u += P T du (T the 2/3 truncation; f_particle.h Make_f_particle_dt_sole), MAC
+   u <- P T (u + du) for the whole field (Make_f_particle_dt_nonsole + Solenoidal_u: the
+   spectral projection of the original, applied every step, with or without particles).
 
-With self-propelled particles (``particles.janus``, kapsel.particles.janus) step 3 adds the
+``r`` is the minimum-image x - R_i of the stencil point (make_phi.h Relative_coord).  With
+no overlap w_i = phi_i and du = -sum_i phi_i (u* - V_i - Omega_i x r).
+
+With self-propelled particles (``particles.janus``, kapsel.particles.janus) step 5 adds the
 tumblers' self force and, with squirmers, iterates the slip flow to self-consistency and adds
-it to u before step 4.
+it to u before step 6.
 
-``wall`` (kapsel.particles.walls.FlatWall): the solid walls join step 4 with zero
-velocity: du -= phi_w u*, with phi_w limited to 1 - phi where particles overlap the wall's
-interface (PHYSICS-EXTRA.md §2.3); done also without particles.  The projection of du would
-leave the particles' pressure gradient in the solid (a few % of max|u|, as in the original),
-so the step ends with the projection onto divergence-free fields that vanish on the solid
-(kapsel.particles.wall_rest): the velocity in the solid (phi_w = 1) is 0 to round-off.  The
-walls absorb momentum, so P below is then not conserved.
+``wall`` (kapsel.particles.walls.FlatWall): the solid walls are a body at rest in step 6:
+phi_sum starts from phi_wall, so du also holds -(phi_wall / max(phi_sum, 1)) u* (done also
+without particles); as in the original the projection leaves part of the particles'
+pressure gradient in the solid.
 
-Steps 3 and 5 are those of free particles (motion.update_velocities / update_positions) or,
+Steps 2 and 5 are those of free particles (motion.update_positions / update_velocities) or,
 when ``particles.constraints`` is set, its own (motion.Pinned: pinned particles;
-rigid.RigidBodies: beads moving as rigid bodies).
+rigid.RigidBodies: beads moving as rigid bodies), called with ``first`` (a run's step 0).
 
-Conserved momentum
-------------------
-Write V_p,i = DX^3 sum_x phi_i (grid volume) and take r about the discrete centroid of each
-profile, r = x - R_i - c_i with c_i = sum phi_i (x - R_i) / sum phi_i, so that
-sum_x phi_i r = 0 (c_i is a sub-grid artefact, |c_i| < 0.01 DX for A = 4, xi = 2; without
-it a rotation Omega_i would carry linear momentum RHO DX^3 Omega_i x sum phi_i r).
-With no external force (F_other = 0, no noise, FIX_CELL off) the fluid step keeps
-RHO DX^3 sum u and, with M_i the mass used in eq 9,
+Momentum: the fluid step keeps RHO DX^3 sum u; with no external force the particles' and the
+fluid's changes cancel up to the change of the grid volume V_p,i = DX^3 sum_x w_i between
+the positions of two steps (a sub-grid effect, ~0.1 % of V_p for A = 4, A_XI = 2) and the
+first moment sum_x w_i r of the profiles (``total_momentum``).
 
-    step 2:  M_i dV_i = F_H,i dt = RHO DX^3 (sum_x phi_i u* - V_p,i V_i^n)
-    step 4:  RHO DX^3 sum_x du = RHO DX^3 sum_i (V_p,i V_i^{n+1} - sum_x phi_i u*)
-
-(phi = sum_i phi_i, also where particles overlap).  Adding: RHO DX^3 sum du
-= -sum_i (M_i - RHO V_p,i) dV_i.  Hence the exactly conserved total momentum is
-
-    P = RHO DX^3 sum_x u + sum_i dM_i V_i,     dM_i = M_i - RHO V_p,i,
-
-the whole velocity field (particle interiors included: the fluid displaced by a particle
-moves with it) plus the excess mass of each particle.  It holds to round-off across steps
-only if dM_i does not depend on the particle position, while V_p,i varies with the sub-grid
-position (by ~0.1 % for A = 4, xi = 2).  So ``mass='grid'`` (default) uses
-
-    M_i = RHO V_p,i(R_i^n) + (M_i^nominal - RHO 4/3 pi a_i^3)
-
-i.e. the displaced-fluid part of the mass is the grid volume of the profile (1.6 % above
-4/3 pi A^3 for A = 4, xi = 2) and the excess mass (MASS_RATIO - 1) RHO 4/3 pi a^3 is the
-original's; dM_i is then constant and P is conserved to round-off (for MASS_RATIO = 1 it is
-simply RHO DX^3 sum u).  ``mass='nominal'`` uses M = MASS_RATIO RHO 4/3 pi a^3 as the
-original; P then drifts by RHO DX^3 sum_i (V_p,i(R^n) - V_p,i(R^{n+1})) V_i per step.
-The moments of inertia are treated alike (grid 2/3 RHO DX^3 sum phi_i |r|^2 + the nominal
-excess) with ``mass='grid'``.  ``total_momentum()`` returns P.
+Distributed runs (kapsel.parallel.particles): every rank moves the particles it owns, sends
+them to the ranks that hold them after the move, builds the profiles of its table's
+particles on its block, and sums the coupling of the ghosts to their owners; the same step.
 """
 from __future__ import annotations
 
@@ -91,7 +78,7 @@ class SPM:
     """
 
     def __init__(self, fluid, particles, A, xi, rho, dx, dt, rotation=True, forces=None,
-                 noise=None, mass="grid", center=True, u=None, impose=True, wall=None, dry=False):
+                 noise=None, u=None, impose=True, wall=None, dry=False):
         self.fluid = fluid
         self.p = particles
         self.rho = float(rho)
@@ -100,15 +87,11 @@ class SPM:
         self.rotation = bool(rotation)
         self.forces = forces
         self.noise = noise
-        if mass not in ("grid", "nominal"):
-            raise ValueError("mass must be 'grid' or 'nominal'")
-        self.mass_mode = mass
-        self.center = bool(center)
         if hasattr(fluid, "add_solenoidal"):
             self.mode = "spectral"
             self.shape = tuple(fluid.grid.shape)
             self.u = fluid.grid.empty_real()       # u* buffer (FFT-aligned)
-        elif hasattr(fluid, "project"):
+        elif hasattr(fluid, "step"):
             self.mode = "mac"
             self.shape = tuple(fluid.shape)
             ushape = (3,) + tuple(getattr(fluid, "fshape", self.shape))   # a rank's block
@@ -118,10 +101,7 @@ class SPM:
         else:
             raise TypeError("fluid must be a SpectralNS or a MACSolver")
         self.size = int(np.prod(self.shape))
-        # distributed fluid (kapsel.parallel.pencil): this rank's block of the fields; the
-        # profiles are computed whole (masses, centroids as in a serial run), then cut to the
-        # block (_localize) for every field operation, and the per-particle sums of the
-        # coupling are summed over the ranks (_reduce)
+        # distributed fluid (kapsel.parallel.pencil): this rank's block of the fields
         g = getattr(fluid, "grid", None)
         self.dist = g if hasattr(g, "comm") else None
         if self.dist is not None and wall is not None:
@@ -130,17 +110,18 @@ class SPM:
         self.fsize = int(np.prod(self.fshape))
         self._T = None          # distributed: the particles whose stencil meets the block
         self.wall = wall
-        self._rest = self._c = None
-        if wall is not None and not dry:      # (its blocks are measured: not for a check)
-            from .wall_rest import SolidRest
-            self._rest = SolidRest(wall, self._projection())
-            self._c = np.zeros((3,) + self.shape)
+        self._sole = None       # MAC: the spectral projection of the whole u (step 6)
+        if self.mode == "mac" and not dry:
+            from ..fluid.spectral import SpectralProjector
+            self._sole = SpectralProjector(self.dist if self.dist is not None
+                                           else _mac_grid(self.shape, self.dx))
         # kept 0 between steps: a step scatters du onto its stencil points and clears them
         # (with walls du is dense: cleared whole at the start of the next step instead)
         self._du = None
         if particles.n or wall is not None:   # spectral: FFT-aligned, transformed in place
             self._du = (fluid.grid.zeros_real() if self.mode == "spectral"
                         else np.zeros((3,) + self.fshape))
+        self._psum = np.zeros(self.fsize) if wall is not None else None   # phi_sum (flat)
         self._us = None         # u* at the stencil points, sampled once a step
         self._du_points = None  # du at the stencil points of the last step (last_increment)
         self._du_stepped = False
@@ -151,10 +132,6 @@ class SPM:
         smax = fluid.max_frame_strain if self.oblique else 0.0
         self.stencil = Stencil(A, xi, dx, strain_max=smax) if particles.n else None
         self.moment = np.zeros((3, 3))    # sum du_a r_b of the last step (particle stress)
-        a = np.asarray(particles.radius, dtype=float)
-        vol = 4.0 / 3.0 * np.pi * a ** 3
-        self.excess_mass = particles.mass - self.rho * vol
-        self.excess_inertia = particles.inertia - 0.4 * self.rho * vol * a ** 2
         self.step_index = 0
         self.motion = getattr(particles, "constraints", None) or _free_motion
         # rigid bodies wrap their centres and beads through the Lees-Edwards images themselves
@@ -170,16 +147,27 @@ class SPM:
         # bodies: that of their first bead), with ghosts (kapsel.parallel.particles)
         self.owned = None
         self._bodies = None
+        self.p_own = particles
         if self.dist is not None and particles.n:
             self._own(particles, smax)
         if particles.n and not dry:
             self._profiles()
-            if impose:
-                self.impose_particle_velocity()
+        if (particles.n or wall is not None) and not dry and impose:
+            self.impose_particle_velocity()
+
+    # ------------------------------------------------------------------ masses
+    @property
+    def mass(self):
+        """M_i of the particles this rank couples (eq 9: MASS_RATIO RHO 4/3 pi A^3)."""
+        return self._sub(self.p.mass)
+
+    @property
+    def inertia(self):
+        return self._sub(self.p.inertia)
 
     # ------------------------------------------------------------------ profiles
     def _profiles(self):
-        """phi_i, r at the current positions; grid volumes, centroid-corrected r, masses."""
+        """phi_i, r at the current positions; phi_sum and the weights w_i (step 3)."""
         p = self.p
         g, y0 = (self.fluid.frame_strain, self.fluid.y0) if self.oblique else (0.0, 0.0)
         R = p.R
@@ -190,25 +178,36 @@ class SPM:
                 T = np.concatenate([np.arange(n), T[T >= n]])
             self._T = T
             R = p.R[self._T]
-        self.idx, self.phi_i, r = particle_profiles(R, self.stencil, self.shape, self.dx, g,
-                                                    y0)
-        w = self.phi_i.sum(axis=1)
-        self.grid_volume = w * self.dx ** 3
-        if self.center:
-            c = np.stack([np.einsum("ns,ns->n", self.phi_i, r[..., k]) for k in range(3)],
-                         axis=1) / w[:, None]
-            r -= c[:, None, :]  # in place: keeps the component-major layout
-        self.r = r
-        if self.mass_mode == "grid":
-            self.mass = self.rho * self.grid_volume + self._sub(self.excess_mass)
-            r2 = sum(np.einsum("ns,ns,ns->n", self.phi_i, r[..., k], r[..., k])
-                     for k in range(3))
-            self.inertia = ((2.0 / 3.0) * self.rho * self.dx ** 3 * r2
-                            + self._sub(self.excess_inertia))
-        else:
-            self.mass, self.inertia = self._sub(p.mass), self._sub(p.inertia)
+        self.idx, self.phi_i, self.r = particle_profiles(R, self.stencil, self.shape, self.dx,
+                                                         g, y0)
         if self.owned is not None:
             self._localize()
+        self._weights()
+
+    def _weights(self):
+        """w_i = phi_i / max(phi_sum, 1) at the stencil points; phi_sum = sum_i phi_i
+        (+ phi_wall), on the rank's block (its table holds every particle meeting it)."""
+        if self._psum is None:
+            self._psum = np.zeros(self.fsize)
+        ps = self._psum
+        if self.wall is not None:
+            ps[...] = self.wall.phi.reshape(-1)
+        np.add.at(ps, self.idx.reshape(-1), self.phi_i.reshape(-1))
+        s = ps[self.idx]
+        np.maximum(s, 1.0, out=s)
+        self.w = self.phi_i / s
+        if self.wall is None:
+            ps[self.idx.reshape(-1)] = 0.0   # 0 again for the next step (phi_sum is dense
+        #                                      and kept only with walls: _wall_increment)
+
+    def _phi_sum(self):
+        """phi_sum (flat) of the current profiles, walls included."""
+        if self.wall is not None:
+            return self._psum
+        s = np.zeros(self.fsize)
+        if self.p.n:
+            np.add.at(s, self.idx.reshape(-1), self.phi_i.reshape(-1))
+        return s
 
     # ------------------------------------------------------------------ distributed
     def _near(self, R, strain, origin):
@@ -322,10 +321,6 @@ class SPM:
             self.p_own.constraints = self.motion = Pinned(
                 np.flatnonzero(np.isin(gid, self._pins.pin)),
                 np.flatnonzero(np.isin(gid, self._pins.pin_rot)))
-        a = np.asarray(p.radius, dtype=float)
-        vol = 4.0 / 3.0 * np.pi * a ** 3
-        self.excess_mass = p.mass - self.rho * vol
-        self.excess_inertia = p.inertia - 0.4 * self.rho * vol * a ** 2
         self._own_weight = np.zeros(p.n)
         self._own_weight[:n] = 1.0
         if self._janus_whole is not None:       # the self-propulsion of the table's rows
@@ -363,86 +358,6 @@ class SPM:
                 release(self.whole)
         self._take(self.owned.exchange(self.p, extra=self._records()))
 
-    def _hydro_sums(self):
-        """(u* at the stencil points, F_H, T_H) of the particles this rank couples: u*
-        sampled once a step (eqs 9-10 use it, and so does the rigidity increment), the
-        hydrodynamic force and torque over this rank's part of their profiles."""
-        if self._us is None or self._us.shape[1:] != self.idx.shape:
-            self._us = np.empty((3,) + self.idx.shape)
-        us = sample(self.u, self.idx, out=self._us)
-        v, shear = self._relative_velocity()
-        F_H, T_H = hydro_force_torque(self.u, self.idx, self.phi_i, self.r, self._sub(v),
-                                      self._sub(self.p.omega), self.rho, self.dx, self.dt,
-                                      shear=shear, sampled=us)
-        return us, F_H, T_H
-
-    def _step_owned(self):
-        """``step`` of a distributed run with owned particles: the same steps 1-5, the
-        coupling sums of the ghosts sent to their owners, the owners moving their
-        particles, the ghosts refreshed (velocities before the rigidity increment, the
-        whole record at the exchange)."""
-        o = self.owned
-        self._fluid_step()
-        if self.oblique:
-            self._exchange()                   # the frame moved: owners and halos in it
-            self._profiles()
-        p, n = self.p, o.n_own
-        u = self.u
-        us, F_H, T_H = self._hydro_sums()
-        FT = o.reverse_sum(self._full(np.concatenate([F_H, T_H], axis=1)))
-        F_H, T_H = FT[:, :3], FT[:, 3:]
-        F_o = T_o = None
-        if self.forces is not None:
-            F_o, T_o, ratio, stretch = self.forces.local(
-                p, self._own_weight, o.gid, reduce=lambda a: self._reduce(a)[0])
-            ratio, stretch = o.allmin(ratio, -stretch)      # the same on every rank
-            if hasattr(self.forces, "check"):           # (overlap_guard)
-                self.forces.check_bonds(-stretch)
-                self.forces.check(ratio)
-            virial = getattr(self.forces, "virial", None)
-            if virial is not None:
-                virial[...] = self._reduce(virial)[0]
-            F_o, T_o = F_o[:n], T_o[:n]
-        dP = dL = None
-        if self.noise is not None:             # the serial stream, this rank's rows
-            dP, dL = self.noise(self.n_global, self.dt)
-            gid = o.gid[:n]
-            dP, dL = dP[gid], dL[gid]
-        if self.janus is not None and self._janus_whole.active:  # self force, slip
-            self.janus.update_velocities(self, F_H, T_H, F_o, T_o, dP, dL)
-        else:
-            self.motion.update_velocities(self.p_own, F_H, T_H, F_o, T_o, self.dt,
-                                          self.rotation, dP, dL, mass=self.mass[:n],
-                                          inertia=self.inertia[:n])
-        o.refresh(p.v, p.omega)
-        v, shear = self._relative_velocity()
-        du = rigidity_increment(u, self.idx, self.phi_i, self.r, self._sub(v),
-                                self._sub(p.omega), self.fsize,
-                                out=self._du, shear=shear,
-                                moment=self.moment if self.oblique else None,
-                                sampled=us, zeroed=True)
-        if self.oblique:
-            self.moment[...] = self._reduce(self.moment)[0]
-        self._add_solenoidal(du)
-        self._du_stepped = True
-        flat = self.idx.reshape(-1)
-        if self._du_points is None or self._du_points.shape[1] != flat.size:
-            self._du_points = np.empty((3, flat.size))
-        for c in range(3):
-            np.take(du[c].reshape(-1), flat, out=self._du_points[c])
-        clear_points(du, self.idx)
-        q = self.p_own
-        le = self.oblique and not self._own_images
-        if le:                                 # Lees-Edwards images instead of the wrap
-            R0, raw0 = q.R.copy(), q.R_raw.copy()
-        self.motion.update_positions(q, self.dt, self.box, self.rotation)
-        if le:
-            q.R[:] = R0 + (q.R_raw - raw0)
-            self.fluid.wrap_particles(q)
-        self._exchange()
-        self._profiles()
-        self.step_index += 1
-
     def refresh(self):
         """Recompute the profiles after the positions were set from outside (a restart)."""
         if self.owned is not None:
@@ -451,16 +366,17 @@ class SPM:
         if self.p.n or self.owned is not None:
             self._profiles()
 
+    # ------------------------------------------------------------------ fields
     def phi(self):
-        """Total profile phi (eq 4), (NX, NY, NZ)."""
+        """Total profile phi = sum_i phi_i (eq 4), (NX, NY, NZ), walls not included."""
         if not self.p.n:
             return np.zeros(self.fshape)
         return total_phi(self.idx, self.phi_i, self.fsize).reshape(self.fshape)
 
     def particle_velocity(self):
-        """phi u_p of eq 6, (3, NX, NY, NZ)."""
+        """phi u_p of eq 6 (sum_i w_i (V_i + Omega_i x r)), (3, NX, NY, NZ)."""
         p = self.p
-        return particle_velocity_field(self.idx, self.phi_i, self.r, self._sub(p.v),
+        return particle_velocity_field(self.idx, self.w, self.r, self._sub(p.v),
                                        self._sub(p.omega), self.fsize, self.fshape)
 
     # ------------------------------------------------------------------ fluid access
@@ -473,99 +389,172 @@ class SPM:
     def _fluid_step(self):
         if self.mode == "spectral":
             self.fluid.step()
-            if self.p.n or self.owned is not None:     # (a collective when distributed)
-                self.fluid.velocity(out=self.u)
+            if self.p.n or self.owned is not None or self.wall is not None:
+                self.fluid.velocity(out=self.u)       # (a collective when distributed)
         else:
             self.fluid.step(self.u)
 
     def _add_solenoidal(self, du):
+        """Step 6: spectral u += P T du; MAC u <- P T (u + du) (module docstring)."""
         if self.mode == "spectral":
             self.fluid.add_solenoidal(du)
         else:
-            self.u += du
-            self.fluid.project(self.u)
+            if du is not None:
+                self.u += du
+            self._sole(self.u)
 
     def _projection(self):
-        """f -> P f, the fluid's own projection of a real field (3, NX, NY, NZ), without
-        touching the fluid's state."""
-        if self.mode == "spectral":
-            grid = self.fluid.grid
+        """f -> P f, the spectral projection of a real field (3, NX, NY, NZ) without the
+        truncation and without touching the fluid's state (diagnostics, tests)."""
+        grid = self.fluid.grid if self.mode == "spectral" else self._sole.grid
 
-            def project(f):
-                h = np.fft.rfftn(f, axes=(1, 2, 3))
-                grid.project(h)
-                return np.fft.irfftn(h, s=self.shape, axes=(1, 2, 3))
-            return project
-        return self.fluid.project
-
-    def _hold_solid(self, du=None):
-        """After u = P(u* + du): add P of the walls' holding force (kapsel.particles.
-        wall_rest), so that u vanishes on the solid; the force joins du (last_increment)."""
-        u = self.fluid.velocity(out=self.u) if self.mode == "spectral" else self.u
-        c = self._rest.force(u, self._c)
-        self._add_solenoidal(c)
-        if du is not None:
-            du[:, :self.shape[0], :self.shape[1], :self.shape[2]] += c
+        def project(f):
+            h = np.fft.rfftn(f, axes=(1, 2, 3))
+            grid.project(h)
+            return np.fft.irfftn(h, s=self.shape, axes=(1, 2, 3))
+        return project
 
     def impose_particle_velocity(self):
-        """u <- u + P[sum_i phi_i (V_i + Omega_i x r) - phi u] (rigidity increment, eq 6);
-        with walls the fluid in their solid is then held at rest."""
-        if not self.p.n and self.owned is None:
-            return
+        """u <- u + P T [sum_i w_i (V_i + Omega_i x r) - min(phi_sum, 1) u] (eq 6; walls at
+        rest included), then the mean flow is removed: the original's start
+        (sp_3d_ns.cxx main: uk_dc = 0 after the imposition; kapsel-py does the same for the
+        FDM types, whose original starts from the Fourier coefficients of this field)."""
         u = self.fluid.velocity(out=self.u) if self.mode == "spectral" else self.u
-        p = self.p
-        v, shear = self._relative_velocity()
-        self._add_solenoidal(rigidity_increment(u, self.idx, self.phi_i, self.r, self._sub(v),
-                                                self._sub(p.omega), self.fsize, shear=shear))
-        if self._rest is not None:
-            self._hold_solid()
+        self._start = True
+        try:
+            du = self._rigidity(u)
+        finally:
+            self._start = False
+        self._add_solenoidal(du)
+        if self.p.n and self.wall is None:
+            clear_points(du, self.idx)
+        if self.mode == "spectral":
+            self.fluid.zero_mean()
+        else:
+            for c in range(3):
+                self.u[c] -= self.fluid.mean(self.u[c])
+
+    _start = False
 
     def _relative_velocity(self):
         """(V relative to the imposed flow at the centres, gamma_dot) for an oblique fluid,
-        else (V, 0)."""
-        if not self.oblique:
+        else (V, 0).  The initial imposition of the sheared types takes V as it is, a
+        deviation from the imposed flow (the original imposes the particle velocities on
+        its deviation field with its unsheared routines, sp_3d_ns.cxx main): particles
+        given at rest start with the shear flow in them."""
+        if not self.oblique or self._start:
             return self.p.v, 0.0
         return self.p.v - self.fluid.background(self.p.R), self.fluid.shear_rate_now
 
+    # ------------------------------------------------------------------ coupling
+    def _hydro_sums(self):
+        """(u* at the stencil points, F_H, T_H) of the particles this rank couples (step 4):
+        u* sampled once a step (the rigidity increment uses it too), the force and torque
+        over this rank's part of their profiles."""
+        if self._us is None or self._us.shape[1:] != self.idx.shape:
+            self._us = np.empty((3,) + self.idx.shape)
+        us = sample(self.u, self.idx, out=self._us)
+        v, shear = self._relative_velocity()
+        F_H, T_H = hydro_force_torque(self.u, self.idx, self.w, self.r, self._sub(v),
+                                      self._sub(self.p.omega), self.rho, self.dx, self.dt,
+                                      shear=shear, sampled=us)
+        return us, F_H, T_H
+
+    def _rigidity(self, u, sampled=None):
+        """du of step 6 into the (zeroed) du buffer, with the walls' part."""
+        p = self.p
+        du = self._du
+        if self.wall is not None:
+            du.fill(0.0)                      # dense after a wall step
+        if p.n:
+            v, shear = self._relative_velocity()
+            du = rigidity_increment(u, self.idx, self.w, self.r, self._sub(v),
+                                    self._sub(p.omega), self.fsize, out=du, shear=shear,
+                                    moment=self.moment if self.oblique else None,
+                                    sampled=sampled, zeroed=True)
+            if self.oblique:
+                self.moment[...] = self._reduce(self.moment)[0]
+        if self.wall is not None:
+            self._wall_increment(du, u)
+        return du
+
+    def _wall_increment(self, du, u):
+        """du -= (phi_wall / max(phi_sum, 1)) u* (the walls at rest, step 6)."""
+        if not self.p.n:
+            self._psum[...] = self.wall.phi.reshape(-1)
+        s = np.maximum(self._psum.reshape(self.fshape), 1.0)
+        pw = self.wall.phi / s
+        for c in range(3):
+            du[c, :self.shape[0], :self.shape[1], :self.shape[2]] -= pw * u[c]
+
+    def _other_forces(self):
+        """(F_other, T_other) of the particles this rank moves, at R^{n+1}."""
+        if self.forces is None:
+            return None, None
+        p = self.p
+        if self.owned is None:
+            res = self.forces(p)
+            return res[0], res[1]
+        o, n = self.owned, self.owned.n_own
+        F_o, T_o, ratio, stretch = self.forces.local(
+            p, self._own_weight, o.gid, reduce=lambda a: self._reduce(a)[0])
+        ratio, stretch = o.allmin(ratio, -stretch)      # the same on every rank
+        if hasattr(self.forces, "check"):           # (overlap_guard)
+            self.forces.check_bonds(-stretch)
+            self.forces.check(ratio)
+        virial = getattr(self.forces, "virial", None)
+        if virial is not None:
+            virial[...] = self._reduce(virial)[0]
+        return F_o[:n], T_o[:n]
+
+    def _impulses(self):
+        if self.noise is None:
+            return None, None
+        if self.owned is None:
+            return self.noise(self.p.n, self.dt)
+        dP, dL = self.noise(self.n_global, self.dt)       # the serial stream, this rank's rows
+        gid = self.owned.gid[:self.owned.n_own]
+        return dP[gid], dL[gid]
+
+    def _move(self, first):
+        """Step 2 for the particles this rank owns (all in a plain run): positions and
+        orientations; Lees-Edwards images in an oblique frame; then, distributed, the
+        migration and the new halos."""
+        q = self.p_own
+        le = self.oblique and not self._own_images
+        if le:                    # Lees-Edwards images instead of the periodic wrap
+            self.motion.update_positions(q, self.dt, self.box, self.rotation, first=first,
+                                         wrap_box=False)
+            self.fluid.wrap_particles(q)
+        else:
+            self.motion.update_positions(q, self.dt, self.box, self.rotation, first=first)
+        if self.owned is not None:
+            self._exchange()
+
     # ------------------------------------------------------------------ step
     def step(self):
-        """Advance fluid and particles by dt (steps 1-5 of the module docstring)."""
-        if self.owned is not None:
-            return self._step_owned()
+        """Advance fluid and particles by dt (steps 1-6 of the module docstring)."""
         self._fluid_step()
-        p = self.p
-        if self.wall is not None and self.mode == "spectral" and not p.n:
-            self.fluid.velocity(out=self.u)
-        if p.n and self.oblique:
-            self._profiles()                  # the oblique grid moved with the frame
-        if p.n:
-            u = self.u
+        if self.p.n or self.owned is not None:
+            first = self.step_index == 0
+            self._move(first)
+            self._profiles()
             us, F_H, T_H = self._hydro_sums()
-            F_o = T_o = None
-            if self.forces is not None:
-                res = self.forces(p)
-                F_o, T_o = res[0], res[1]
-            dP = dL = None
-            if self.noise is not None:
-                dP, dL = self.noise(p.n, self.dt)
-            if self.janus is not None and self.janus.active:   # self force, squirmer slip
+            if self.owned is not None:           # the ghosts' sums to their owners
+                FT = self.owned.reverse_sum(self._full(np.concatenate([F_H, T_H], axis=1)))
+                F_H, T_H = FT[:, :3], FT[:, 3:]
+            F_o, T_o = self._other_forces()
+            dP, dL = self._impulses()
+            janus = self._janus_whole if self.owned is not None else self.janus
+            if janus is not None and janus.active:         # self force, squirmer slip
                 self.janus.update_velocities(self, F_H, T_H, F_o, T_o, dP, dL)
             else:
-                self.motion.update_velocities(p, F_H, T_H, F_o, T_o, self.dt, self.rotation,
-                                              dP, dL, mass=self.mass, inertia=self.inertia)
-            v, shear = self._relative_velocity()
-            if self.wall is not None:
-                self._du.fill(0.0)            # dense after a wall step
-            du = rigidity_increment(u, self.idx, self.phi_i, self.r, self._sub(v),
-                                    self._sub(p.omega), self.fsize,
-                                    out=self._du, shear=shear,
-                                    moment=self.moment if self.oblique else None,
-                                    sampled=us, zeroed=True)
-            if self.wall is not None:
-                self._wall_increment(du)
+                self.motion.update_velocities(self.p_own, F_H, T_H, F_o, T_o, self.dt,
+                                              self.rotation, dP, dL, first=first)
+            if self.owned is not None:
+                self.owned.refresh(self.p.v, self.p.omega)
+            du = self._rigidity(self.u, sampled=us)
             self._add_solenoidal(du)
-            if self._rest is not None:
-                self._hold_solid(du)
             self._du_stepped = True
             if self.wall is None:
                 flat = self.idx.reshape(-1)
@@ -574,29 +563,14 @@ class SPM:
                 for c in range(3):            # kept for last_increment (diagnostics)
                     np.take(du[c].reshape(-1), flat, out=self._du_points[c])
                 clear_points(du, self.idx)    # du is all 0 again for the next step
-            le = self.oblique and not self._own_images
-            if le:
-                R0, raw0 = p.R.copy(), p.R_raw.copy()
-            self.motion.update_positions(p, self.dt, self.box, self.rotation)
-            if le:                 # Lees-Edwards images instead of the periodic wrap
-                p.R[:] = R0 + (p.R_raw - raw0)
-                self.fluid.wrap_particles(p)
-            self._profiles()
         elif self.wall is not None:
-            self._du.fill(0.0)
-            self._wall_increment(self._du)
-            self._add_solenoidal(self._du)
-            self._hold_solid(self._du)
+            if self.mode == "spectral":
+                self.fluid.velocity(out=self.u)
+            self._add_solenoidal(self._rigidity(self.u))
             self._du_stepped = True
+        elif self.mode == "mac":
+            self._add_solenoidal(None)
         self.step_index += 1
-
-    def _wall_increment(self, du):
-        """du -= phi_w u* (the walls at rest), phi_w limited to 1 - phi of the particles."""
-        pw = self.wall.phi
-        if self.p.n:
-            pw = np.minimum(pw, np.maximum(1.0 - self.phi(), 0.0))
-        for c in range(3):
-            du[c] -= pw * self.u[c]
 
     def run(self, nsteps):
         for _ in range(int(nsteps)):
@@ -627,10 +601,18 @@ class SPM:
         return self.rho * self.dx ** 3 * u.reshape(3, -1).sum(axis=1)
 
     def total_momentum(self):
-        """P = RHO DX^3 sum u + sum_i (M_i - RHO V_p,i) V_i (module docstring), conserved to
-        round-off with mass='grid' and no external force, noise or FIX_CELL."""
+        """P = RHO DX^3 sum u + sum_i (M_i - RHO V_p,i) V_i with V_p,i = DX^3 sum_x w_i at
+        the current positions: conserved with no external force, noise or FIX_CELL up to
+        the change of V_p,i from step to step and the profiles' first moment (module
+        docstring)."""
         P = self.fluid_momentum()
         if self.p.n:
-            dM = self.mass - self.rho * self.grid_volume
-            P = P + (dM[:, None] * self.p.v).sum(axis=0)
+            vp = self.w.sum(axis=1) * self.dx ** 3
+            dM = self.mass - self.rho * vp
+            P = P + (dM[:, None] * self._sub(self.p.v)).sum(axis=0)
         return P
+
+
+def _mac_grid(shape, dx):
+    from ..grid import Grid
+    return Grid(shape, dx)
