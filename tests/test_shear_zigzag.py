@@ -195,3 +195,43 @@ def test_ac_header_lists_all_six_columns():
     assert ShearTable(TABLE_AC).header() == (
         "#1:time 2:shear_rate_temporal 3:shear_strain_temporal 4:shear_stress_temporal "
         "5:shear_inertia_stress_temporal 6:apparent_shear_stress ")
+
+
+# the original (same build) for 2 spheres (A 4, LJ NONE) at (8, 12, 16) and (24, 20, 16),
+# DC gamma_dot 0.01, the rest as above: table rows of steps 1, 2, 50, 101 and sphere 0 after
+# step 100 (its output record of t = 100, printed at full precision)
+ORIGINAL_SPHERES = {
+    "rows": [[0.05, -0.0055269294, -0.00027634647, -0.8, 144.74583],
+             [0.1, -0.0075068122, -0.00065168708, -0.33302609, 44.363184],
+             [2.5, -0.0094699583, -0.022725751, -0.029347713, 3.0990329],
+             [5.05, -0.009625177, -0.047109647, -0.020674984, 2.1480107]],
+    "R": [7.883524117457021, 11.999959615945365, 16.0],
+    "v": [-3.3990916714468973e-02, -1.7672059782463545e-05, 0.0],
+    "omega_z": -7.8517008437287445e-03}
+
+
+def test_two_spheres_follow_the_originals_run(tmp_path):
+    """Two spheres released at rest at different y: the table and the motion of the
+    original's run to round-off (the SPM step is the original's; 101 steps, about 8 s)."""
+    from udf import UDFManager
+    rows = [[8.0, 12.0, 16.0, 0, 0, 0, 1, 0, 0, 0, 0, 0, 0],
+            [24.0, 20.0, 16.0, 0, 0, 0, 1, 0, 0, 0, 0, 0, 0]]
+    inp = zigzag_input(tmp_path, particles=2, rows=rows)
+    u = UDFManager(inp)
+    u.put("NONE", "switch.LJ_truncate")
+    u.write(inp)
+    m = build(inp)
+    got = {}
+    for k in range(1, 102):
+        if k == 101:
+            p = m.particles
+            R, v, w = p.R[0].copy(), p.v[0].copy(), p.omega[0, 2]
+        m.advance()
+        if k in (1, 2, 50, 101):
+            got[k] = m.shear_table_row()
+    want = ORIGINAL_SPHERES
+    for g, w_ in zip(got.values(), want["rows"]):
+        np.testing.assert_allclose(g, w_, rtol=6e-8, atol=0)
+    np.testing.assert_allclose(R, want["R"], rtol=0, atol=1e-11)
+    np.testing.assert_allclose(v, want["v"], rtol=0, atol=1e-12 * 0.034)
+    assert w == pytest.approx(want["omega_z"], rel=1e-10)
