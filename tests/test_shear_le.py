@@ -309,44 +309,6 @@ def test_type_end_to_end_with_particles(tmp_path):
     assert math.isfinite(g) and 0 < g <= 0.5          # strain 0.02 * 10 dt
 
 
-# ----------------------------------------------------------------------------- zigzag
-def zigzag(ny):
-    y = np.arange(ny, dtype=float)
-    return np.where(y <= ny / 2, y - ny / 4, 3 * ny / 4 - y)
-
-
-@pytest.mark.parametrize("kind", ["DC", "AC"])
-def test_zigzag_pure_fluid_profile_and_stress(tmp_path, kind):
-    """Shear_Navier_Stokes without particles: the zigzag profile gamma_dot(t) Z(y) holds to
-    round-off, v = w = 0, and the stress of each step is ETA gamma_dot (DC: 1e-12; AC: the
-    mid-step rate within 0.05 % of the amplitude, i.e. in phase with the strain rate)."""
-    inp = make_input(tmp_path, particles=0, kind=kind, rate=0.1, freq=0.05,
-                     eq="Shear_Navier_Stokes")
-    m = build(inp)
-    Z = zigzag(16)[None, :, None]
-    for _ in range(60):
-        m.advance()
-        rec = m.shear_record()
-        u = m.spm.velocity()
-        rate = m.zigzag.shear.rate(m.time)
-        assert np.abs(u[0] - rate * Z).max() < 1e-14
-        assert np.abs(u[1:]).max() < 1e-14
-        mid = m.zigzag.shear.rate(m.time - 0.5 * m.dt)
-        if kind == "DC":
-            assert rec["Shear_stress"] == pytest.approx(0.1, rel=1e-12)
-        else:
-            assert rec["Shear_stress"] == pytest.approx(mid, abs=5e-4 * 0.1)
-
-
-def test_zigzag_with_particle_runs_end_to_end(tmp_path):
-    from udf import UDFManager
-    inp = make_input(tmp_path, particles=2, gts=5, nsnap=2, eq="Shear_Navier_Stokes")
-    assert cli(tmp_path, inp) == 0
-    assert UDFManager(str(tmp_path / "output.udf")).totalRecord() == 3
-    log = np.loadtxt(tmp_path / "shear_stress.dat")
-    assert np.all(np.isfinite(log)) and np.all(log[1:, 4] > 0.02 * 0.99)
-
-
 # ----------------------------------------------------------------------------- validation
 @pytest.mark.slow
 def test_einstein_viscosity_dilute_suspension():

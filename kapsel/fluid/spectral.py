@@ -145,6 +145,9 @@ class SpectralNS:
         # k as contiguous 1-d arrays for the compiled passes (kapsel.compiled)
         self._k1 = tuple(np.ascontiguousarray(k.ravel()) for k in (g.kx, g.ky, g.kz))
         self.force_hat = None
+        # after_update(u_hat): applied in step() after the update, before FIX_CELL (the
+        # zigzag pin of Shear_Navier_Stokes, kapsel.models.zigzag)
+        self.after_update = None
         # a distributed grid (kapsel.parallel.pencil) holds the k = 0 mode on one rank only
         self._k0 = getattr(g, "has_k0", True)
         self._dist = hasattr(g, "comm")
@@ -293,6 +296,8 @@ class SpectralNS:
         if self.scheme == "etd2":
             self._nl, self._nl_old = self._nl_old, self._nl
             self._have_old = True
+        if self.after_update is not None:
+            self.after_update(uh)
         self.apply_fix_cell()
         self.step_index += 1
 

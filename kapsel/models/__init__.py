@@ -1,3 +1,3 @@
 """Models: the physics of each constitutive_eq.type.  Importing this package registers every
 implemented type in ``kapsel.simulation.SOLVERS``."""
-from . import electrolyte, fdm, shear, spectral  # noqa: F401
+from . import electrolyte, fdm, shear, spectral, zigzag  # noqa: F401

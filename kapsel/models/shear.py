@@ -27,7 +27,6 @@ from __future__ import annotations
 import numpy as np
 
 from ..config import ConfigError, RunConfig
-from ..fluid.spectral import phi1
 from ..simulation import register
 from .common import Model, make_forces, make_noise, make_particles, overlap_guard
 from .spectral import SpectralModel
@@ -71,11 +70,7 @@ LE_TABLE = ("time", "shear_rate", "degree_oblique", "shear_strain_temporal",
             "lj_dev_stress_temporal", "shear_stress_temporal_old",
             "shear_stress_temporal_new", "reynolds_stress", "fluid_stress",
             "interfacial_stress", "apparent_stress", "viscosity")
-# Shear_Navier_Stokes (rows on stderr); AC adds the inertia column and the sum
-SNS_TABLE_DC = ("time", "shear_rate_temporal", "shear_strain_temporal",
-                "shear_stress_temporal", "viscosity")
-SNS_TABLE_AC = ("time", "shear_rate_temporal", "shear_strain_temporal",
-                "shear_stress_temporal", "Inertia_stress", "total_stress")
+# (Shear_Navier_Stokes: kapsel.models.zigzag, rows on stderr)
 
 
 def le_table_row(time, rate, frame_strain, strain, lj, particle, reynolds, fluid,
@@ -347,147 +342,6 @@ def make_shear_le(cfg, args, doc):
 
 
 
-# ----------------------------------------------------------------------------- zigzag
-class ZigzagShear:
-    """The zigzag (triangle-wave) shear profile of ``Shear_Navier_Stokes``:
-
-        U_x(y, t) = gamma_dot(t) Z(y),  Z = y - Ly/4 on [0, Ly/2], 3 Ly/4 - y on [Ly/2, Ly)
-
-    (slope +gamma_dot around the shear origin y = Ly/4, -gamma_dot around 3 Ly/4; periodic and
-    continuous).  Imposed by feedback on the x-z averaged profile of u_x: after every step the
-    modes (0, k_y, 0) of u_x (k_y != 0) are set to gamma_dot(t) Z^(k_y) of the grid-sampled
-    Z; the mean flow is untouched.  For a pure fluid the correction equals exactly the ETD
-    integral of the body force f = d_t U - nu d_y^2 U (a parallel flow is an exact NS
-    solution), so the profile is kept to round-off for DC and AC.  The force of a step is
-    recovered as F^ = correction / (dt phi1(-nu k^2 dt)) and the shear stress of the
-    zigzag as
-
-        sigma_xy = (<F_x Z> - RHO <Z^2> d gamma_dot / dt) / <(d_y Z)^2>
-
-    (<.> volume means, d_y spectral): ETA gamma_dot for a Newtonian fluid (the second term
-    removes the fluid's own inertia under AC), with particles the effective stress.
-    """
-
-    def __init__(self, fluid, shear):
-        g = fluid.grid
-        nx, ny, nz = g.shape
-        self.fluid, self.shear, self.rho = fluid, shear, fluid.rho
-        Ly = g.box[1]
-        y = np.arange(ny) * g.dx
-        self.Z = np.where(y <= 0.5 * Ly, y - 0.25 * Ly, 0.75 * Ly - y)
-        self.Z -= self.Z.mean()
-        self.Zh = np.fft.fft(self.Z) * (nx * nz)          # the (0, k_y, 0) modes of u_hat
-        self.Zh[0] = 0.0
-        my = np.fft.fftfreq(ny, 1.0 / ny)       # all k_y, as kapsel.grid computes them
-        if ny % 2 == 0:
-            my[ny // 2] = ny // 2
-        ky = 2.0 * np.pi * my / (ny * g.dx)
-        dZ = np.fft.ifft(1j * ky * np.fft.fft(self.Z)).real
-        self.Zf = np.fft.fft(self.Z)
-        # a distributed grid (kapsel.parallel.pencil): the (0, k_y, 0) modes are on the ranks
-        # of the first z block, each with its block of k_y; the stress sums over the ranks
-        self._sum, self.on = None, True
-        if hasattr(g, "comm"):
-            y0, y1 = g.spec_range[1]
-            self.Zh, self.Zf = self.Zh[y0:y1], self.Zf[y0:y1]
-            self.on = g.spec_range[2][0] == 0
-            self._sum = g.sum
-        ky = g.ky.ravel()
-        self.w = fluid.dt * phi1(-fluid.nu * ky * ky * fluid.dt)
-        self.Z2 = float(np.mean(self.Z ** 2))
-        self.dZ2 = float(np.mean(dZ ** 2))
-        self.scale = nx * nz
-        self.stress_sum, self.n = 0.0, 0
-        self.last_force = self.last_inertia = 0.0
-
-    def impose(self, t_new):
-        """Set the zigzag modes for time t_new; accumulate the stress of the step."""
-        fz = 0.0
-        if self.on:
-            uh = self.fluid.u_hat[0, 0, :, 0]
-            target = self.shear.rate(t_new) * self.Zh
-            corr = target - uh
-            if self._sum is None or self.fluid.grid.spec_range[1][0] == 0:
-                corr[0] = 0.0
-            uh += corr
-            F = corr / self.w                              # force modes (times N_x N_z)
-            # <F_x Z> = (1/Ny) sum_y F(y) Z(y) = (1/Ny^2) sum_k F^ Z^* / (N_x N_z)
-            fz = float(np.real(np.vdot(self.Zf, F))) / (self.Z.size ** 2 * self.scale)
-        if self._sum is not None:
-            fz = self._sum(fz)
-        dt = self.fluid.dt
-        drate = (self.shear.rate(t_new) - self.shear.rate(t_new - dt)) / dt
-        self.last_force = self.rho * fz / self.dZ2          # this step's, for the table
-        self.last_inertia = -self.rho * self.Z2 * drate / self.dZ2
-        self.stress_sum += self.last_force + self.last_inertia
-        self.n += 1
-
-    def take(self, eta, rate_now):
-        if self.n == 0:
-            return eta * rate_now
-        s = self.stress_sum / self.n
-        self.stress_sum, self.n = 0.0, 0
-        return s
-
-    def initial(self, t):
-        if self.on:
-            self.fluid.u_hat[0, 0, :, 0] = self.shear.rate(t) * self.Zh
-
-
-class ZigzagModel(SpectralModel):
-    """Shear_Navier_Stokes: the Navier_Stokes model with the zigzag shear flow."""
-
-    def __init__(self, cfg: RunConfig, args):
-        super().__init__(cfg, args)
-        self.zigzag = ZigzagShear(self.fluid, shear_flow(cfg))
-        self.zigzag.initial(self.time)
-        if self.particles.n and not self.dry:
-            self.spm.impose_particle_velocity()
-
-    def advance(self):
-        self.spm.step()
-        self.zigzag.impose(self.time + self.dt)
-        self.tick()
-
-    sheared = True
-
-    shear_table_stream = "stderr"
-
-    @property
-    def shear_table(self):
-        return SNS_TABLE_AC if self.zigzag.shear.kind == "AC" else SNS_TABLE_DC
-
-    def shear_table_row(self) -> list:
-        """time, the imposed rate (kept exactly by the feedback), strain, this step's
-        zigzag stress, viscosity; AC: the stress of the forcing, the fluid's inertia
-        term and their sum before the viscosity (FORMAT-OUTPUT.md §1.4)."""
-        z, sh = self.zigzag, self.zigzag.shear
-        rate = sh.rate(self.time)
-        total = z.last_force + z.last_inertia
-        if sh.kind == "AC":
-            return [self.time, rate, sh.strain(self.time), z.last_force, z.last_inertia, total]
-        return [self.time, rate, sh.strain(self.time), total,
-                total / rate if rate else float("nan")]
-
-    def accumulators(self) -> dict:
-        return {"zigzag": [self.zigzag.stress_sum, self.zigzag.n]}
-
-    def set_accumulators(self, values: dict) -> None:
-        self.zigzag.stress_sum, self.zigzag.n = values["zigzag"]
-
-    def shear_record(self) -> dict:
-        sh = self.zigzag.shear
-        rate = sh.rate(self.time)
-        return {"Shear_stress": self.zigzag.take(self.cfg.fluid.ETA, rate),
-                "Shear_strain": sh.strain(self.time), "Shear_rate": rate}
-
-
-
-@register("Shear_Navier_Stokes")
-def make_zigzag(cfg, args, doc):
-    return ZigzagModel(cfg, args)
-
-
 # ----------------------------------------------------------------------------- FDM types
 from .fdm import FDMModel  # noqa: E402
 
@@ -749,5 +603,4 @@ def make_shear_le_ch_fdm(cfg, args, doc):
     return ShearFDMModel(cfg, args)
 
 
-__all__ = ["ShearLEModel", "ShearFDMModel", "ShearStress", "ZigzagModel", "ZigzagShear", "shear_flow",
-           "check_interpolation"]
+__all__ = ["ShearLEModel", "ShearFDMModel", "ShearStress", "shear_flow", "check_interpolation"]
