@@ -703,8 +703,12 @@ def _species(r: _Reader, obj: str) -> list:
 
 
 def _check_particles_fit(r: _Reader, mesh: Mesh, particles: Particles) -> None:
-    """Particles of radius A DX must fit in the box N DX, and their volume fraction must be
-    possible.  (Checked on the numbers alone: nothing is allocated.)"""
+    """Particles of radius A DX must fit in the box N DX, and their volume fraction
+    N 4/3 pi A^3 / V must not exceed 1 (the original's limit, init_particle.cxx
+    Init_Particle; it lets rigid bodies and OBSTACLE spheres exceed it, whose beads or
+    places may overlap by design).  How close a placement may put them is the placement's
+    business (kapsel.particles.placement).  (Checked on the numbers alone: nothing is
+    allocated.)"""
     box = mesh.box
     a = particles.A
     n = particles.count
@@ -715,10 +719,12 @@ def _check_particles_fit(r: _Reader, mesh: Mesh, particles: Particles) -> None:
         r.fail("A", r.get("A"), f"a particle of diameter 2 A DX = {2 * a:g} does not fit in "
                                 f"the box {_dims(box)}")
     fraction = n * (4 / 3) * math.pi * math.prod(a / L for L in box.tolist())
-    if fraction > 0.74:
+    may_overlap = particles.object_type == "rigid" or any(
+        getattr(s.janus, "propulsion", "OFF") == "OBSTACLE" for s in particles.species)
+    if fraction > 1 and not may_overlap:
         r.fail("object_type", n, f"{n} particles of radius A DX = {a:g} cannot fit in the box "
-                                 f"{_dims(box)} (volume fraction {fraction:.3g} > 0.74, the "
-                                 f"densest packing)")
+                                 f"{_dims(box)} (volume fraction {fraction:.3g} > 1, refused "
+                                 f"as the original refuses it)")
 
 
 def _dims(box) -> str:
