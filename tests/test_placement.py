@@ -202,3 +202,29 @@ def test_orientations():
     assert np.allclose(u, [[1, 0, 0, 0], [np.sqrt(0.5), 0, 0, np.sqrt(0.5)]])
     with pytest.raises(ValueError):
         P.orientations("sideways", 2)
+
+
+@pytest.mark.parametrize("kind", ["FCC", "BCC", "random_walk"])
+def test_lattices_between_walls(kind, tmp_path):
+    """With flat walls the lattice fills the slab between them (the original builds it in
+    the box shortened along the wall axis): 8 spheres of A 4 in ex14 (Z walls of 4 points,
+    32^3) all in the fluid, clear of the walls' force."""
+    import shutil
+    from kapsel import cli
+    from kapsel.models.common import make_particles
+    from kapsel.particles.walls import clear_slab
+    from udf import UDFManager
+    src = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "samples",
+                       "kapsel-udf", "ex14")
+    for f in os.listdir(src):
+        shutil.copy(os.path.join(src, f), tmp_path / f)
+    u = UDFManager(str(tmp_path / "input.udf"))
+    u.put(8, "object_type.spherical_particle.Particle_spec[0].Particle_number")
+    u.put(kind, "switch.INIT_distribution.type")
+    u.put(3, "switch.INIT_distribution.random_walk.iteration")
+    u.write(str(tmp_path / "input.udf"))
+    cfg, _, _ = cli.validate(str(tmp_path / "input.udf"))
+    p = make_particles(cfg, np.random.default_rng(0))
+    axis, lo, hi = clear_slab(cfg)
+    z = p.R[:, axis]
+    assert p.n == 8 and axis == 2 and lo <= z.min() and z.max() < hi
