@@ -1030,20 +1030,24 @@ def _check_user_positions(r: _Reader, user: np.ndarray, box: np.ndarray, A: floa
     if bad.size:
         r.fail(path, user[bad[0]].tolist(), f"entry {bad[0]} is not finite")
     R = user[:, 0:3]
-    for i in range(len(R) - 1):
-        d = R[i + 1:] - R[i]
-        d -= box * np.round(d / box)
-        r2 = np.einsum("ij,ij->i", d, d)
-        if groups is not None:
-            r2[groups[i + 1:] == groups[i]] = np.inf
-        j = int(np.argmin(r2))
-        if r2[j] < A * A:
-            what = f"particles {i} and {i + 1 + j}" if groups is None else \
-                f"beads {i} and {i + 1 + j} of rigid bodies {int(groups[i])} and " \
-                f"{int(groups[i + 1 + j])}"
-            r.fail(path, [R[i].tolist(), R[i + 1 + j].tolist()],
-                   f"{what} are {math.sqrt(r2[j]):.3g} apart, less than half the contact "
-                   f"distance 2A = {2 * A:g} (they overlap)")
+    if len(R) < 2 or not A > 0:
+        return
+    from .particles.cells import pairs_within
+    i, j, d = pairs_within(R, box, A)          # i < j, sorted by (i, j)
+    r2 = np.einsum("ij,ij->i", d, d)
+    close = r2 < A * A
+    if groups is not None:
+        close &= groups[i] != groups[j]
+    if close.any():
+        k = int(np.flatnonzero(close)[0])      # the first pair, as a scan by i would find
+        first = np.flatnonzero(close & (i == i[k]))
+        k = int(first[np.argmin(r2[first])])   # its closest partner
+        i, j = int(i[k]), int(j[k])
+        what = f"particles {i} and {j}" if groups is None else \
+            f"beads {i} and {j} of rigid bodies {int(groups[i])} and {int(groups[j])}"
+        r.fail(path, [R[i].tolist(), R[j].tolist()],
+               f"{what} are {math.sqrt(r2[k]):.3g} apart, less than half the contact "
+               f"distance 2A = {2 * A:g} (they overlap)")
 
 
 def _check_bodies_fit(r: _Reader, species, user, box: np.ndarray, A: float,

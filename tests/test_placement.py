@@ -228,3 +228,37 @@ def test_lattices_between_walls(kind, tmp_path):
     axis, lo, hi = clear_slab(cfg)
     z = p.R[:, axis]
     assert p.n == 8 and axis == 2 and lo <= z.min() and z.max() < hi
+
+
+def test_user_specify_deep_overlap_check_is_vectorised(tmp_path, monkeypatch):
+    """user_specify positions closer than A (half the contact distance) are refused, naming
+    the first such pair (lowest index, then its closest partner); 8000 particles are checked
+    by a pair search, not a loop over particles."""
+    import shutil
+    import time
+    from kapsel import cli
+    from udf import UDFManager
+    samples = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "samples")
+    for f in ("define.udf", "kapsel_unit.udf"):
+        shutil.copy(os.path.join(samples, f), tmp_path / f)
+    n, A = 8000, 2.0
+    g = (np.arange(20) + 0.5) * 12.8                      # 20^3 sites, 12.8 apart in 256^3
+    R = np.stack(np.meshgrid(g, g, g, indexing="ij"), -1).reshape(-1, 3)
+    rows = np.zeros((n, 13))
+    rows[:, 0:3] = R
+    rows[:, 6] = 1.0
+    rows[4321, 0:3] = R[17] + [1.5, 0, 0]                 # 1.5 < A from particle 17
+    rows[5000, 0:3] = R[17] + [0, 1.9, 0]                 # and 1.9 from it
+    u = UDFManager(os.path.join(samples, "input.udf"))
+    u.put([8, 8, 8], "mesh")
+    u.put(A, "A")
+    u.put("user_specify", "switch.INIT_distribution.type")
+    u.put(n, "object_type.spherical_particle.Particle_spec[0].Particle_number")
+    u.put(rows, "switch.INIT_distribution.user_specify.Particles[]")
+    u.write(str(tmp_path / "input.udf"))
+    monkeypatch.setenv("KAPSEL_PY_MEMORY_LIMIT_GB", "1000")
+    t0 = time.process_time()
+    with pytest.raises(cli.BadInput, match="particles 17 and 4321 are 1.5 apart, less than "
+                                           "half the contact distance 2A = 4"):
+        cli.validate(str(tmp_path / "input.udf"))
+    assert time.process_time() - t0 < 20
