@@ -29,7 +29,8 @@ table is printed at the end (``--table``: print the table of OUT's results and e
 ``--reuse-original`` keeps the original's run of an input already in OUT (it does not depend
 on kapsel-py).
 
-Peak RSS is the child's ru_maxrss (os.wait4), wall time from start to exit of the process.
+Peak RSS is the child's ru_maxrss and CPU its user + system time (os.wait4), wall time from
+start to exit of the process (on a shared machine the CPU time is the better measure).
 """
 from __future__ import annotations
 
@@ -100,7 +101,7 @@ def describe(path: Path) -> dict:
 
 
 def run(cmd, cwd, env, timeout):
-    """(exit code, wall s, peak RSS bytes, stderr tail) of one process."""
+    """(exit code, wall s, CPU s, peak RSS bytes, stderr tail) of one process."""
     t0 = time.perf_counter()
     with open(os.path.join(cwd, "stdout.txt"), "w") as out, \
             open(os.path.join(cwd, "stderr.txt"), "w") as err:
@@ -115,7 +116,8 @@ def run(cmd, cwd, env, timeout):
     wall = time.perf_counter() - t0
     proc.returncode = code if isinstance(code, int) else -9
     tail = Path(cwd, "stderr.txt").read_text(errors="replace").strip().splitlines()[-3:]
-    return code, wall, usage.ru_maxrss * 1024, " | ".join(tail)[-300:]
+    cpu = usage.ru_utime + usage.ru_stime
+    return code, wall, cpu, usage.ru_maxrss * 1024, " | ".join(tail)[-300:]
 
 
 def _wait4(proc, timeout):
@@ -219,8 +221,9 @@ def agreement(c, p, box, deterministic):
 
 
 def field_agreement(dc, dp):
-    """FDM types: rms |u| (velocity_<n>.h5) and std psi (orderparam_<n>.h5) of kapsel-py
-    over the original's at the last snapshot both wrote."""
+    """FDM types, at the last snapshot both wrote: the rms of u minus its mean
+    (velocity_<n>.h5) and the std of psi (orderparam_<n>.h5) of kapsel-py over the
+    original's, and each program's |mean u| (a drift of the whole fluid)."""
     import h5py
 
     def snaps(d, stem):
@@ -232,11 +235,13 @@ def field_agreement(dc, dp):
         if not both:
             continue
         vals = []
-        for f in (a[both[-1]], b[both[-1]]):
+        for side, f in (("orig", a[both[-1]]), ("py", b[both[-1]])):
             with h5py.File(f, "r") as h:
                 if stem == "velocity":
-                    vals.append(math.sqrt(sum(float(np.mean(h[k][...] ** 2))
-                                              for k in ("UX", "UY", "UZ"))))
+                    u = [h[k][...] for k in ("UX", "UY", "UZ")]
+                    vals.append(math.sqrt(sum(float(np.var(c)) for c in u)))
+                    res[f"u_mean_{side}"] = math.sqrt(sum(float(np.mean(c)) ** 2
+                                                          for c in u))
                 else:
                     key_psi = "PSI_ALL" if "PSI_ALL" in h else "PSI"
                     vals.append(float(np.std(h[key_psi][...])))
@@ -244,6 +249,22 @@ def field_agreement(dc, dp):
             res[key] = vals[1] / vals[0]
             res[f"{stem}_snapshot"] = both[-1]
     return res
+
+
+def compare(path, dc, dp, deterministic):
+    """The agreement of the runs in dc (original) and dp (kapsel-py), or None when one of
+    them wrote no records."""
+    c, p = Path(dc) / "output.flat", Path(dp) / "output.udf"
+    if not (c.exists() and p.exists()):
+        return None
+    from kapsel import cli
+    cfg, _, _ = cli.validate(str(path))
+    try:
+        a = agreement(original_records(c), py_records(p), cfg.mesh.box, deterministic)
+        a.update(field_agreement(Path(dc), Path(dp)))
+        return a
+    except Exception as e:          # a torn file of a crashed run: say so
+        return {"error": f"{type(e).__name__}: {e}"}
 
 
 # ----------------------------------------------------------------------------- one input
@@ -282,19 +303,20 @@ def run_original(d, cpp, tools, timeout, reuse):
     env = dict(os.environ, OMP_NUM_THREADS="1", PYTHONPATH=str(ROOT))
     subprocess.run([sys.executable, os.path.join(tools, "flatten_udf.py"), "input.udf",
                     "input.flat"], cwd=d, env=env, check=True, capture_output=True)
-    code, wall, rss, tail = run([cpp, "-Iinput.flat", "-Ooutput.flat", "-Ddefine.udf",
-                                 "-Rrestart.flat"], d, env, timeout)
-    res = {"code": code, "wall": wall, "rss": rss, "tail": tail}
+    code, wall, cpu, rss, tail = run([cpp, "-Iinput.flat", "-Ooutput.flat", "-Ddefine.udf",
+                                      "-Rrestart.flat"], d, env, timeout)
+    res = {"code": code, "wall": wall, "cpu": cpu, "rss": rss, "tail": tail}
     done.write_text(json.dumps({"input": text, "result": res}))
     return res
 
 
 def run_py(d, timeout):
     env = dict(os.environ, OMP_NUM_THREADS="1", PYTHONPATH=str(ROOT))
-    code, wall, rss, tail = run([sys.executable, "-m", "kapsel.cli", "-Iinput.udf",
-                                 "-Ooutput.udf", "-Ddefine.udf", "-Rrestart.udf", "--threads",
-                                 "1", "--seed", "1", "--quiet"], d, env, timeout)
-    return {"code": code, "wall": wall, "rss": rss, "tail": tail}
+    code, wall, cpu, rss, tail = run([sys.executable, "-m", "kapsel.cli", "-Iinput.udf",
+                                      "-Ooutput.udf", "-Ddefine.udf", "-Rrestart.udf",
+                                      "--threads", "1", "--seed", "1", "--quiet"], d, env,
+                                     timeout)
+    return {"code": code, "wall": wall, "cpu": cpu, "rss": rss, "tail": tail}
 
 
 # ----------------------------------------------------------------------------- table
@@ -320,7 +342,8 @@ def _agree(r):
     else:
         parts.append(f"{a['common_records']} records, no particle motion to compare")
     if "u_rms_ratio" in a:
-        parts.append(f"fluid rms u py/orig {a['u_rms_ratio']:.3f}")
+        parts.append(f"fluid rms(u - <u>) py/orig {a['u_rms_ratio']:.3f}, |<u>| orig "
+                     f"{a['u_mean_orig']:.2e} py {a['u_mean_py']:.2e}")
     if "psi_std_ratio" in a:
         parts.append(f"std psi py/orig {a['psi_std_ratio']:.3f}")
     return "; ".join(parts)
@@ -328,15 +351,18 @@ def _agree(r):
 
 def table(results):
     head = ("| input | type | mesh | particles | steps | exit orig / py | wall orig / py (s) "
-            "| peak RSS orig / py | start | agreement |")
-    lines = [head, "|" + "---|" * 10]
+            "| CPU orig / py (s) | peak RSS orig / py | start | agreement |")
+    lines = [head, "|" + "---|" * 11]
+
+    def sec(d, k):
+        return f"{d[k]:.0f}" if k in d else "-"
     for r in results:
         o, p = r.get("original") or {}, r.get("kapsel-py") or {}
         steps = f"{r['steps']}" + ("" if not r.get("why") else f" ({r['why']})")
         lines.append(
             f"| {r['name']} | {r['type']} | {r['mesh']} | {r['particles']} | {steps} | "
             f"{o.get('code', '-')} / {p.get('code', '-')} | "
-            f"{o.get('wall', float('nan')):.0f} / {p.get('wall', float('nan')):.0f} | "
+            f"{sec(o, 'wall')} / {sec(p, 'wall')} | {sec(o, 'cpu')} / {sec(p, 'cpu')} | "
             f"{_gb(o['rss']) if 'rss' in o else '-'} / {_gb(p['rss']) if 'rss' in p else '-'} | "
             f"{'deterministic' if r['deterministic'] else 'random'} | {_agree(r)} |")
     return "\n".join(lines)
@@ -367,7 +393,12 @@ def main(argv=None):
         for line in results_file.read_text().splitlines():
             r = json.loads(line)
             latest[r["name"]] = r
-        print(table(list(latest.values())))
+        for r in latest.values():            # agreement re-read from the runs' files
+            a = compare(inputs()[r["name"]], out / r["name"] / "original",
+                        out / r["name"] / "kapsel-py", r["deterministic"])
+            if a is not None:
+                r["agreement"] = a
+        print(table([latest[k] for k in inputs() if k in latest]))
         return 0
     have_original = not args.no_original
     if have_original:
@@ -410,18 +441,9 @@ def main(argv=None):
         info["kapsel-py"] = run_py(dirs["kapsel-py"], args.timeout)
         print(f"#   kapsel-py: exit {info['kapsel-py']['code']}, "
               f"{info['kapsel-py']['wall']:.0f} s", file=sys.stderr, flush=True)
-        c = dirs["original"] / "output.flat"
-        p = dirs["kapsel-py"] / "output.udf"
-        if have_original and c.exists() and p.exists():
-            from kapsel import cli
-            cfg, _, _ = cli.validate(str(path))
-            try:
-                info["agreement"] = agreement(original_records(c), py_records(p),
-                                              cfg.mesh.box, info["deterministic"])
-                info["agreement"].update(field_agreement(dirs["original"],
-                                                         dirs["kapsel-py"]))
-            except Exception as e:          # a torn file of a crashed run: say so
-                info["agreement"] = {"error": f"{type(e).__name__}: {e}"}
+        if have_original:
+            info["agreement"] = compare(path, dirs["original"], dirs["kapsel-py"],
+                                        info["deterministic"])
         with open(results_file, "a") as fh:
             fh.write(json.dumps(info) + "\n")
         done.append(info)

@@ -148,7 +148,9 @@ _RSS = """import resource, subprocess, sys
 r = subprocess.run(sys.argv[1:], capture_output=True, text=True)
 sys.stdout.write(r.stdout)
 sys.stderr.write(r.stderr)
-print("maxrss_kB", resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss)
+u = resource.getrusage(resource.RUSAGE_CHILDREN)
+print("cpu_s", u.ru_utime + u.ru_stime)
+print("maxrss_kB", u.ru_maxrss)
 sys.exit(r.returncode)
 """
 
@@ -236,19 +238,18 @@ def test_check_of_an_electrolyte_input_does_no_field_work(tmp_path, monkeypatch,
 
 def test_check_of_a_large_electrolyte_input_is_cheap(tmp_path):
     """The same 256^3 Electrolyte input with 10 000 particles through the command line: 358 s
-    of set-up before (issue 24), now about 2 s and 170 MB (/usr/bin/time, 2026-12-01, idle
-    2-core VM).  Asserted with room for a busy machine: < 30 s and < 500 MB."""
-    import time
+    of set-up before (issue 24), now about 2 s and 170 MB (/usr/bin/time, 2026-12-01: 2.0 s
+    wall on the idle 2-core VM; 1.9 s CPU, 16 s wall at load 14).  Asserted on the CPU time
+    (the wall time is the machine's load): < 10 s, and < 500 MB."""
     electrolyte_input(tmp_path)
     env = dict(os.environ, KAPSEL_PY_MEMORY_LIMIT_GB="64",     # this checkout's kapsel
                PYTHONPATH=os.pathsep.join(filter(None, [os.path.dirname(HERE),
                                                         os.environ.get("PYTHONPATH")])))
-    t0 = time.perf_counter()
     r = subprocess.run([sys.executable, "-c", _RSS, sys.executable, "-m", "kapsel.cli", *FLAGS,
-                        "--check"], cwd=tmp_path, capture_output=True, text=True, timeout=120,
+                        "--check"], cwd=tmp_path, capture_output=True, text=True, timeout=300,
                        env=env)
-    wall = time.perf_counter() - t0
     assert r.returncode == 0, r.stderr
     assert "check passed" in r.stdout
     rss = int(r.stdout.split("maxrss_kB")[1])
-    assert rss < 500_000 and wall < 30, (rss, wall)
+    cpu = float(r.stdout.split("cpu_s")[1].split()[0])
+    assert rss < 500_000 and cpu < 10, (rss, cpu)
