@@ -52,6 +52,7 @@ ORIGINAL = os.path.join(os.path.dirname(os.path.abspath(__file__)), "data",
 # record 0 of the original's runs (kref build of kapsel3 8ee457a, 1 thread; the sample input
 # with INIT_distribution, Particle_number, A, mesh edited): name -> (kind, n, A, box)
 ORIGINAL_CASES = {"bcc60": ("BCC", 60, 4.0, (32, 32, 32)),
+                  "bcc54": ("BCC", 54, 2.0, (32, 32, 32)),       # 2 x 3^3: a full lattice
                   "fcc100": ("FCC", 100, 2.0, (32, 32, 32)),
                   "fcc50r": ("FCC", 50, 2.0, (64, 32, 32)),
                   "fcc30r": ("FCC", 30, 2.0, (64, 32, 16)),
@@ -68,7 +69,7 @@ def _min_image(d, box):
     return d - box * np.round(d / box)
 
 
-@pytest.mark.parametrize("name", ["bcc60", "fcc100", "fcc50r", "fcc30r"])
+@pytest.mark.parametrize("name", ["bcc60", "bcc54", "fcc100", "fcc50r", "fcc30r"])
 def test_lattice_sites_are_the_originals(name):
     """Same sites in the same order as the original: BCC exactly (it has no random part);
     FCC within the original's random kick of 0.001 A (no neighbour within the repulsion's

@@ -141,9 +141,18 @@ def test_real_input_runs(path, tmp_path, monkeypatch, capsys):
     assert restart.get("resume.Calculation") != "NEW"
 
 
+# inputs kapsel-py does not yet run for LONG steps (the original does): why, and whose
+# area it is; strict, so that the fix shows up as an XPASS failure and removes the entry
+NOT_YET = {"ex10/input_rigid_free1.udf":
+           "the free rigid body (65 beads, A_XI 1, G = 50) blows up at step 7 (CFL 3.2; the "
+           "original runs 200 steps to |v| 2.66): rigid bodies"}
+
+
 def _long_params():
     for p in RUNS:
         marks = () if name_of(p) in FAST_200 else (pytest.mark.slow,)
+        if name_of(p) in NOT_YET:
+            marks += (pytest.mark.xfail(strict=True, reason=NOT_YET[name_of(p)]),)
         yield pytest.param(p, id=name_of(p), marks=marks)
 
 

@@ -279,8 +279,8 @@ def bcc_sites(n, box):
     L = np.asarray(box, dtype=float).reshape(3)
     if n == 0:
         return np.zeros((0, 3))
-    nn = int(math.ceil((n / 2.0) ** (1.0 / 3.0) - 1e-12))
-    while 2 * nn ** 3 < n:                    # (guard against the cube root's round-off)
+    nn = int(math.ceil((n / 2.0) ** (1.0 / 3.0)))     # as the original rounds it: 54 -> 4
+    while 2 * nn ** 3 < n:                    # (a cube root rounded down: never seen)
         nn += 1
     c = L / nn
     i = np.arange(n)
