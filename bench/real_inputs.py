@@ -209,7 +209,7 @@ def agreement(c, p, box, deterministic):
                    dv_rel=float(dv / vmax) if vmax > 0 else None)
     else:
         ratios = []
-        for i, j, t in common:
+        for i, j, t in common[1:]:          # (the start: at rest, or the original's kick)
             rc = math.sqrt(float(np.mean(np.sum(c["v"][i][:n] ** 2, axis=1))))
             rp = math.sqrt(float(np.mean(np.sum(p["v"][j][:n] ** 2, axis=1))))
             if rc > 0:
