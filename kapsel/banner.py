@@ -75,6 +75,16 @@ def _particles(cfg) -> str:
             f"A = {_g(p.A)}, A_XI = {_g(p.A_XI)}")
 
 
+def _placement(cfg, model) -> list[str]:
+    """What the placement left overlapping (kapsel.particles.placement.overlap_note)."""
+    note = getattr(getattr(model, "particles", None), "placement_note", None)
+    if not note:
+        return []
+    if cfg.interactions.LJ_truncate == "NONE":
+        return [f"placement: {note}; no pair force acts (LJ_truncate NONE): they stay so"]
+    return [f"placement: {note}; the pair repulsion separates them"]
+
+
 def _electric(cfg) -> list[str]:
     """Quincke constraint and dipoles (kapsel.particles.dipoles), with the Ewald split."""
     sw, out = cfg.switches, []
@@ -115,7 +125,7 @@ def describe(cfg, args, model, resumed: bool, files: list[tuple[str, str]],
     dt = model.dt
     lines = [f"kapsel-py: {cfg.type} ({_solvers(cfg)})",
              f"mesh {nx} x {ny} x {nz}, DX = {_g(cfg.mesh.DX)}, box {bx} x {by} x {bz}",
-             _particles(cfg), *_electric(cfg),
+             _particles(cfg), *_placement(cfg, model), *_electric(cfg),
              _dt(cfg, dt)]
     if getattr(model, "spm_drag", "original") != "original" and cfg.particles.count:
         lines.append(f"SPM drag {model.spm_drag}: profile radius {model.spm.stencil.A:.4f} "

@@ -711,8 +711,12 @@ def _species(r: _Reader, obj: str) -> list:
 
 
 def _check_particles_fit(r: _Reader, mesh: Mesh, particles: Particles) -> None:
-    """Particles of radius A DX must fit in the box N DX, and their volume fraction must be
-    possible.  (Checked on the numbers alone: nothing is allocated.)"""
+    """Particles of radius A DX must fit in the box N DX, and their volume fraction
+    N 4/3 pi A^3 / V must not exceed 1 (the original's limit, init_particle.cxx
+    Init_Particle; it lets rigid bodies and OBSTACLE spheres exceed it, whose beads or
+    places may overlap by design).  How close a placement may put them is the placement's
+    business (kapsel.particles.placement).  (Checked on the numbers alone: nothing is
+    allocated.)"""
     box = mesh.box
     a = particles.A
     n = particles.count
@@ -723,10 +727,12 @@ def _check_particles_fit(r: _Reader, mesh: Mesh, particles: Particles) -> None:
         r.fail("A", r.get("A"), f"a particle of diameter 2 A DX = {2 * a:g} does not fit in "
                                 f"the box {_dims(box)}")
     fraction = n * (4 / 3) * math.pi * math.prod(a / L for L in box.tolist())
-    if fraction > 0.74:
+    may_overlap = particles.object_type == "rigid" or any(
+        getattr(s.janus, "propulsion", "OFF") == "OBSTACLE" for s in particles.species)
+    if fraction > 1 and not may_overlap:
         r.fail("object_type", n, f"{n} particles of radius A DX = {a:g} cannot fit in the box "
-                                 f"{_dims(box)} (volume fraction {fraction:.3g} > 0.74, the "
-                                 f"densest packing)")
+                                 f"{_dims(box)} (volume fraction {fraction:.3g} > 1, refused "
+                                 f"as the original refuses it)")
 
 
 def _check_masses(r: _Reader, obj: str, species: list, particles: Particles, rho) -> None:
@@ -1096,20 +1102,24 @@ def _check_user_positions(r: _Reader, user: np.ndarray, box: np.ndarray, A: floa
     if bad.size:
         r.fail(path, user[bad[0]].tolist(), f"entry {bad[0]} is not finite")
     R = user[:, 0:3]
-    for i in range(len(R) - 1):
-        d = R[i + 1:] - R[i]
-        d -= box * np.round(d / box)
-        r2 = np.einsum("ij,ij->i", d, d)
-        if groups is not None:
-            r2[groups[i + 1:] == groups[i]] = np.inf
-        j = int(np.argmin(r2))
-        if r2[j] < A * A:
-            what = f"particles {i} and {i + 1 + j}" if groups is None else \
-                f"beads {i} and {i + 1 + j} of rigid bodies {int(groups[i])} and " \
-                f"{int(groups[i + 1 + j])}"
-            r.fail(path, [R[i].tolist(), R[i + 1 + j].tolist()],
-                   f"{what} are {math.sqrt(r2[j]):.3g} apart, less than half the contact "
-                   f"distance 2A = {2 * A:g} (they overlap)")
+    if len(R) < 2 or not A > 0:
+        return
+    from .particles.cells import pairs_within
+    i, j, d = pairs_within(R, box, A)          # i < j, sorted by (i, j)
+    r2 = np.einsum("ij,ij->i", d, d)
+    close = r2 < A * A
+    if groups is not None:
+        close &= groups[i] != groups[j]
+    if close.any():
+        k = int(np.flatnonzero(close)[0])      # the first pair, as a scan by i would find
+        first = np.flatnonzero(close & (i == i[k]))
+        k = int(first[np.argmin(r2[first])])   # its closest partner
+        i, j = int(i[k]), int(j[k])
+        what = f"particles {i} and {j}" if groups is None else \
+            f"beads {i} and {j} of rigid bodies {int(groups[i])} and {int(groups[j])}"
+        r.fail(path, [R[i].tolist(), R[j].tolist()],
+               f"{what} are {math.sqrt(r2[k]):.3g} apart, less than half the contact "
+               f"distance 2A = {2 * A:g} (they overlap)")
 
 
 def _check_bodies_fit(r: _Reader, species, user, box: np.ndarray, A: float,

@@ -75,16 +75,9 @@ def make_particles(cfg: RunConfig, rng: np.random.Generator) -> ParticleState:
                 chains.check_bonds(R, box, A, per_chain)
                 p.v[:] = user[:n, 3:6]
                 p.omega[:] = user[:n, 10:13]
-        elif kind in ("uniform_random", "random_walk") and cfg.switches.wall is not None:
-            R = _between_walls(cfg, kind, n, radius, rng)
-        elif kind == "uniform_random":
-            R = placement.uniform_random(n, radius, box, rng)
-        elif kind == "random_walk":
-            R = placement.random_walk(n, radius, box, cfg.switches.random_walk_iterations, rng)
-        elif kind == "FCC":
-            R = placement.fcc(n, radius, box)
-        elif kind == "BCC":
-            R = placement.bcc(n, radius, box)
+        elif kind != "user_specify":
+            R = _placed(cfg, kind, n, radius, rng)
+            p.placement_note = placement.overlap_note(kind, R, radius, box)
         else:
             R = user[:n, 0:3].copy()
             p.v[:] = user[:n, 3:6]
@@ -124,21 +117,46 @@ def _gap(cfg):
     return clear_slab(cfg)
 
 
-def _between_walls(cfg, kind, n, radius, rng):
-    """uniform_random / random_walk in the slab between the walls (their sub-box along the
-    wall axis; the overlap test across its periodic edge only rejects more)."""
+def _placed(cfg, kind, n, radius, rng):
+    """uniform_random, random_walk, FCC or BCC spheres (kapsel.particles.placement); with
+    walls in the slab between them, as the original places them in the box shortened along
+    the wall axis (their sub-box along that axis; the tests across its periodic edge only
+    reject or push more).  FCC and random_walk relax along the repulsive pair force of the
+    run's LJ_powers, as the original's (its LJ diameter in the sheared types; random_walk
+    with the 12:6 cutoff 2^(1/6) sigma, FCC with the law's own minimum, or for
+    electro_osmotic_flow the run's cutoff)."""
+    from ..particles import forces as pf
     from ..particles import placement
-    axis, lo, hi = _gap(cfg)
-    sub = cfg.mesh.box.copy()
-    sub[axis] = hi - lo
-    if sub[axis] <= 0:
-        raise ValueError(f"no room between the walls for a particle of radius "
-                         f"{cfg.particles.A:g}")
+    box = cfg.mesh.box.copy()
+    lo = 0.0
+    axis = None
+    if cfg.switches.wall is not None:
+        axis, lo, hi = _gap(cfg)
+        box[axis] = hi - lo
+        if box[axis] <= 0:
+            raise ValueError(f"no room between the walls for a particle of radius "
+                             f"{cfg.particles.A:g}")
+    inter = cfg.interactions
+    sigma = None
+    if getattr(cfg, "type", "") in SHEAR_TYPES:
+        sigma = pf.sheared_lj_dia(inter.LJ_powers, cfg.particles.A, cfg.particles.A_XI)
     if kind == "uniform_random":
-        R = placement.uniform_random(n, radius, sub, rng)
+        R = placement.uniform_random(n, radius, box, rng)
+    elif kind == "BCC":
+        R = placement.bcc(n, radius, box)
+    elif kind == "FCC":
+        cut = (pf.interaction_range(inter.LJ_powers, inter.LJ_truncate)
+               if inter.LJ_powers == pf.EOF else None)
+        R = placement.fcc(n, radius, box, rng,
+                          placement.repulsion(box, radius, inter.LJ_powers, cut, sigma))
+    elif kind == "random_walk":
+        R = placement.random_walk(n, radius, box, cfg.switches.random_walk_iterations, rng,
+                                  placement.repulsion(box, radius, inter.LJ_powers,
+                                                      2.0 ** (1.0 / 6.0), sigma))
     else:
-        R = placement.random_walk(n, radius, sub, cfg.switches.random_walk_iterations, rng)
-    R[:, axis] += lo
+        raise ValueError(f"unknown INIT_distribution {kind!r}")
+    if axis is not None:
+        R[:, axis] += lo
     return R
 
 

@@ -85,7 +85,7 @@ class ElectrolyteModel(SpectralModel):
                        cfg.mesh.DX, self.dt, rotation=cfg.switches.ROTATION,
                        forces=self._with_charge_force(
                            overlap_guard(make_forces(cfg, self.particles))), noise=None,
-                       impose=not self.dry)    # the profiles: ion numbers, PB start
+                       dry=self.dry)    # --check: no profiles
         p = self.particles
         self.charges = np.array([cfg.particles.species[s].surface_charge for s in p.species],
                                 dtype=float)
@@ -93,12 +93,17 @@ class ElectrolyteModel(SpectralModel):
         self._force_hat = self.grid.empty_complex()
         self._dt_limit = self._ion_limit()
         self._u = self.grid.empty_real()
-        self._geometry()
-        vfree = float(np.sum(1.0 - self.ions.phi)) * self.ions.dv
+        if self.dry:      # --check: no profiles, no ion densities; the signs of the ion
+            vfree = self.grid.volume    # numbers do not depend on the free volume
+        else:
+            self._geometry()
+            vfree = float(np.sum(1.0 - self.ions.phi)) * self.ions.dv
         counts = ion_numbers(el, self.charges, vfree, f.kBT)
         if np.any(counts < 0):
             raise ConfigError("the particle charges need a negative number of ions",
                               path="object_type", value=list(self.charges))
+        if self.dry:
+            return
         if el.init_profile == "Poisson_Boltzmann":
             try:
                 self.pb_iterations = self.ions.init_poisson_boltzmann(counts)
