@@ -138,7 +138,7 @@ TIMES_200 = {
     "ex09/squirm_single_a+2.udf": (55, 29),
     "ex01/colloid_1.udf": (87, 51),
     "ex11/fdm_4096p_shear_1e-2.udf": (32, 20),
-    "ex13/pickering_emulsion.udf": (511, None),     # at load ~8; CPU not measured
+    "ex13/pickering_emulsion.udf": (706, 138),      # at load 7-11
 }
 FAST_200 = {"ex06/s000_t010_free.udf", "ex06/s001_t010_free.udf"}
 
