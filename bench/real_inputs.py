@@ -3,6 +3,7 @@
     .venv/bin/python bench/real_inputs.py [--kref PATH] [--kref-tools DIR] [--steps 200]
         [--records 10] [--steps-of NAME=N ...] [--only NAME ...] [--out DIR]
         [--reuse-original] [--table]
+    .venv/bin/python bench/real_inputs.py --check [--only NAME ...] [--out DIR]
 
 The inputs are those of ``samples/kapsel-udf/*/`` (the original's examples and sample:
 ex01 ex02 ex06 ex09 ex10 ex11 ex12 ex13 ex14 sample).  Each is run for ``--steps`` steps
@@ -28,6 +29,11 @@ to build it.  Results go to ``OUT/results.jsonl`` (one line per input, appended)
 table is printed at the end (``--table``: print the table of OUT's results and exit).
 ``--reuse-original`` keeps the original's run of an input already in OUT (it does not depend
 on kapsel-py).
+
+``--check``: ``kapsel-py --check`` of every input unchanged (no field work), and of a 256^3
+``Electrolyte`` input with 10 000 spheres (ex01 with mesh 8 8 8, A = 4, Particle_number
+10000, placed by each of uniform_random, FCC, BCC and random_walk): a table of the exit
+code, wall and CPU seconds and peak RSS of each.
 
 Peak RSS is the child's ru_maxrss and CPU its user + system time (os.wait4), wall time from
 start to exit of the process (on a shared machine the CPU time is the better measure).
@@ -368,6 +374,66 @@ def table(results):
     return "\n".join(lines)
 
 
+# ----------------------------------------------------------------------------- --check
+LARGE_ELECTROLYTE = ("uniform_random", "FCC", "BCC", "random_walk")
+
+
+def large_electrolyte(d: Path, distribution: str) -> Path:
+    """ex01 (Electrolyte, salt, Poisson-Boltzmann start, DC field) on a 256^3 mesh with
+    10 000 spheres of A = 4 placed by ``distribution`` (the issue-24 case of --check), in
+    ``d``."""
+    from udf import UDFManager
+    src = REAL / "ex01"
+    d.mkdir(parents=True, exist_ok=True)
+    for f in ("define.udf", "kapsel_unit.udf"):
+        if (src / f).exists():
+            shutil.copy(src / f, d / f)
+    u = UDFManager(str(src / "colloid_1.udf"))
+    u.put([8, 8, 8], "mesh")
+    u.put(4.0, "A")
+    u.put(10_000, "object_type.spherical_particle.Particle_spec[0].Particle_number")
+    u.put(distribution, "switch.INIT_distribution.type")
+    u.write(str(d / "input.udf"))
+    return d / "input.udf"
+
+
+def check_table(names, out: Path) -> str:
+    """``kapsel-py --check`` of each named input (unchanged, in a copy of its directory)
+    and of the large Electrolyte cases: exit code, wall and CPU seconds, peak RSS."""
+    env = dict(os.environ, OMP_NUM_THREADS="1", PYTHONPATH=str(ROOT),
+               KAPSEL_PY_MEMORY_LIMIT_GB="64")   # the inputs, not this machine's memory
+    cases = []
+    for name in names:
+        path = inputs()[name]
+        d = out / "check" / name
+        shutil.rmtree(d, ignore_errors=True)
+        d.mkdir(parents=True)
+        for f in path.parent.iterdir():
+            if f.is_file():
+                shutil.copy(f, d / f.name)
+        cases.append((name, d, path.name))
+    for dist in LARGE_ELECTROLYTE:
+        d = out / "check" / f"electrolyte256-{dist}"
+        shutil.rmtree(d, ignore_errors=True)
+        cases.append((f"Electrolyte 256^3, 10 000 spheres, {dist}",
+                      large_electrolyte(d, dist).parent, "input.udf"))
+    lines = ["| input | mesh | particles | exit | wall (s) | CPU (s) | peak RSS | memory "
+             "estimate of the run |", "|" + "---|" * 8]
+    for label, d, inp in cases:
+        code, wall, cpu, rss, _ = run([sys.executable, "-m", "kapsel.cli", f"-I{inp}",
+                                       "-Ooutput.udf", "-Ddefine.udf", "-Rrestart.udf",
+                                       "--check"], str(d), env, 600)
+        text = Path(d, "stdout.txt").read_text(errors="replace")
+        mesh = re.search(r"^mesh (\d+ x \d+ x \d+)", text, re.M)
+        parts = re.search(r"^particles: (\d+)", text, re.M)
+        est = re.search(r"^memory: about (.+?) \(", text, re.M)
+        lines.append(f"| {label} | {mesh.group(1) if mesh else '-'} | "
+                     f"{parts.group(1) if parts else 0} | {code} | {wall:.1f} | {cpu:.1f} | "
+                     f"{_gb(rss)} | {est.group(1) if est else '-'} |")
+        print(lines[-1], file=sys.stderr, flush=True)
+    return "\n".join(lines)
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--kref", default=os.environ.get("KREF_CPP"),
@@ -385,8 +451,14 @@ def main(argv=None):
     ap.add_argument("--reuse-original", action="store_true")
     ap.add_argument("--timeout", type=float, default=6 * 3600)
     ap.add_argument("--table", action="store_true", help="print OUT's table and exit")
+    ap.add_argument("--check", action="store_true",
+                    help="time kapsel-py --check of every input and of a 256^3 Electrolyte "
+                         "input with 10 000 particles, and exit")
     args = ap.parse_args(argv)
     out = Path(args.out)
+    if args.check:
+        print(check_table(args.only or list(inputs()), out))
+        return 0
     results_file = out / "results.jsonl"
     if args.table:
         latest = {}
