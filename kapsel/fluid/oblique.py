@@ -913,7 +913,7 @@ class DistributedObliqueMAC(ObliqueMAC, DistributedMAC):
         def mv(x):
             w = np.asarray(x).reshape(shape)
             X = h.pad(w, key="mv")
-            op.advection_linear(US, X, self.dx, out=O, work=h.work((), "s"))
+            op.advection_nc_linear(US, X, self.dx, out=O)
             out = np.array(h.interior(O))
             out *= hdt
             out += w
@@ -941,6 +941,9 @@ class DistributedObliqueMAC(ObliqueMAC, DistributedMAC):
         u[...] = self._shift(u, sh)
         uo = cartesian(self._u_old, g_old)
         self._u_old[...] = contravariant(self._shift(uo, sh), g_new)
+        if self._have_n_old:          # the explicit scheme's advection history alike
+            no = cartesian(self._n_old, g_old)
+            self._n_old[...] = contravariant(self._shift(no, sh), g_new)
         self.pressure[...] = self._shift(self.pressure, sh + 0.5 * n * self.s)
         self.remaps += n
         self.remap_count += 1

@@ -184,6 +184,8 @@ class SPM:
             R = p.R[self._T]
         self.idx, self.phi_i, self.r = particle_profiles(R, self.stencil, self.shape, self.dx,
                                                          g, y0)
+        # DX^3 sum_x phi_i over the whole profile (before a distributed run cuts it)
+        self.grid_volume = self.phi_i.sum(axis=1) * self.dx ** 3
         if self.owned is not None:
             self._localize()
         self._weights()
