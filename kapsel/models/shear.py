@@ -121,13 +121,12 @@ class ShearLEModel(SpectralModel):
                                        fix_cell=cfg.switches.fix_cell)
         self.particles = make_particles(cfg, self.rng)
         fluid = self.fluid
-        # particles start at rest in the laboratory frame (V_x = 0, make_particles) with the
-        # imposed flow around and in them, as the original's sheared types
         forces = make_forces(cfg, self.particles, strain=lambda: fluid.frame_strain)
         self.spm = SPM(self.fluid, self.particles, self.spm_radius(), cfg.particles.A_XI, f.RHO,
                        cfg.mesh.DX, self.dt, rotation=cfg.switches.ROTATION,
                        forces=overlap_guard(forces), noise=make_noise(cfg, self.particles, seed),
-                       dry=self.dry)
+                       impose=False, dry=self.dry)
+        self.spm.start_sheared(impose=not self.dry)    # as the original (SPM.start_sheared)
         self.stress = ShearStress(self.grid.volume, f.RHO, cfg.mesh.DX, self.dt, f.ETA)
 
     def advance(self):
@@ -426,6 +425,7 @@ class ZigzagModel(SpectralModel):
         self.zigzag.initial(self.time)
         if self.particles.n and not self.dry:
             self.spm.impose_particle_velocity()
+        self.spm.start_sheared(impose=False)     # V_x = Omega_z = 0 after the imposition
 
     def advance(self):
         self.spm.step()
@@ -492,6 +492,8 @@ class ShearFDMModel(FDMModel):
     eta) - alpha <d_x psi d_y psi> (interfacial stress of the phase field) + the particle
     stress of kapsel.models.shear (first moment of the SPM force density).
     """
+
+    sheared_start = True
 
     def __init__(self, cfg: RunConfig, args):
         self.interpolation = check_interpolation(cfg)
