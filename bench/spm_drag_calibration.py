@@ -122,11 +122,11 @@ def main():
                   f"{r['ratio']:7.4f} {ae:7.4f} {r['d']:7.3f} {steps:6d} {r['ms']:8.2f}",
                   flush=True)
     if a.fit and len(rows) >= 6:
-        X = np.array([[r["xi"] ** i * r["ell"] ** j for i in range(3) for j in range(2)]
+        X = np.array([[r["xi"] ** i * r["ell"] ** j for i in range(3) for j in range(3)]
                       for r in rows])
         d = np.array([r["d"] for r in rows])
         c, *_ = np.linalg.lstsq(X, d, rcond=None)
-        print("C =", np.array2string(c.reshape(3, 2), precision=5, separator=", "))
+        print("C =", np.array2string(c.reshape(3, 3), precision=5, separator=", "))
         print("residuals:", np.array2string(X @ c - d, precision=3))
 
 

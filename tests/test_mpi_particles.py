@@ -69,7 +69,7 @@ def _drift_input(d, n=12, x=None):
     u.put(3.0, "object_type.spherical_particle.Particle_spec[0].MASS_RATIO")
     u.put(0.5, "gravity.G")
     u.put("-X", "gravity.G_direction")
-    x = x or [32.3, 36.8, 64.2, 68.7, 96.4, 100.9, 8.0, 20.0, 45.0, 80.0, 112.0, 124.0][:n]
+    x = x or [32.2, 36.8, 64.15, 68.7, 96.2, 100.9, 8.0, 20.0, 45.0, 80.0, 112.0, 124.0][:n]
     rows = np.zeros((n, 13))
     rows[:, 0] = x
     rows[:, 1] = [4.0 + 8.0 * (k % 2) for k in range(n)]
@@ -126,7 +126,7 @@ def test_particles_are_owned_by_ranks_and_migrate(tmp_path):
         dev = float(np.abs(a[k] - b[k]).max())
         print(f"  max |4 ranks - 1 rank| {k}: {dev:.3g}")
         assert dev < 1e-11, k
-    assert np.all(a["R_raw"][:, 0] < np.array([32.3, 36.8, 64.2, 68.7, 96.4, 100.9, 8.0,
+    assert np.all(a["R_raw"][:, 0] < np.array([32.2, 36.8, 64.15, 68.7, 96.2, 100.9, 8.0,
                                                20.0, 45.0, 80.0, 112.0, 124.0]))
 
 

@@ -36,7 +36,10 @@ oblique index space), the pressure by the metric projection
 P^G v = v - G k^ (k^.v) / (k^ G k^) (k^.v = K.v_cartesian: the projection is the Cartesian one
 with K), the viscous term integrated exactly over the step with the time-averaged
 |K(t)|^2 (Simpson's rule, exact for DC), the rest by the slaved Euler (ETD1) step of
-``SpectralNS``.  AC shear: the imposed flow is taken as quasi-static (no d_t U term, as the
+``SpectralNS``.  Each step starts by truncating the state to the 2/3 band, as the
+original's (operate_omega.cxx Zeta_k2advection_k_OBL truncates zeta before the advection),
+so the high modes the particles' rigidity increment puts into u^ (add_solenoidal: projected,
+not truncated, as Solenoidal_uk_OBL) last until the next step only.  AC shear: the imposed flow is taken as quasi-static (no d_t U term, as the
 original's oblique formulation).  The interface the SPM driver uses is the one of
 ``SpectralNS`` (``step``, ``velocity(out)``: Cartesian deviation on the oblique grid,
 ``add_solenoidal(du)``: Cartesian increment) plus the frame for the particles
@@ -392,6 +395,7 @@ class ObliqueSpectralNS(_ObliqueFrame, SpectralNS):
         t0, dt = self.time, self.dt
         g0 = self.frame_strain
         rate = self.shear.rate(t0)
+        self.truncate()
         nl = self._nonlinear_oblique(g0, rate)
         # frame strains at t0, t0 + dt/2, t0 + dt (same re-mapping count): Simpson means
         off = self.remaps * self.s
@@ -490,8 +494,13 @@ class ObliqueSpectralNS(_ObliqueFrame, SpectralNS):
         self.remap_count += 1
         self._gK = None
 
+    def truncate(self):
+        """u^ <- T u^, the 2/3 rule (each step starts with it: module docstring)."""
+        self.u_hat *= self.grid.dealias_f
+
     def add_solenoidal(self, du, project=True):
-        """u^ += P^G[FFT(contravariant(du))] for a Cartesian increment du on the oblique grid."""
+        """u^ += P^G[FFT(contravariant(du))] for a Cartesian increment du on the oblique grid
+        (not truncated, as the original's Solenoidal_uk_OBL)."""
         g = self.frame_strain
         d = self._wh
         self.grid.forward(contravariant(np.asarray(du, dtype=float), g), out=d)
@@ -794,8 +803,9 @@ class MetricProjector:
     wavevector K = (k1, k2 - g k1, k3), v - K (K.v)/|K|^2, mean kept, no truncation: the
     original's final projection of the Lees-Edwards FDM types (sp_3d_ns.cxx
     Time_evolution_hydro_OBL_fdm: Solenoidal_uk_OBL of the contravariant field, the same
-    projection in other components).  ``grid``: a kapsel.grid.Grid (or this rank's
-    PencilGrid)."""
+    projection in other components).  ``truncate``: with the 2/3 rule too (the sheared
+    types' start, imposed by the original's unsheared routines).  ``grid``: a
+    kapsel.grid.Grid (or this rank's PencilGrid)."""
 
     def __init__(self, grid, fluid):
         self.grid, self.fluid = grid, fluid
@@ -804,7 +814,7 @@ class MetricProjector:
         self._t = grid.empty_complex(None)
         self._g = None
 
-    def __call__(self, u):
+    def __call__(self, u, truncate=False):
         gr, g = self.grid, self.fluid.frame_strain
         if self._g != g:
             Ky = gr.ky - g * gr.kx
@@ -824,6 +834,8 @@ class MetricProjector:
             np.multiply(s, k, out=t)
             c[comp] -= t
         c *= 1.0 / gr.size
+        if truncate:
+            c *= gr.dealias_f
         gr.backward_raw(c, u)
         return u
 
@@ -913,7 +925,7 @@ class DistributedObliqueMAC(ObliqueMAC, DistributedMAC):
         def mv(x):
             w = np.asarray(x).reshape(shape)
             X = h.pad(w, key="mv")
-            op.advection_linear(US, X, self.dx, out=O, work=h.work((), "s"))
+            op.advection_nc_linear(US, X, self.dx, out=O)
             out = np.array(h.interior(O))
             out *= hdt
             out += w
@@ -941,6 +953,9 @@ class DistributedObliqueMAC(ObliqueMAC, DistributedMAC):
         u[...] = self._shift(u, sh)
         uo = cartesian(self._u_old, g_old)
         self._u_old[...] = contravariant(self._shift(uo, sh), g_new)
+        if self._have_n_old:          # the explicit scheme's advection history alike
+            no = cartesian(self._n_old, g_old)
+            self._n_old[...] = contravariant(self._shift(no, sh), g_new)
         self.pressure[...] = self._shift(self.pressure, sh + 0.5 * n * self.s)
         self.remaps += n
         self.remap_count += 1

@@ -94,9 +94,6 @@ def make_particles(cfg: RunConfig, rng: np.random.Generator) -> ParticleState:
     user_q = user[:n, 6:10] if okind == "user_specify" else None
     p.q[:] = placement.orientations(okind, n, rng, user_q)
     p.q_old[:] = p.q
-    if cfg.type in SHEAR_TYPES:     # as the original (init_particle.cxx Show_parameter)
-        p.v[:, 0] = 0.0             # the sheared types start with V_x = 0, Omega_z = 0
-        p.omega[:, 2] = 0.0
     pin, pin_rot = tuple(cfg.switches.pin), tuple(cfg.switches.pin_rot)
     specs = [s.janus for s in cfg.particles.species]
     if obj == "spherical_particle" and any(j is not None and j.propulsion != "OFF"

@@ -44,6 +44,8 @@ class _ModelH_SPM(SPM):
 
 
 class FDMModel(Model):
+    sheared_start = False       # the sheared types' start of the particles (ShearFDMModel)
+
     def __init__(self, cfg: RunConfig, args):
         from ..fluid.mac import UnstableTimeStep
         super().__init__(cfg, args)
@@ -68,7 +70,9 @@ class FDMModel(Model):
                                    cfg, self.particles, strain=self._pair_strain(),
                                    wall=self.wall)),
                                noise=make_noise(cfg, self.particles, seed), wall=self.wall,
-                               dry=self.dry)
+                               impose=not self.sheared_start, dry=self.dry)
+        if self.sheared_start:
+            self.spm.start_sheared(impose=not self.dry)    # as the original (SPM.start_sheared)
         self.spm.fix_cell = self._fix_cell(cfg)
         self.u = self.spm.u
         self.phi = self.spm.phi() if self.particles.n and not self.dry else None

@@ -46,24 +46,6 @@ def check_interpolation(cfg: RunConfig) -> str:
     return m
 
 
-def start_with_flow(cfg: RunConfig, particles, fluid) -> bool:
-    """Particles placed by the program (not user_specify) start moving with the imposed flow
-    at their centre, so that the start injects no momentum; user_specify velocities are
-    taken as given (laboratory frame)."""
-    if not particles.n or cfg.switches.init_distribution == "user_specify":
-        return False
-    bodies = getattr(particles, "constraints", None)
-    if hasattr(bodies, "place_beads"):    # rigid bodies: their centres move with the flow
-        bodies.state.v[:] += fluid.background(bodies.state.R)
-        bodies.place_beads(particles)
-        return True
-    particles.v[:] += fluid.background(particles.R)
-    from ..particles.motion import Pinned
-    if isinstance(particles.constraints, Pinned):     # pinned and OBSTACLE spheres stay put
-        particles.constraints.hold(particles)
-    return True
-
-
 # The original's shear-stress table (FORMAT-OUTPUT.md §1.4): a header on stdout at the start,
 # a row after every step.  Lees-Edwards types (rows on stdout):
 LE_TABLE = ("time", "shear_rate", "degree_oblique", "shear_strain_temporal",
@@ -134,12 +116,12 @@ class ShearLEModel(SpectralModel):
                                        fix_cell=cfg.switches.fix_cell)
         self.particles = make_particles(cfg, self.rng)
         fluid = self.fluid
-        start_with_flow(cfg, self.particles, fluid)
         forces = make_forces(cfg, self.particles, strain=lambda: fluid.frame_strain)
         self.spm = SPM(self.fluid, self.particles, self.spm_radius(), cfg.particles.A_XI, f.RHO,
                        cfg.mesh.DX, self.dt, rotation=cfg.switches.ROTATION,
                        forces=overlap_guard(forces), noise=make_noise(cfg, self.particles, seed),
-                       dry=self.dry)
+                       impose=False, dry=self.dry)
+        self.spm.start_sheared(impose=not self.dry)    # as the original (SPM.start_sheared)
         self.stress = ShearStress(self.grid.volume, f.RHO, cfg.mesh.DX, self.dt, f.ETA)
 
     def advance(self):
@@ -364,6 +346,8 @@ class ShearFDMModel(FDMModel):
     stress of kapsel.models.shear (first moment of the SPM force density).
     """
 
+    sheared_start = True
+
     def __init__(self, cfg: RunConfig, args):
         self.interpolation = check_interpolation(cfg)
         super().__init__(cfg, args)
@@ -372,11 +356,6 @@ class ShearFDMModel(FDMModel):
                               "least 2 mesh points along the split directions (its viscous "
                               "term reaches 2 points): use fewer ranks along x or y (-X, -Y)",
                               path="mesh", value="process grid")
-        if start_with_flow(cfg, self.particles, self.mac) and not self.dry:
-            if self.spm.owned is not None:     # the ranks' tables take the new velocities
-                self.spm.refresh()
-            self.u[...] = 0.0
-            self.spm.impose_particle_velocity()
         self.stress = ShearStress(float(np.prod(cfg.mesh.box)), cfg.fluid.RHO, cfg.mesh.DX,
                                   self.dt, cfg.fluid.ETA)
         self.field_stress_sum = 0.0

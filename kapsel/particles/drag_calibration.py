@@ -10,7 +10,7 @@ larger sphere.  Measured by the drag of a periodic array (Hasimoto) at 32^3, A =
 
     d = a_eff - A     (DX = 1 units; lengths scale with DX)
 
-is fitted by ``offset(ell, xi)`` (quadratic in xi / DX, linear in ell / DX) for the spectral
+is fitted by ``offset(ell, xi)`` (quadratic in xi / DX and in ell / DX) for the spectral
 solver; the MAC schemes diffuse differently within a step and add ``MAC_SHIFT``.
 
 ``--spm-drag calibrated`` (kapsel.cli) gives the SPM the profile radius
@@ -29,40 +29,44 @@ __all__ = ["MEASURED", "MAC_SHIFT", "XI_RANGE", "ELL_RANGE", "offset", "profile_
            "OutOfCalibration"]
 
 # (xi, factor, ell = sqrt(nu dt) / DX, V / V_Hasimoto, d = a_eff - A): spectral solver,
-# 32^3, A = 4, F = (1, 0, 0), FIX_CELL on, dt = factor / (NU KMAX2) (kapsel.timestep)
+# 32^3, A = 4, F = (1, 0, 0), FIX_CELL on, dt = factor / (NU KMAX2) (kapsel.timestep); the
+# SPM step of the original (kapsel.particles.spm), measured 2026-12 (the table of kapsel-py's
+# earlier step had V / V_H 1.0266 at XI 2, factor 1)
 MEASURED = (
-    (1, 0.25, 0.1337, 1.0533, -0.1367),
-    (1, 0.5, 0.1890, 1.0727, -0.1839),
-    (1, 1, 0.2673, 1.1053, -0.2610),
-    (1, 2, 0.3780, 1.1507, -0.3631),
-    (1.5, 1, 0.2673, 1.0802, -0.2019),
-    (2, 0.1, 0.0845, 0.9142, +0.2421),
-    (2, 0.25, 0.1337, 0.9459, +0.1493),
-    (2, 0.5, 0.1890, 0.9812, +0.0507),
-    (2, 1, 0.2673, 1.0266, -0.0693),
-    (2, 2, 0.3780, 1.0895, -0.2240),
-    (3, 0.25, 0.1337, 0.8049, +0.5979),
-    (3, 0.5, 0.1890, 0.8386, +0.4818),
-    (3, 1, 0.2673, 0.8850, +0.3315),
-    (3, 2, 0.3780, 0.9510, +0.1347),
+    (1, 0.25, 0.1337, 1.0080, -0.0212),
+    (1, 0.5, 0.1890, 1.0437, -0.1128),
+    (1, 1, 0.2673, 1.0864, -0.2169),
+    (1, 2, 0.3780, 1.1409, -0.3415),
+    (1.5, 1, 0.2673, 1.0660, -0.1677),
+    (2, 0.1, 0.0845, 0.8743, +0.3651),
+    (2, 0.25, 0.1337, 0.9215, +0.2201),
+    (2, 0.5, 0.1890, 0.9654, +0.0942),
+    (2, 1, 0.2673, 1.0184, -0.0482),
+    (2, 2, 0.3780, 1.0860, -0.2159),
+    (3, 0.25, 0.1337, 0.7890, +0.6547),
+    (3, 0.5, 0.1890, 0.8287, +0.5152),
+    (3, 1, 0.2673, 0.8800, +0.3472),
+    (3, 2, 0.3780, 0.9492, +0.1397),
 )
-# d hardly depends on A: at XI 2, factor 1: -0.077, -0.069, -0.062 for A = 3, 4, 6; at
-# factor 0.25: +0.149 for both A = 4 and 6.
+# (d hardly depends on A: measured with kapsel-py's earlier step, at XI 2, factor 1: -0.077,
+# -0.069, -0.062 for A = 3, 4, 6; at factor 0.25: +0.149 for both A = 4 and 6.)
 
 XI_RANGE = (1.0, 3.0)
 ELL_RANGE = (0.08, 0.38)    # factor 0.1 to 2 at 32^3 (below 0.13: measured at XI 2 only)
 
-# d = sum C[i, j] xi^i ell^j (least squares over MEASURED: bench/spm_drag_calibration.py
-# --fit; largest residual 0.015 DX, i.e. 0.4 % of the drag at A = 4)
-_C = np.array([[-0.27594, 0.07344],
-               [0.21129, -1.18944],
-               [0.05395, 0.17871]])
+# d = sum C[i, j] xi^i ell^j, quadratic in xi / DX and in ell / DX (least squares over
+# MEASURED: bench/spm_drag_calibration.py --fit; largest residual 0.008 DX, i.e. 0.2 % of
+# the drag at A = 4; the earlier linear-in-ell form left 0.039 with the original's step)
+_C = np.array([[-0.14093, 0.64256, -2.41383],
+               [0.35801, -3.45364, 5.15391],
+               [0.01056, 0.74088, -1.24367]])
 
 
-# d(MAC scheme) - offset(ell, xi), 32^3, A 4 (bench/spm_drag_calibration.py --solver ...):
-# explicit -0.022, +0.031, -0.017 at (XI, factor) = (2, 1), (2, 2), (1, 1): no shift;
-# implicit -0.051, -0.020 at (2, 1), (2, 2): their mean
-MAC_SHIFT = {"spectral": 0.0, "explicit_scheme": 0.0, "implicit_scheme": -0.036}
+# d(MAC scheme) - d(spectral) measured at the same points, 32^3, A 4
+# (bench/spm_drag_calibration.py --solver ...): explicit -0.010, +0.014, +0.001 at
+# (XI, factor) = (2, 1), (2, 2), (1, 1): no shift; implicit -0.032, -0.030 at (2, 1),
+# (2, 2): their mean
+MAC_SHIFT = {"spectral": 0.0, "explicit_scheme": 0.0, "implicit_scheme": -0.031}
 
 
 class OutOfCalibration(ValueError):

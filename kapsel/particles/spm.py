@@ -184,6 +184,8 @@ class SPM:
             R = p.R[self._T]
         self.idx, self.phi_i, self.r = particle_profiles(R, self.stencil, self.shape, self.dx,
                                                          g, y0)
+        # DX^3 sum_x phi_i over the whole profile (before a distributed run cuts it)
+        self.grid_volume = self.phi_i.sum(axis=1) * self.dx ** 3
         if self.owned is not None:
             self._localize()
         self._weights()
@@ -398,14 +400,22 @@ class SPM:
         else:
             self.fluid.step(self.u)
 
-    def _add_solenoidal(self, du):
-        """Step 6: spectral u += P T du; MAC u <- P T (u + du) (module docstring)."""
+    def _add_solenoidal(self, du, start=False):
+        """Step 6: spectral u += P T du; MAC u <- P T (u + du) (module docstring).  An
+        oblique fluid's projection does not truncate (the original's Solenoidal_uk_OBL),
+        except at the ``start`` (the original imposes with its unsheared, truncating
+        routines: Make_f_particle_dt_sole)."""
         if self.mode == "spectral":
             self.fluid.add_solenoidal(du)
+            if start and self.oblique:
+                self.fluid.truncate()
         else:
             if du is not None:
                 self.u += du
-            self._sole(self.u)
+            if start and self.oblique:
+                self._sole(self.u, truncate=True)
+            else:
+                self._sole(self.u)
 
     def _projection(self):
         """f -> P f, the spectral projection of a real field (3, NX, NY, NZ) without the
@@ -418,18 +428,21 @@ class SPM:
             return np.fft.irfftn(h, s=self.shape, axes=(1, 2, 3))
         return project
 
-    def impose_particle_velocity(self):
+    def impose_particle_velocity(self, deviation=False):
         """u <- u + P T [sum_i w_i (V_i + Omega_i x r) - min(phi_sum, 1) u] (eq 6; walls at
         rest included), then the mean flow is removed: the original's start
         (sp_3d_ns.cxx main: uk_dc = 0 after the imposition; kapsel-py does the same for the
-        FDM types, whose original starts from the Fourier coefficients of this field)."""
+        FDM types, whose original starts from the Fourier coefficients of this field).
+        On an oblique fluid V is a laboratory-frame velocity (V minus the imposed flow is
+        imposed on the deviation field), or with ``deviation`` a deviation from the imposed
+        flow (the sheared types' start: ``start_sheared``)."""
         u = self.fluid.velocity(out=self.u) if self.mode == "spectral" else self.u
-        self._start = True
+        self._deviation = bool(deviation)
         try:
             du = self._rigidity(u)
         finally:
-            self._start = False
-        self._add_solenoidal(du)
+            self._deviation = False
+        self._add_solenoidal(du, start=True)
         if self.p.n and self.wall is None:
             clear_points(du, self.idx)
         if self.mode == "spectral":
@@ -438,15 +451,32 @@ class SPM:
             for c in range(3):
                 self.u[c] -= self.fluid.mean(self.u[c])
 
-    _start = False
+    _deviation = False
+
+    def start_sheared(self, impose=True):
+        """The sheared types' start, as the original's: the particle velocities imposed as
+        they are given, as deviations from the imposed flow on an oblique grid (sp_3d_ns.cxx
+        main imposes them on the deviation field with its unsheared routines), then
+        V_x = 0 and Omega_z = 0 (init_particle.cxx Show_parameter), so particles given at
+        rest start at rest with the shear flow in them.  Not for a continued run (the
+        original zeroes them there too, a bug: the restart's velocities are kept).  Rigid
+        bodies keep their velocities (their beads' follow the bodies)."""
+        if impose and (self.p.n or self.wall is not None):
+            self.impose_particle_velocity(deviation=self.oblique)
+        from .rigid import RigidBodies
+        if isinstance(getattr(self.p_own, "constraints", None), RigidBodies) or (
+                self._bodies is not None):
+            return
+        tables = [self.p] + ([self.whole] if self.owned is not None else [])
+        for t in tables:
+            if t.n:
+                t.v[:, 0] = 0.0
+                t.omega[:, 2] = 0.0
 
     def _relative_velocity(self):
         """(V relative to the imposed flow at the centres, gamma_dot) for an oblique fluid,
-        else (V, 0).  The initial imposition of the sheared types takes V as it is, a
-        deviation from the imposed flow (the original imposes the particle velocities on
-        its deviation field with its unsheared routines, sp_3d_ns.cxx main): particles
-        given at rest start with the shear flow in them."""
-        if not self.oblique or self._start:
+        else (V, 0); V as it is during a deviation imposition (``start_sheared``)."""
+        if not self.oblique or self._deviation:
             return self.p.v, 0.0
         return self.p.v - self.fluid.background(self.p.R), self.fluid.shear_rate_now
 
