@@ -583,9 +583,10 @@ def test_kapsel_py_runs_rigid_bodies_and_writes_rigid_particles(tmp_path, eq):
 
 
 def test_continuation_of_rigid_bodies_is_bit_identical(tmp_path):
-    """N steps + restart + M steps = N + M steps (body state in the state file); the
-    restart holds GR_body, GR_masses, GR_moments_body; without the state file the bodies
-    are rebuilt from the beads."""
+    """N steps + restart + M steps = N + M steps, bit for bit in double precision (the
+    final restart's body rows and the state file); the restart holds one Particles[] row
+    per body (the original's layout) and GR_body, GR_masses, GR_moments_body; without the
+    state file the bodies continue from their rows."""
     from kapsel.cli import main
     from kapsel.io.restart import state_path
 
@@ -610,6 +611,7 @@ def test_continuation_of_rigid_bodies_is_bit_identical(tmp_path):
     assert np.array(rs.getArray(f"{base}.GR_body[]")).shape == (11, 3)
     assert np.array(rs.getArray(f"{base}.GR_masses[]")).shape == (4,)
     assert np.array(rs.getArray(f"{base}.GR_moments_body[]")).shape == (4, 9)
+    assert np.array(rs.getArray(f"{base}.Particles[]"), dtype=object).shape[0] == 4
     rs.put(4, "output.Num_snap")
     rs.write(str(tmp_path / "two" / "cont.udf"))
     rs.write(str(tmp_path / "two" / "bare.udf"))                 # without a state file
@@ -625,6 +627,16 @@ def test_continuation_of_rigid_bodies_is_bit_identical(tmp_path):
                 np.array(u.getArray("RigidParticles[].omega")))
     a, b = last(tmp_path / "one" / "output.udf"), last(tmp_path / "two" / "output.udf")
     assert a[0] == b[0] and all(np.array_equal(x, y) for x, y in zip(a[1:], b[1:]))
+    ra, rb = (UDFManager(str(tmp_path / d / "restart.udf")) for d in ("one", "two"))
+    for m in ("R", "v", "v_old", "omega", "omega_old", "q", "q_old",
+              "f_hydro_previous", "torque_hydro_previous", "fr_previous"):
+        x = np.array(ra.getArray(f"{base}.Particles[].{m}"), dtype=float)
+        assert x.shape[0] == 4 and np.array_equal(
+            x, np.array(rb.getArray(f"{base}.Particles[].{m}"), dtype=float)), m
+    sa, sb = (np.load(state_path(str(tmp_path / d / "restart.udf"))) for d in ("one", "two"))
+    for k in sa.files:
+        if k.startswith("rigid_") or k == "R_raw":
+            assert np.array_equal(sa[k], sb[k]), k
     # from the schema data alone the bodies continue where the beads are
     os.makedirs(tmp_path / "bare")
     for f in ("define.udf", "kapsel_unit.udf", "bare.udf"):
