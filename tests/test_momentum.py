@@ -85,21 +85,6 @@ def test_particle_step_exchanges_the_balance(tmp_path, eq, ns, steps):
     assert worst < 1e-11, worst
 
 
-def test_phase_field_moves_momentum_before_the_fix(tmp_path):
-    """The non-conserving form -psi grad mu (kept as capillary_force) has a net force on
-    this very scene: the conservative form is what the test above relies on."""
-    from kapsel.phase.cahn_hilliard import capillary_force
-    m = model(tmp_path, "Navier_Stokes_Cahn_Hilliard_FDM", "explicit_scheme", "OFF")
-    for _ in range(50):
-        m.advance()
-    mu = m.ch.chemical_potential(m.psi, m.phi)
-    naive = capillary_force(m.psi, mu, m.rho, m.dx).reshape(3, -1).sum(axis=1)
-    fixed = m._capillary_force().reshape(3, -1).sum(axis=1)
-    size = float(np.abs(capillary_force(m.psi, mu, m.rho, m.dx)).sum())
-    assert np.abs(naive).max() > 1e-6 * size
-    assert np.abs(fixed).max() <= 1e-13 * size
-
-
 @pytest.mark.parametrize("eq,ns,steps", [(e, n, min(s, 100)) for e, n, s in ALL_TYPES])
 def test_fix_cell_leaves_the_mean_of_the_rigidity_force(tmp_path, eq, ns, steps):
     m = model(tmp_path, eq, ns, "ON")
