@@ -18,8 +18,6 @@ the original writes its files (FORMAT-OUTPUT.md §1.2).
 """
 from __future__ import annotations
 
-import sys
-
 
 class Every:
     """Due at every step divisible by ``n`` (HOOMD's trigger.Periodic, Oceananigans'
@@ -265,6 +263,3 @@ def writer_name(writer) -> str:
     files = writer.files(False)
     return files[0][1].split(" (")[0] if files else type(writer).__name__
 
-
-def stderr_unless(quiet):
-    return None if quiet else sys.stderr

@@ -400,6 +400,10 @@ class TimeLoop:
         with _StopSignals(self):
             try:
                 self._output(lambda: (check_finite(self.model), self.restart.save(full=True)))
+            except InstabilityError as e:
+                self.restart.complete_after_failure(self.writes)
+                raise RunError(f"{e} at step {self.model.step_index}: that state is not "
+                               f"saved. {restart_hint(self.restart.step, self.args)}.") from None
             finally:
                 self._close(reason)
 

@@ -178,3 +178,34 @@ def test_the_readme_example_runs(tmp_path, monkeypatch, cli_run):
     code = code.replace("seed=1", f"seed={SEED}")
     exec(compile(code, "README.md", "exec"), {})
     assert output_hashes(tmp_path) == output_hashes(ref)
+
+
+def test_interrupt_and_failure_raise_the_command_lines_messages(tmp_path):
+    """SIGINT (here sent by a user activity at step 5) stops the run at that step with its
+    state saved, raising Interrupted with the command line's message; a blow-up raises
+    RunError naming the restart's last good step."""
+    import signal
+
+    from kapsel import Interrupted, RunError
+    from udf import UDFManager
+    a, b = str(tmp_path / "a"), str(tmp_path / "b")
+    _input(a, "Navier_Stokes")
+    sim = _api(a)
+    sim.add(lambda s: s.step == 5 and os.kill(os.getpid(), signal.SIGINT), every=5)
+    with pytest.raises(Interrupted) as e:
+        sim.run()
+    assert e.value.line.startswith("kapsel-py: interrupted at step 5 (t = ")
+    assert "Continue with: kapsel-py -I" in str(e.value) and sim.ended
+    assert UDFManager(os.path.join(a, "restart.udf")).get(    # the original's ts: the
+        "resume.CONTINUE.Saved_Data.jikan.ts") == 4               # step before (§6.3)
+    _input(b, "Navier_Stokes")
+    sim = _api(b)
+
+    def spoil(s):
+        if s.step == 5:
+            s.model.fluid.u_hat[0, 1, 2, 3] = np.nan
+    sim.add(spoil, every=5)
+    with pytest.raises(RunError) as e:
+        sim.run()
+    assert e.value.line.startswith("kapsel-py: error: the run stopped at step 10: ")
+    assert "holds the last good state (step 5)" in str(e.value)

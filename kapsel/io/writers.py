@@ -257,7 +257,8 @@ def check_output(cfg, model) -> None:
     spec = cfg.output.fields
     if spec is None:
         return
-    snap = model.snapshot() if hasattr(model, "snapshot") else model
+    from ..snapshot import Snapshot
+    snap = model if isinstance(model, Snapshot) else model.snapshot()
     if spec.FileType == "EXTENDED":
         for flag, name in (("Vel", "u"), ("Pressure", "pressure"), ("Tau", "tau")):
             if getattr(spec, flag) and not snap.offers(name):
