@@ -278,10 +278,7 @@ class TimeLoop:
                     self._poll_stop()
                 if self.model.step_index == self.total:
                     self._end()
-            except RunError:
-                self._close(self.closing)
-                raise
-            except BaseException:
+            except BaseException:          # a RunError, or anything else: closed first
                 self._close(self.closing)
                 raise
 

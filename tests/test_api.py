@@ -144,20 +144,25 @@ def test_a_user_activity_runs_on_its_schedule_and_can_be_removed(tmp_path):
     assert [r["t"] for r in sim.records()] == [0, 5]      # no records after the removal
 
 
-def test_continues_from_its_restart_as_the_command_line(tmp_path):
+@pytest.mark.parametrize("state", ["ours", "text only"])
+def test_continues_from_its_restart_as_the_command_line(tmp_path, state):
     """A run continued through the API from the restart of a 10-step run writes what
-    the command line's continuation writes."""
+    the command line's continuation writes; "text only": without the state file, as from
+    the original's restart.udf."""
+    from kapsel.io.restart import state_path
     a, b = str(tmp_path / "a"), str(tmp_path / "b")
     for d in (a, b):
         _input(d, "Navier_Stokes")
         sim = _api(d, overrides={"output.Num_snap": 2})
         sim.run()
-    cont_a = continue_input(a, num_snap=4)
+    cont_a, cont_b = continue_input(a, num_snap=4), continue_input(b, num_snap=4)
+    if state == "text only":
+        for c in (cont_a, cont_b):
+            os.remove(state_path(c))
     assert run_cli(a, cont_a, seed=SEED) == 0
-    cont_b = continue_input(b, num_snap=4)
     sim = Simulation.from_restart(cont_b, os.path.join(b, "output.udf"),
                                   os.path.join(b, "define.udf"),
-                                  os.path.join(b, "restart.udf"))
+                                  os.path.join(b, "restart.udf"), seed=SEED)
     assert sim.resumed and sim.step == 11
     sim.run()
     assert output_hashes(a) == output_hashes(b)
