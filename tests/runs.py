@@ -45,16 +45,3 @@ def run_cli(d, inp, *extra, seed):
                      str(seed), "--quiet", *extra])
     finally:
         os.chdir(cwd)
-
-
-def output_hashes(d) -> dict:
-    """{file: hash} of every output in directory ``d`` as bench/bitident.py hashes them
-    (output.udf without its run-id line, the state file without the run id, HDF5 files by
-    their datasets and attributes)."""
-    import sys
-    from pathlib import Path
-    bench = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "bench")
-    if bench not in sys.path:
-        sys.path.insert(0, bench)
-    from bitident import hashes
-    return hashes(Path(d))

@@ -7,10 +7,23 @@ import numpy as np
 import pytest
 
 from kapsel import BadInput, Simulation
-from runs import SAMPLES, continue_input, output_hashes, run_cli, sample_input
+from runs import SAMPLES, continue_input, run_cli, sample_input
 
+BENCH = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "bench")
 SEED = 7
 SMALL = {"output.GTS": 5, "output.Num_snap": 4, "A": 2.0}
+
+
+def output_hashes(d) -> dict:
+    """{file: hash} of every output in ``d`` as bench/bitident.py hashes them (output.udf
+    without its run-id line, the state file without the run id, HDF5 files by their
+    datasets and attributes)."""
+    import sys
+    from pathlib import Path
+    if BENCH not in sys.path:
+        sys.path.insert(0, BENCH)
+    from bitident import hashes
+    return hashes(Path(d))
 
 
 def _input(d, eq):
