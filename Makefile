@@ -47,7 +47,7 @@ test: $(VENV)/.installed-test
 	@command -v strace > /dev/null 2>&1 || { echo "Installing strace (apt-get) for the kill-point tests"; \
 	  { apt-get update -qq && apt-get install -y -qq strace; } > $(VENV)/apt-strace.log 2>&1 \
 	  || echo "strace could not be installed (log: $(VENV)/apt-strace.log): the kill-point tests are skipped"; }
-	$(BIN)/python -m pytest -q -m "not slow"
+	$(BIN)/python -m pytest -q -m "not slow" --durations=25
 
 bench: $(VENV)/.installed-bench
 	$(BIN)/python bench/bench_udf.py

@@ -107,7 +107,7 @@ SCENES = {
               True),
     "lech_ii": (sc(LECH, solvers(LECH, ns="implicit_scheme", ch="implicit_scheme"),
                    spheres(P3, mass=1.0), shear(LECH)), True),
-    "el_salt": (sc(EL, spheres(P3[:2], mass=1.0), {
+    "el_salt": (sc(EL, spheres(P3[:2], mass=1.0), noise=0.1, extra={
         "object_type.spherical_particle.Particle_spec[0].Surface_charge": -2.0,
         f"constitutive_eq.{EL}.INIT_profile": "Poisson_Boltzmann",
         f"constitutive_eq.{EL}.Add_salt.type": "salt",

@@ -74,7 +74,12 @@ def fail(message: str, code: int = EXIT_BAD_INPUT) -> int:
 
 
 class BadInput(Exception):
-    """What ``prepare`` found wrong: str() is one line per problem."""
+    """What ``prepare`` found wrong: str() is one line per problem; ``code`` the exit
+    code (2, or 1 for a refusal that is not the input's fault)."""
+
+    def __init__(self, message: str = "", code: int = EXIT_BAD_INPUT):
+        super().__init__(message)
+        self.code = code
 
 
 def single_threaded_blas() -> None:
@@ -304,15 +309,25 @@ def check_define(define, args, model) -> str | None:
     return None
 
 
-def validate(input_path: str, define_path: str | None = None):
+def validate(input_path: str, define_path: str | None = None, overrides: dict | None = None):
     """Read and check an input as a run would, building nothing and writing nothing:
     returns (cfg, input document, define document or None); raises BadInput listing every
-    problem of the input (one per line).  ``prepare`` goes on to build the model."""
+    problem of the input (one per line).  ``overrides``: {item path: value} put into the
+    input document first (the run, output.udf and restart.udf then hold those values).
+    ``prepare`` goes on to build the model."""
     import udf
     from . import config, models  # noqa: F401  (models register their types)
     from .simulation import SOLVERS
     try:
         doc = udf.UDFManager(input_path)
+        bad = []
+        for path, value in (overrides or {}).items():
+            try:
+                doc.put(value, path)
+            except (udf.UDFError, ValueError, TypeError, KeyError, IndexError) as e:
+                bad.append(f"{input_path}: cannot set {path} to {value!r}: {e}")
+        if bad:
+            raise BadInput("\n".join(bad))
         cfg = config.from_document(doc, input_path)
         define = udf.UDFManager(define_path) if define_path else None
     except (udf.UDFError, config.ConfigError) as e:
@@ -339,9 +354,11 @@ def describe_setup(cfg) -> str:
             f"{_size(memory_estimate(cfg.mesh, cfg.type, n, p.A, p.A_XI))} of memory")
 
 
-def build_model(cfg, args, doc, resumed: bool):
+def build_model(cfg, args, doc, resumed: bool, origin: dict | None = None):
     """The model of ``cfg`` (the restart loaded when ``resumed``); raises BadInput.  When
-    building takes more than 2 s, says what is being built and its memory estimate."""
+    building takes more than 2 s, says what is being built and its memory estimate.
+    ``origin`` (a dict) gets "source": the (path, fingerprint, step) of the restart text a
+    continued model was loaded from (kapsel.simulation.TimeLoop)."""
     import threading
     import time
 
@@ -374,8 +391,9 @@ def build_model(cfg, args, doc, resumed: bool):
                       f"later snapshot at step {saved.step} (the run ended before rewriting "
                       f"{args.input}): continuing from step {saved.step}", file=sys.stderr)
             model.load_restart(saved)
-            # the text this run continues: checkpoints go on against it (simulation.run)
-            model.restart_source = (args.input, saved.text_fingerprint,
+            # the text this run continues: checkpoints go on against it (TimeLoop)
+            if origin is not None:
+                origin["source"] = (args.input, saved.text_fingerprint,
                                     saved.step if saved.checkpoint_of is None
                                     else saved.checkpoint_of)
             if saved.exact and "seed" in saved.exact:
@@ -449,33 +467,46 @@ def prepare(args, locks: list | None = None):
     build the configuration and the model (every check), check the output paths.  With a
     ``locks`` list (a run, not --check) the output directories are locked first
     (lock_output_dirs; the caller releases them when the run ends).  Returns the exit code
-    of a refusal (the message printed), or (cfg, doc, model, resumed, seed_drawn).  Writes
-    nothing."""
-    dist = getattr(args, "dist", None)
-    checked = _check_inputs(args, locks, dist)
-    if dist is not None:      # every rank stops if one refuses, before any collective work
-        code = dist.agree(checked if isinstance(checked, int) else None)
-        if code:
-            return code
-        args.seed = dist.bcast(args.seed)
-        if not isinstance(checked, int) and _not_distributed(checked[0]):
-            args.dist = dist = None       # one rank (refused with more): a plain run
-    elif isinstance(checked, int):
-        return checked
-    cfg, doc, define, resumed, seed_drawn = checked
+    of a refusal (the message printed), or (cfg, doc, model, resumed, seed_drawn, source):
+    ``build``'s.  Writes nothing."""
     try:
-        model = build_model(cfg, args, doc, resumed)
+        return build(args, locks)
     except BadInput as e:
-        return fail(str(e))
+        return fail(str(e), e.code) if str(e) else e.code
+
+
+def build(args, locks: list | None = None, overrides: dict | None = None):
+    """``prepare`` raising BadInput (every problem, one per line; ``code`` the exit code;
+    empty on the ranks of a distributed run that did not find the problem themselves)
+    instead of printing it.  ``overrides``: {item path: value} put into the input as read
+    (kapsel.api).  Returns (cfg, doc, model, resumed, seed_drawn, source), ``source`` the
+    (path, fingerprint, step) of the restart text a continued run was loaded from."""
+    dist = getattr(args, "dist", None)
+    try:
+        checked, problem = _check_inputs(args, locks, dist, overrides), None
+    except BadInput as e:
+        checked, problem = None, e
+    if dist is not None:      # every rank stops if one refuses, before any collective work
+        code = dist.agree(problem.code if problem is not None else None)
+        if code:
+            raise problem if problem is not None else BadInput("", code)
+        args.seed = dist.bcast(args.seed)
+        if _not_distributed(checked[0]):
+            args.dist = dist = None       # one rank (refused with more): a plain run
+    elif problem is not None:
+        raise problem
+    cfg, doc, define, resumed, seed_drawn = checked
+    origin: dict = {}
+    model = build_model(cfg, args, doc, resumed, origin)
     _START.check()
     problem = (check_define(define, args, model) or check_same_schema(doc, define, args)
                or (resumed and check_own_output(args, model)))
-    code = fail(problem) if problem else None
+    code = EXIT_BAD_INPUT if problem else None
     if dist is not None:
         code = dist.agree(code)
     if code:
-        return code
-    return cfg, doc, model, resumed, seed_drawn
+        raise BadInput(problem or "", code)
+    return cfg, doc, model, resumed, seed_drawn, origin.get("source")
 
 
 def _not_distributed(cfg):
@@ -483,50 +514,56 @@ def _not_distributed(cfg):
     return not_distributed(cfg)
 
 
-def _check_inputs(args, locks, dist):
-    """The checks of ``prepare`` before the model is built: an exit code, or (cfg, doc,
-    define, resumed, seed_drawn).  In a distributed run the output paths are checked and
-    locked by rank 0 only (the one that writes)."""
+def _check_inputs(args, locks, dist, overrides=None):
+    """The checks of ``build`` before the model is built: raises BadInput, or returns
+    (cfg, doc, define, resumed, seed_drawn).  In a distributed run the output paths are
+    checked and locked by rank 0 only (the one that writes)."""
     from udf.files import check_regular
     for flag, path in (("-I", args.input), ("-D", args.define)):
         try:
             check_regular(path)
         except FileNotFoundError:
-            return fail(f"{flag}{path}: no such file")
+            raise BadInput(f"{flag}{path}: no such file") from None
         except OSError as e:
-            return fail(f"{flag}{path}: {e.strerror}")
-    try:
-        cfg, doc, define = validate(args.input, args.define)
-    except BadInput as e:
-        return fail(str(e))
+            raise BadInput(f"{flag}{path}: {e.strerror}") from None
+    cfg, doc, define = validate(args.input, args.define, overrides)
     if dist is not None:
         from .parallel import refuse
         problem = refuse(dist, cfg)
         if problem:
-            return fail(problem)
+            raise BadInput(problem)
     problem = check_address_limit(cfg)
     if problem:
-        return fail(problem)
+        raise BadInput(problem)
     _START.check()
     writes = dist is None or dist.root
     problem = check_output_paths(args) if writes else None
     if problem:
-        return fail(problem)
+        raise BadInput(problem)
     resumed = cfg.resume.calculation != "NEW"
     if locks is not None and writes:
         held, problem = lock_output_dirs(args, cfg)    # from here to the end of the run
         if problem:
-            return fail(problem)
+            raise BadInput(problem)
         locks.extend(held)
     if not resumed and not args.overwrite and writes:
         problem = existing_outputs(args, cfg)
         if problem:
-            return fail(problem)
+            raise BadInput(problem)
     seed_drawn = args.seed is None
     if args.seed is None:   # drawn here, reported once the input is known to be good
         import secrets
         args.seed = secrets.randbits(63)
     return cfg, doc, define, resumed, seed_drawn
+
+
+def check_flags(args) -> str | None:
+    """The flags checked before anything is read: --threads, --seed."""
+    if args.threads < 1:
+        return f"--threads must be at least 1, got {args.threads}"
+    if args.seed is not None and not 0 <= args.seed < 2 ** 63:
+        return f"--seed must be an integer from 0 to 2^63 - 1, got {args.seed}"
+    return None
 
 
 def main(argv=None) -> int:
@@ -547,10 +584,9 @@ def main(argv=None) -> int:
                     f"kapsel-py needs at least {BASE_ADDRESS_SPACE / 2 ** 20:.0f} MiB for the "
                     f"program and its libraries before any array: raise the limit",
                     EXIT_RUN_FAILED)
-    if args.threads < 1:
-        return fail(f"--threads must be at least 1, got {args.threads}")
-    if args.seed is not None and not 0 <= args.seed < 2 ** 63:
-        return fail(f"--seed must be an integer from 0 to 2^63 - 1, got {args.seed}")
+    problem = check_flags(args)
+    if problem:
+        return fail(problem)
     from .parallel import DistError, start
     try:
         args.dist = start(args)      # None for a plain run (mpi4py is not imported)
@@ -622,27 +658,42 @@ def _main(args, locks) -> int:
     prepared = prepare(args, None if args.check else locks)
     if isinstance(prepared, int):
         return prepared
-    cfg, doc, model, resumed, seed_drawn = prepared
-
-    from .banner import describe, memory_estimate, print_banner
-    from .config import _size
-    from .simulation import planned_files, run
-    if args.quiet and not args.check:
-        _START.check()
-        return run(cfg, args, doc, model, resumed=resumed)
-    lines = describe(cfg, args, model, resumed, planned_files(cfg, args, model, resumed),
-                     seed_drawn=seed_drawn and not args.check)
-    if args.check:
-        if seed_drawn:
-            lines[-1] = f"threads {args.threads}, seed drawn at the start of the run " \
-                        f"(--seed S fixes it)"
-        lines.append(f"memory: about {_size(memory_estimate(cfg))} (the input check's estimate)")
-        lines.append(f"check passed: {args.input} is ready to run (nothing was written)")
-        print_banner(lines, sys.stdout, prefix="")
-        return EXIT_OK
-    print_banner(lines, sys.stderr)
+    cfg, doc, model, resumed, seed_drawn, _ = prepared
+    if not args.quiet or args.check:
+        from .banner import describe, memory_estimate, print_banner
+        from .config import _size
+        from .simulation import planned_files
+        lines = describe(cfg, args, model, resumed, planned_files(cfg, args, model, resumed),
+                         seed_drawn=seed_drawn and not args.check)
+        if args.check:
+            if seed_drawn:
+                lines[-1] = f"threads {args.threads}, seed drawn at the start of the run " \
+                            f"(--seed S fixes it)"
+            lines.append(f"memory: about {_size(memory_estimate(cfg))} (the input check's "
+                         f"estimate)")
+            lines.append(f"check passed: {args.input} is ready to run (nothing was written)")
+            print_banner(lines, sys.stdout, prefix="")
+            return EXIT_OK
+        print_banner(lines, sys.stderr)
     _START.check()
-    return run(cfg, args, doc, model, resumed=resumed)
+    return run_to_end(args, prepared)
+
+
+def run_to_end(args, prepared) -> int:
+    """The run of ``prepared`` (``build``'s) as kapsel.api.Simulation, to the end of its
+    input; the exit code: 0 at the end (or nothing to do), 1 when it stopped (the
+    message of kapsel.simulation.RunError printed).  The caller holds the locks."""
+    from .api import Simulation
+    from .simulation import NothingToDo, RunError
+    try:
+        Simulation(args, prepared).run()
+    except NothingToDo as e:
+        print(f"kapsel-py: {e}", file=sys.stderr)
+        return EXIT_OK
+    except RunError as e:
+        print(e.line, file=sys.stderr)
+        return EXIT_RUN_FAILED
+    return EXIT_OK
 
 
 if __name__ == "__main__":

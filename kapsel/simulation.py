@@ -1,4 +1,5 @@
-"""The time loop: composes a model (fluid, phase field, particles) with the outputs.
+"""The time loop: composes a model (fluid, phase field, particles) with the activities
+of a run (kapsel.activities: writers, restart, checks, tables, progress) in TimeLoop.
 
 A *model* is the physics of one ``constitutive_eq.type``; it does no I/O and offers:
 
@@ -8,8 +9,12 @@ A *model* is the physics of one ``constitutive_eq.type``; it does no I/O and off
     model.snapshot() -> Snapshot                what it offers the output writers
                                                 (kapsel.snapshot: fields, particles, E, ...)
 
+What a model offers is declared on kapsel.models.common.Model: ``lockstep`` (None unless
+distributed), ``sheared`` (a per-step stress table: ``shear_table``, ``shear_table_row``),
+``restart_kind`` (None: no restart file), ``whole_particles()``, ``stability()``.
+
 ``SOLVERS`` maps each implemented ``constitutive_eq.type`` to a factory
-``make(cfg, args, input_doc) -> model``; ``run`` drives any of them.
+``make(cfg, args, input_doc) -> model``; ``TimeLoop`` drives any of them.
 """
 from __future__ import annotations
 
@@ -73,11 +78,10 @@ def first_blow_up(model) -> str | None:
     """What went out of bounds first in a failed step, in the order of the step: the
     particle forces (pair, bond, gravity: EPSILON, G), the particle velocities, the fluid
     velocity; None if all are finite and within the step's reach."""
-    whole = getattr(model, "whole_particles", None)     # (a collective when distributed)
-    p = whole() if whole is not None else model.particles
+    p = model.whole_particles()                         # (a collective when distributed)
     dx, dt = model.cfg.mesh.DX, model.dt
     if p is not None and p.n:
-        f = getattr(p, "f_r", None)
+        f = p.f_r
         mass = np.asarray(p.mass, dtype=float)
         if f is not None and f.size:
             if not np.isfinite(f).all():
@@ -161,240 +165,321 @@ def _write_error(e: OSError) -> str:
     return e.strerror or str(e)
 
 
-def run(cfg, args, input_doc, model, resumed: bool = False) -> int:
-    """Run ``model`` until step GTS * Num_snap; every GTS steps each writer of
-    kapsel.io.writers.make_writers writes the snapshot (output.udf, field files, logs).
+class RunError(Exception):
+    """The run stopped before its end (an instability, a solver that did not converge, a
+    file that cannot be written, no memory): ``str(e)`` is the message the command line
+    prints after ``kapsel-py: error: ``; the restart holds the last good state."""
+
+    prefix = "error: "
+
+    @property
+    def line(self) -> str:
+        """The line the command line prints."""
+        return f"kapsel-py: {self.prefix}{self}"
+
+
+class Interrupted(RunError):
+    """SIGINT or SIGTERM: the run stopped at the end of a step, its state saved."""
+
+    prefix = ""
+
+
+class NothingToDo(Exception):
+    """The input is the restart of a run that has reached its last step."""
+
+
+class TimeLoop:
+    """A run of ``model``: set up (its activities, kapsel.activities); ``advance_to(step)``
+    loops (advance; each due activity) and, at the input's last step GTS * Num_snap, ends
+    the run as the original does; ``close(reason)`` closes every activity.
 
     ``resumed``: the model continues a restart (its clock is past 0); output.udf then gets
     the records of the continued run appended (later records of the earlier run, if any,
-    are dropped), unless --overwrite asks for a new file.
+    are dropped), unless --overwrite asks for a new file.  ``source``: (path, fingerprint,
+    step) of the restart text the model was loaded from (kapsel.cli.build_model).
 
-    A file that cannot be written (a full disk) stops the run with exit 1, naming the file;
-    records are appended whole or not at all and the restart pair is replaced only once
-    both new files are complete, so the last good restart and every complete record stay."""
-    saved = {"step": None}
-    try:
-        return _run(cfg, args, input_doc, model, resumed, saved)
-    except MemoryError:
-        print(f"kapsel-py: error: out of memory at step {model.step_index}. "
-              f"{restart_hint(saved['step'], args)}. Run it where more memory is free "
-              f"(or with a higher ulimit -v).", file=sys.stderr)
-        return 1
-    except OSError as e:
-        what = e.filename or f"an output file in {os.path.dirname(os.path.abspath(args.output))}"
-        print(f"kapsel-py: error: cannot write {what} at step {model.step_index}: "
-              f"{_write_error(e)}. {restart_hint(saved['step'], args)}. Free some space and "
-              f"continue from it.", file=sys.stderr)
-        return 1
+    A distributed run (kapsel.parallel.lockstep) runs the same loop on every rank: the
+    activities between steps on every rank, the output activities on rank 0 in a round of
+    output the others serve.  A file that cannot be written (a full disk) stops the run,
+    naming the file; records are appended whole or not at all and the restart pair is
+    replaced only once both new files are complete, so the last good restart and every
+    complete record stay."""
 
+    def __init__(self, cfg, args, input_doc, model, resumed=False, source=None):
+        from . import activities as act
+        self.cfg, self.args, self.doc, self.model = cfg, args, input_doc, model
+        self.resumed, self.source = resumed, source
+        self.total = cfg.output.total_steps
+        self.start = model.step_index
+        self.lockstep = model.lockstep
+        self.writes = self.lockstep is None or self.lockstep.dist.root
+        self.snap = None
+        self.state = "new"                 # "open" once the writers are open, then "closed"
+        self.closing = "failed"            # the reason the activities are closed with
+        self.stop = None                   # the signal that asks the run to stop
+        self.between, self.outputs = [], []
+        gts = cfg.output.GTS
+        snapshots = act.Every(gts)
+        self.restart = act.Restart(snapshots, args, input_doc, model)
+        self.nothing_to_do = resumed and self.start > self.total
+        if self.nothing_to_do:
+            self.state = "closed"
+            return
+        from .io.records import run_comment
+        from .io.writers import make_writers
+        writers = (make_writers(cfg, args, input_doc, model.snapshot(),
+                                comment=run_comment(model.run_id, model.seed))
+                   if self.writes else [])
+        self.progress = act.ProgressLine(self.total, args.quiet, gts, self.start)
+        self.between.append(act.StabilityCheck(act.Every(min(gts, 10))))
+        self.table = act.StressTable(model, args.quiet) if model.sheared else None
+        if self.table is not None:
+            self.between.append(self.table)
+        self.between += [act.CompiledSwitch(self.start, self.total), self.progress]
+        if resumed and self.writes and source is not None and _same_file(source[0],
+                                                                         args.restart):
+            self.restart.continues(source[1], self.start, source[2])
+        self.outputs = [act.FiniteCheck(snapshots)]
+        self.outputs += [act.WriterActivity(w, snapshots, act.writer_name(w)) for w in writers]
+        self.outputs += [self.restart, act.SnapshotLine(snapshots, self.progress, self.start)]
 
-def _run(cfg, args, input_doc, model, resumed, saved) -> int:
-    from .io.records import run_comment
-    from .io.writers import make_writers
-    from .progress import Progress
+    # ----------------------------------------------------------------- the loop
+    def advance_to(self, target: int) -> None:
+        """Run to step ``target`` (at most the last step); there, end the run."""
+        model = self.model
+        try:
+            self._guarded(target)
+        except MemoryError:
+            self._close("failed")
+            raise RunError(f"out of memory at step {model.step_index}. "
+                           f"{restart_hint(self.restart.step, self.args)}. Run it where more "
+                           f"memory is free (or with a higher ulimit -v).") from None
+        except OSError as e:
+            self._close("failed")
+            args = self.args
+            what = e.filename or (f"an output file in "
+                                  f"{os.path.dirname(os.path.abspath(args.output))}")
+            raise RunError(f"cannot write {what} at step {model.step_index}: "
+                           f"{_write_error(e)}. {restart_hint(self.restart.step, args)}. "
+                           f"Free some space and continue from it.") from None
 
-    total = cfg.output.total_steps
-    if resumed and model.step_index > total:
-        source = getattr(model, "restart_source", None)
+    def _guarded(self, target):
+        if self.nothing_to_do:
+            raise NothingToDo(self._nothing_to_do())
+        if self.state == "closed":
+            raise RuntimeError("this run has ended; build a new one to continue it from "
+                               "its restart file")
+        with _StopSignals(self):
+            try:
+                if self.state == "new":
+                    self._open()
+                while self.model.step_index < target:
+                    self._step()
+                    self._poll_stop()
+                if self.model.step_index == self.total:
+                    self._end()
+            except BaseException:          # a RunError, or anything else: closed first
+                self._close(self.closing)
+                raise
+
+    def _open(self):
+        """The writers opened on the initial (or restored) state, and its snapshot when
+        its step is one."""
+        model = self.model
+        self.state = "open"
+        for a in self.between:
+            a.open(self)
+
+        def open_outputs():
+            self.snap = model.snapshot()
+            for a in self.outputs:
+                a.open(self)
+            return self.snap
+        first = self._output(open_outputs)
+        if model.step_index % self.cfg.output.GTS == 0 and model.step_index <= self.total:
+            try:
+                self._output_round(self._due(self.outputs), first)
+            except InstabilityError as e:
+                raise RunError(f"{e} in the initial state (step {model.step_index})") from None
+
+    def _step(self):
+        """One step, then each activity due after it."""
+        from .fluid.mac import SolverDidNotConverge
+        model = self.model
+        before = model.step_index
+        try:
+            try:
+                advance(model)
+            except (ValueError, IndexError, OverflowError):
+                check_step(model)   # NaN that broke the step: say so; else a real bug
+                raise
+            for a in self._due(self.between):
+                a(self)
+        except (SolverDidNotConverge, FloatingPointError, InstabilityError) as e:
+            cause = first_blow_up(model)
+            if cause is not None and not isinstance(e, InstabilityError):
+                e = f"{cause} (then: {e})"
+            self.restart.complete_after_failure(self.writes)
+            raise RunError(f"the run stopped at step {before + 1}: {e}. "
+                           f"{restart_hint(self.restart.step, self.args)}. "
+                           f"{stability_advice(self.cfg)}") from None
+        due = self._due(self.outputs)
+        if due:
+            try:
+                self._output_round(due)
+            except InstabilityError as e:
+                self.restart.complete_after_failure(self.writes)
+                raise RunError(f"{e} at step {model.step_index}. "
+                               f"{restart_hint(self.restart.step, self.args)}. Try a smaller "
+                               f"time_increment factor (or delta_t).") from None
+
+    def _poll_stop(self):
+        """SIGINT / SIGTERM: the state of this step saved in full, then Interrupted."""
+        model, args = self.model, self.args
+        if self.lockstep is not None:     # every rank stops at the same step
+            self.stop = self.lockstep.dist.comm.allreduce(self.stop or 0,
+                                                          op=_mpi_max()) or None
+        if self.stop is None:
+            return
+        self.closing = "interrupted"
+
+        def last():
+            check_finite(model)
+            self.restart.save(full=True)
+        try:
+            self._output(last)
+        except InstabilityError as e:    # blew up since the last check: not saved
+            self.restart.complete_after_failure(self.writes)
+            err = Interrupted(f"interrupted at step {model.step_index}, where {e}: that state "
+                              f"is not saved. {restart_hint(self.restart.step, args)}. "
+                              f"{stability_advice(self.cfg)}")
+            raise err from None
+        raise Interrupted(f"interrupted at step {model.step_index} (t = {model.time:g}); "
+                          f"{args.output} holds every snapshot so far and {args.restart} this "
+                          f"step. Continue with: kapsel-py -I{args.restart} -O{args.output} "
+                          f"-D{args.define} -R{args.restart}")
+
+    def _end(self):
+        """Like the original's last loop iteration, one more step after the last snapshot,
+        and the restart holds that state (ts = MSTEP after MSTEP + 1 steps, FORMAT-OUTPUT.md
+        §1.2, §6.3), so either program continues it without repeating a snapshot; then
+        every activity closed, and the closing lines."""
+        from .fluid.mac import SolverDidNotConverge
+        model = self.model
+        try:
+            advance(model)
+            check_step(model)
+            self._output(lambda: check_finite(model))
+            if self.table is not None:
+                self.table(self)
+        except (SolverDidNotConverge, FloatingPointError, InstabilityError, ValueError,
+                IndexError, OverflowError) as e:
+            self.restart.complete_after_failure(self.writes)
+            raise RunError(f"the step after the last snapshot failed: {e}. "
+                           f"{restart_hint(self.restart.step, self.args)}.") from None
+        need = self.restart.full != model.step_index
+        if self.lockstep is not None:         # rank 0 keeps the books of the restart
+            need = self.lockstep.dist.bcast(need)
+        if need:
+            self._output(lambda: self.restart.save(full=True))
+        self._close("end")
+        sys.stdout.flush()
+        self.progress.progress.summary(self.args.output if self.cfg.output.UDF else None,
+                                       self.args.restart)
+
+    def close(self, reason: str = "interrupted") -> None:
+        """Stop a paused run here: the state of this step saved in full (as on an
+        interruption), every activity closed with ``reason``."""
+        if self.state != "open":
+            self.state = "closed"
+            return
+        self.closing = reason
+        with _StopSignals(self):
+            try:
+                self._output(lambda: (check_finite(self.model), self.restart.save(full=True)))
+            except InstabilityError as e:
+                self.restart.complete_after_failure(self.writes)
+                raise RunError(f"{e} at step {self.model.step_index}: that state is not "
+                               f"saved. {restart_hint(self.restart.step, self.args)}.") from None
+            finally:
+                self._close(reason)
+
+    def _close(self, reason):
+        if self.state == "closed":
+            return
+        opened = self.state == "open"
+        self.state = "closed"
+        if opened:
+            for a in self.between + self.outputs:
+                a.close(self, reason)
+
+    # ----------------------------------------------------------------- the pieces
+    def _due(self, activities):
+        step = self.model.step_index
+        return [a for a in activities if a.schedule(step)]
+
+    def _output(self, body):
+        """Run ``body`` (writers, restart) alone, or on rank 0 as a round of output."""
+        if self.lockstep is None:
+            return body()
+        self.model.snapshot()          # every rank: the sources rank 0 may ask for
+        return self.lockstep.round(body)
+
+    def _output_round(self, due, snap=None):
+        """The due output activities on one snapshot (``snap``, else the model's now)."""
+        for a in due:
+            a.before_round(self)
+
+        def body():
+            self.snap = self.model.snapshot() if snap is None else snap
+            for a in due:
+                a(self)
+        self._output(body)
+
+    def _nothing_to_do(self) -> str:
+        cfg, args, model = self.cfg, self.args, self.model
+        source = self.source
         if source is not None and source[2] != model.step_index \
                 and _same_file(source[0], args.restart):
             # killed between the two renames of its last restart write: the text
             from .io.restart import complete_restart   # from the state file's copy
-            complete_restart(args.restart, args.define, input_doc)
-        print(f"kapsel-py: {args.input} holds the end of its run (its last snapshot at step "
-              f"{total} = output.Num_snap {cfg.output.Num_snap} x output.GTS "
-              f"{cfg.output.GTS}): nothing to do. To run longer, raise output.Num_snap in "
-              f"{args.input} and run kapsel-py -I{args.input} -O{args.output} "
-              f"-D{args.define} -R{args.restart}", file=sys.stderr)
-        return 0
-    # a distributed run (kapsel.parallel.lockstep): rank 0 writes, the others serve
-    lockstep = getattr(model, "lockstep", None)
-    writes = lockstep is None or lockstep.dist.root
-    writers = (make_writers(cfg, args, input_doc, model.snapshot(),
-                            comment=run_comment(model.run_id, model.seed)) if writes else [])
+            complete_restart(args.restart, args.define, self.doc)
+        return (f"{args.input} holds the end of its run (its last snapshot at step "
+                f"{self.total} = output.Num_snap {cfg.output.Num_snap} x output.GTS "
+                f"{cfg.output.GTS}): nothing to do. To run longer, raise output.Num_snap in "
+                f"{args.input} and run kapsel-py -I{args.input} -O{args.output} "
+                f"-D{args.define} -R{args.restart}")
 
-    def output(body):
-        """Run ``body`` (writers, restart) alone, or on rank 0 as a round of output."""
-        if lockstep is None:
-            return body()
-        model.snapshot()          # every rank: the sources rank 0 may ask for
-        return lockstep.round(body)
-    start = model.step_index
-    progress = Progress(total, quiet=args.quiet, gts=cfg.output.GTS, start_step=start)
-    table = None
-    if hasattr(model, "shear_table_row"):
-        from .progress import ShearTable
-        table = ShearTable(model.shear_table, model.shear_table_stream, quiet=args.quiet)
-        table.print_header()
 
-    check_every = min(cfg.output.GTS, 10)
-    from . import compiled
-    compiled_on = compiled.mode() == "1" and (compiled.enable() or True)
+class _StopSignals:
+    """SIGINT / SIGTERM noted while the loop runs (acted on at the end of a step,
+    TimeLoop._poll_stop); the previous handlers back afterwards.  Outside the main thread
+    the handlers are left alone."""
 
-    def snapshot(snap=None):
-        if lockstep is not None:
-            check_step(model)     # collective: every rank, before the round of output
+    def __init__(self, loop):
+        self.loop = loop
 
-        def body(snap=snap):
-            snap = model.snapshot() if snap is None else snap
-            check_finite(model, snap)
-            if lockstep is None:
-                check_step(model)
-            for w in writers:
-                w.write(snap)
-            save_restart()
-            if model.step_index != start:
-                progress.snapshot(model.step_index)
-        output(body)
+    def _note(self, signum, frame):
+        self.loop.stop = signum
 
-    define_doc = [None]
-    source = getattr(model, "restart_source", None)     # (path, fingerprint) of -I's text
-    if resumed and writes and source is not None and _same_file(source[0], args.restart):
-        # the restart.udf on disk is the one this run continues: checkpoints go on against
-        # it, as in the run being continued (whose files this run's then equal)
-        saved.update(base=source[1], step=start, full=source[2])
-
-    def save_restart(full=False):
-        """The full restart.udf (first snapshot of the run, end, interruption), else the
-        cheap checkpoint in its state file (kapsel.io.restart.write_checkpoint)."""
-        if model.restart_kind is None:
-            return
-        from .io.restart import write_checkpoint, write_restart
-        full = full or saved.get("base") is None
-        kind, data, exact = model.restart_state(checkpoint=not full)
-        if full:
-            saved["base"] = write_restart(args.restart, args.define, input_doc, kind,
-                                          model.step_index, model.time, model.particles,
-                                          data, exact, previous=saved.get("base"))
-            saved["full"] = model.step_index
-        else:
-            if define_doc[0] is None:
-                from udf import UDFManager
-                define_doc[0] = UDFManager(schema_from=args.define)
-            write_checkpoint(args.restart, define_doc[0], kind, model.step_index, model.time,
-                             model.particles, data, exact, saved["base"],
-                             complete=model.checkpoint_complete)
-        saved["step"] = model.step_index
-
-    def complete_restart():
-        """After a failure: restart.udf written in full from the last checkpoint."""
-        if writes and saved.get("step") is not None and saved.get("full") != saved["step"]:
-            from .io.restart import complete_restart as complete
-            try:
-                complete(args.restart, args.define, input_doc)
-            except OSError:
-                pass        # the checkpoint still continues the run from restart.udf
-
-    stop = {"signal": None}
-
-    def on_signal(signum, frame):
-        stop["signal"] = signum
-
-    from .fluid.mac import SolverDidNotConverge
-    old = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
-    closing = "failed"
-    try:
+    def __enter__(self):
         try:
-            def open_writers():
-                first = model.snapshot()
-                for w in writers:
-                    w.open(first, resumed)
-                return first
-            first = output(open_writers)
-            if model.step_index % cfg.output.GTS == 0 and model.step_index <= total:
-                snapshot(first)          # the writers skip what the continued run wrote
-        except InstabilityError as e:
-            print(f"kapsel-py: error: {e} in the initial state (step {model.step_index})",
-                  file=sys.stderr)
-            return 1
-        for _ in range(start, total):
-            before = model.step_index
-            try:
-                try:
-                    advance(model)
-                except (ValueError, IndexError, OverflowError):
-                    check_step(model)   # NaN that broke the step: say so; else a real bug
-                    raise
-                if model.step_index % check_every == 0:
-                    check_step(model)
-                row = table_row(model) if table is not None else None
-            except (SolverDidNotConverge, FloatingPointError, InstabilityError) as e:
-                cause = first_blow_up(model)
-                if cause is not None and not isinstance(e, InstabilityError):
-                    e = f"{cause} (then: {e})"
-                complete_restart()
-                print(f"kapsel-py: error: the run stopped at step {before + 1}: {e}. "
-                      f"{restart_hint(saved['step'], args)}. {stability_advice(cfg)}",
-                      file=sys.stderr)
-                return 1
-            if row is not None:
-                table.row(row)
-            if not compiled_on and compiled.want(model.step_index - start,
-                                                 total - model.step_index):
-                compiled_on = compiled.enable() or True   # bit-identical kernels from here
-            progress.step(model.step_index, model.time)
-            if model.step_index % cfg.output.GTS == 0:
-                try:
-                    snapshot()
-                except InstabilityError as e:
-                    complete_restart()
-                    print(f"kapsel-py: error: {e} at step {model.step_index}. "
-                          f"{restart_hint(saved['step'], args)}. Try a smaller time_increment "
-                          f"factor (or delta_t).", file=sys.stderr)
-                    return 1
-            if lockstep is not None:     # every rank stops at the same step
-                stop["signal"] = lockstep.dist.comm.allreduce(stop["signal"] or 0,
-                                                              op=_mpi_max()) or None
-            if stop["signal"] is not None:
-                closing = "interrupted"
+            self.old = {s: signal.signal(s, self._note) for s in (signal.SIGINT,
+                                                                   signal.SIGTERM)}
+        except ValueError:
+            self.old = {}
+        return self
 
-                def last():
-                    check_finite(model)
-                    save_restart(full=True)
-                try:
-                    output(last)
-                except InstabilityError as e:    # blew up since the last check: not saved
-                    complete_restart()
-                    print(f"kapsel-py: interrupted at step {model.step_index}, where {e}: "
-                          f"that state is not saved. {restart_hint(saved['step'], args)}. "
-                          f"{stability_advice(cfg)}", file=sys.stderr)
-                    return 1
-                print(f"kapsel-py: interrupted at step {model.step_index} (t = {model.time:g}); "
-                      f"{args.output} holds every snapshot so far and {args.restart} this "
-                      f"step. Continue with: kapsel-py -I{args.restart} -O{args.output} "
-                      f"-D{args.define} -R{args.restart}", file=sys.stderr)
-                return 1
-        if model.step_index == total:
-            # like the original's last loop iteration, one more step after the last
-            # snapshot, and the restart holds that state (ts = MSTEP after MSTEP + 1 steps,
-            # FORMAT-OUTPUT.md §1.2, §6.3), so either program continues it without
-            # repeating a snapshot
-            try:
-                advance(model)
-                check_step(model)
-                output(lambda: check_finite(model))
-                if table is not None:
-                    table.row(table_row(model))
-            except (SolverDidNotConverge, FloatingPointError, InstabilityError, ValueError,
-                    IndexError, OverflowError) as e:
-                complete_restart()
-                print(f"kapsel-py: error: the step after the last snapshot failed: {e}. "
-                      f"{restart_hint(saved['step'], args)}.", file=sys.stderr)
-                return 1
-        need = saved.get("full") != model.step_index
-        if lockstep is not None:         # rank 0 keeps the books of the restart
-            need = lockstep.dist.bcast(need)
-        if need:
-            output(lambda: save_restart(full=True))
-        closing = "end"
-    finally:
-        for s, h in old.items():
+    def __exit__(self, *exc):
+        for s, h in self.old.items():
             signal.signal(s, h)
-        for w in writers:
-            w.close(closing)
-    sys.stdout.flush()
-    progress.summary(args.output if cfg.output.UDF else None, args.restart)
-    return 0
+        return False
+
+
+def run(cfg, args, input_doc, model, resumed: bool = False, source=None) -> None:
+    """Run ``model`` to the end of its input (TimeLoop); raises RunError, Interrupted or
+    NothingToDo."""
+    TimeLoop(cfg, args, input_doc, model, resumed, source).advance_to(cfg.output.total_steps)
 
 
 def _same_file(a, b) -> bool:

@@ -118,7 +118,7 @@ def test_cli_flags_with_and_without_space(tmp_path, capsys, monkeypatch):
     seen = {}
     monkeypatch.setitem(simulation.SOLVERS, "Navier_Stokes_Cahn_Hilliard_FDM",
                         lambda cfg, args, doc: seen.setdefault("args", args))
-    monkeypatch.setattr(simulation, "run", lambda cfg, args, doc, model, resumed=False: 0)
+    monkeypatch.setattr(cli, "run_to_end", lambda args, prepared: 0)
     monkeypatch.setattr("kapsel.io.writers.check_output", lambda cfg, model: None)
     path = sample_copy(tmp_path)
     d = str(tmp_path / "define.udf")

@@ -10,7 +10,9 @@ A writer is an object with
     close(reason)         at the end of the run, on interruption and on failure
                           (reason "end", "interrupted", "failed"): flush and close
 
-and reads what it needs from the snapshot by name (kapsel.snapshot); a writer that needs
+Each writer runs as an activity of the time loop (kapsel.activities.WriterActivity, on
+the schedule of the snapshots) and reads what it needs from the snapshot by name
+(kapsel.snapshot); a writer that needs
 something the model does not offer is refused by ``make_writers`` before anything is written.
 One module of kapsel/io per format: records.py (output.udf and the text logs), fields.py (the
 FDM types' per-snapshot files), extended.py (output.AVS EXTENDED), avs.py (legacy AVS).
@@ -257,7 +259,8 @@ def check_output(cfg, model) -> None:
     spec = cfg.output.fields
     if spec is None:
         return
-    snap = model.snapshot() if hasattr(model, "snapshot") else model
+    from ..snapshot import Snapshot
+    snap = model if isinstance(model, Snapshot) else model.snapshot()
     if spec.FileType == "EXTENDED":
         for flag, name in (("Vel", "u"), ("Pressure", "pressure"), ("Tau", "tau")):
             if getattr(spec, flag) and not snap.offers(name):
