@@ -132,7 +132,7 @@ TIMES_200 = {
     "ex06/s001_t010_free.udf": (9, 7),
     "ex14/input.udf": (29, 18),
     "sample/input.udf": (24, 19),
-    "ex10/input_rigid_free1.udf": (14, 9),          # xfail (NOT_YET): stops at step 7
+    "ex10/input_rigid_free1.udf": (93, 45),         # 2026-12-01 at load 3 (ran 7 steps before the rigid merge)
     "ex02/gravity.udf": (16, 8),
     "ex12/a2_N65_Rer025_dipole_mirror.udf": (74, 25),
     "ex09/squirm_single_a+2.udf": (55, 29),
@@ -161,9 +161,7 @@ def test_real_input_runs(path, tmp_path, monkeypatch, capsys):
 
 # inputs kapsel-py does not yet run for LONG steps (the original does): why, and whose
 # area it is; strict, so that the fix shows up as an XPASS failure and removes the entry
-NOT_YET = {"ex10/input_rigid_free1.udf":
-           "the free rigid body (65 beads, A_XI 1, G = 50) blows up at step 7 (CFL 3.2; the "
-           "original runs 200 steps to |v| 2.66): rigid bodies"}
+NOT_YET: dict = {}         # inputs that do not yet run as long as the original runs them
 
 
 def _long_params():
