@@ -1,4 +1,4 @@
-"""Strong scaling of distributed runs (README "Distributed runs").
+"""Strong scaling of distributed runs (docs/distributed.md).
 
     .venv/bin/python bench/bench_mpi.py [--sizes 64 128] [--ranks 1 2] [--particles 20]
                                         [--steps 10] [--types Navier_Stokes ...]

@@ -1,6 +1,6 @@
 """Per-rank particle cost of a distributed Navier_Stokes run: particles owned by ranks (this
 tree) against the replicated particle state (another tree, e.g. main before issue 18's
-particle point) (README "Distributed runs").
+particle point) (docs/distributed.md).
 
     .venv/bin/python bench/bench_mpi_particles.py [--n 64] [--particles 2000] [--ranks 2]
         [--steps 10] [--tree /path/to/other/tree ...]

@@ -1,5 +1,5 @@
 """Electrophoresis of one weakly charged sphere against Henry's function: the runs behind
-tests/test_electrolyte_mobility.py and the README's Electrolyte numbers, at any size.
+tests/test_electrolyte_mobility.py and the numbers of docs/physics-electrolyte.md, at any size.
 
     PYTHONPATH=. .venv/bin/python bench/electrophoresis.py --npx 5 --A 4 --debye 8 --Z -10 \
         [--E 0.01] [--T 150] [--every 10] [--ratio 1.0266]

@@ -54,7 +54,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="original: the SPM profile has the radius A, as the original (its "
                         "drag depends on the time step: 2.7%% fast at A 4, A_XI 2, factor 1); "
                         "calibrated: the profile radius whose measured hydrodynamic radius is "
-                        "A (README 'SPM drag accuracy')")
+                        "A (docs/numerics.md)")
     p.add_argument("--quiet", action="store_true", help="no progress on stderr")
     p.add_argument("--overwrite", action="store_true",
                    help="replace existing output and restart files")

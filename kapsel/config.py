@@ -360,7 +360,7 @@ class _Reader:
                 parts.append(f"{what} ({path} = {value!r} at {':'.join(at.split(':')[-2:])}; "
                              f"{off})")
             problems.insert(0, ConfigError(
-                "not supported by kapsel-py (README, 'Not supported'): " + "; ".join(parts),
+                "not supported by kapsel-py (docs/running.md, 'Not supported'): " + "; ".join(parts),
                 self.where(self.unsupported[0][1])))
         if len(problems) == 1:
             raise problems[0]
@@ -1195,7 +1195,7 @@ def _electric(r: _Reader, obj: str, species, mesh: Mesh):
         quincke = Quincke(AXES[r.get(f"{q}.ON.e_dir")], AXES[r.get(f"{q}.ON.w_dir")],
                           float(r.finite(f"{q}.ON.torque_amp")))
     # the Lees-Edwards types too (the original's Force_OBL omits the Quincke torque and
-    # refuses nothing: README "Dipoles"), with the dipoles summed over the sheared lattice
+    # refuses nothing: docs/physics-quincke.md), with the dipoles summed over the sheared lattice
     m = "switch.multipole"
     if not (r.has(f"{m}.type") and r.get(f"{m}.type") == "ON"):
         return quincke, None

@@ -9,7 +9,7 @@ restart pair, closing the trajectory).
 
 The fast tests take two kill points and one ENOSPC point of each input (the rename of
 restart.udf after its state file's, a write of the EXTENDED frame or of a per-snapshot .h5
-file); the ``slow`` sweeps take every call (counts and times in the README, "Kills and full
+file); the ``slow`` sweeps take every call (counts and times in docs/restart.md, "Kills and full
 disks").
 """
 import os
@@ -176,7 +176,7 @@ def test_every_rename_is_preceded_by_fsync(case):
 
 @pytest.mark.slow
 def test_kill_at_every_call_of_a_snapshot_and_of_the_end(case):
-    """Every write/pwrite64/rename/fsync of the two windows (README: about 150 points per
+    """Every write/pwrite64/rename/fsync of the two windows (docs/restart.md: about 150 points per
     input, 25-35 min each on 2 busy cores)."""
     bad = []
     for kind, n in _points(case.snapshot) + _points(case.final):

@@ -1,4 +1,4 @@
-"""Distributed runs (kapsel.parallel, README "Distributed runs"): ``mpiexec -n P kapsel-py``
+"""Distributed runs (kapsel.parallel, docs/distributed.md): ``mpiexec -n P kapsel-py``
 agrees with the serial run to round-off, restarts interchange between distributed and serial
 runs, types that do not run distributed are refused with more than one rank.
 
@@ -271,7 +271,7 @@ def test_walls_are_refused_with_more_than_one_rank(tmp_path):
 
 def test_walls_on_one_rank_run_as_a_plain_run(tmp_path):
     """``mpirun -n 1`` of an input that does not run distributed (flat walls) is a plain
-    run (README "Which types"): the same restart as the run without mpirun.  It stopped
+    run (docs/distributed.md, "Which types"): the same restart as the run without mpirun.  It stopped
     with a traceback ("walls do not run distributed") before."""
     from test_walls import EX14, _wall_run_input
     for name in ("plain", "one"):

@@ -1,4 +1,4 @@
-"""Distributed runs of the finite-difference types (README "Distributed runs"):
+"""Distributed runs of the finite-difference types (docs/distributed.md):
 ``mpiexec -n P kapsel-py`` on Navier_Stokes_FDM, Navier_Stokes_Cahn_Hilliard_FDM and the
 Lees-Edwards FDM types agrees with the serial run to round-off (restart data, output.udf
 records, the per-snapshot HDF5 files, the stress table), restarts interchange between

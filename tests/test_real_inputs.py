@@ -1,7 +1,7 @@
 """Every real KAPSEL input (samples/kapsel-udf/*/: the original's examples and sample,
 define.udf versions 3.02 to 4.1, copied from ../shared/kapsel-udf) is either accepted
 unchanged, or refused up front -- exit 2, one line, nothing written -- only for features
-kapsel-py does not have (README, "Not supported"), all named in that line.
+kapsel-py does not have (docs/running.md, "Not supported"), all named in that line.
 
 The accepted ones then run in a copy with only output.GTS / Num_snap edited, with the field
 output (output.AVS) the input asks for: for 200 steps (LONG: or their own length, if

@@ -605,7 +605,7 @@ class PencilDiagonal:
 
 class DistributedMAC(MACSolver):
     """The MAC solver on this rank's block of a distributed grid (kapsel.parallel.pencil.
-    PencilGrid; README "Distributed runs").  ``shape`` is the whole mesh, ``fshape`` the
+    PencilGrid; docs/distributed.md).  ``shape`` is the whole mesh, ``fshape`` the
     block; u, pressure, u_old are blocks.  The step is MACSolver's, with
 
     * every stencil operator (advection, viscous term, B-grid divergence and gradient, the

@@ -841,7 +841,7 @@ class MetricProjector:
 
 
 class DistributedObliqueMAC(ObliqueMAC, DistributedMAC):
-    """ObliqueMAC on this rank's block of a distributed grid (README "Distributed runs"):
+    """ObliqueMAC on this rank's block of a distributed grid (docs/distributed.md):
     DistributedMAC's halo stencils, pencil Poisson solve and reductions, with the metric
     pieces of the oblique frame on the widened block (the second and mixed differences of
     the viscous term, the raised pressure gradient), the metric Poisson symbol on the local

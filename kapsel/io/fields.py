@@ -41,7 +41,7 @@ connectivity for Polyvertex cells, and plain HDF items wherever VTK takes the da
 vtkXdmf3DataSet.cxx (XdmfToVTKArray) asks for it first and drops the array ("Skipping
 unrecognized array type [None]"); Xdmf3's JOIN also concatenates where Xdmf2's interlaces.
 
-Differences from the original, on purpose (README "Where output goes"):
+Differences from the original, on purpose (docs/output.md):
 * the original writes every .xmf once, in advance, listing snapshots up to the end of the run
   whether their files exist yet or not, and a continued run's .xmf lists only the new
   snapshots; here each .xmf is rewritten (atomically) after each snapshot's files are in

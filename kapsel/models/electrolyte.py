@@ -13,7 +13,7 @@ One step (§6.3, with the differences below):
 4. new profiles; c_s rescaled so that each species' number in the fluid stays at its
    initial value (``Ions.rescale``).
 
-Differences from the original, on purpose (README, Electrolyte):
+Differences from the original, on purpose (docs/physics-electrolyte.md):
 * the fluid step is the integrating-factor (slaved) step of Navier_Stokes, exact for the
   viscous decay, not the original's plain explicit Euler for zeta, and the Coulomb force
   enters that step rather than a separate Euler fractional step;

@@ -1,4 +1,4 @@
-"""Distributed runs over MPI (README "Distributed runs").
+"""Distributed runs over MPI (docs/distributed.md).
 
 ``start(args)`` is called by the command line before anything else: it returns None for a
 plain run (mpi4py is then never imported) or a ``Dist`` when the process was started by an
@@ -23,7 +23,7 @@ part over owned + ghosts, the halo widened to its cutoff; the structure sums of 
 particles summed over the ranks by MPI_Reduce to rank 0 + MPI_Bcast).  Self-propelled
 particles are owned too (kapsel.particles.janus ``update_velocities``).
 Rank 0 writes output.udf, restart.udf and the field files with the fields and
-the particle table gathered to it.  Limits: README ("Distributed runs").
+the particle table gathered to it.  Limits: docs/distributed.md.
 """
 from __future__ import annotations
 

@@ -13,7 +13,7 @@ Dipoles (§4.2), Gaussian-like units (U = mu.mu/r^3 - ..., no 4 pi epsilon):
 The dipoles (and images) are summed periodically by kapsel.particles.ewald; every real
 dipole gets F_i and T_i = mu_i x E_i (images get none; a real dipole feels its own image).
 
-Differences from the original, on purpose (README "Dipoles"): the original puts every image
+Differences from the original, on purpose (docs/physics-quincke.md): the original puts every image
 at a fixed 4.1 length units below its particle instead of reflecting it in the electrode
 plane, and fills the dipoles species by species from offset 0 each time, so with more than
 one species the particles of species >= 1 carry no dipole.

@@ -672,7 +672,7 @@ class CahnHilliard:
 
 class DistributedCahnHilliard(CahnHilliard):
     """The Cahn-Hilliard solver on this rank's block of a distributed grid (kapsel.parallel.
-    pencil.PencilGrid; README "Distributed runs").  ``shape`` is the block, ``global_shape``
+    pencil.PencilGrid; docs/distributed.md).  ``shape`` is the block, ``global_shape``
     the mesh.  CahnHilliard's steps with its stencil operators (Laplacian, central
     gradient, flux divergence, the z term) applied to the block widened by one ghost layer
     (kapsel.parallel.halo; the same operations point by point as the serial run), sums,
