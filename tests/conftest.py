@@ -3,3 +3,31 @@ import os
 
 for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
+
+
+# The distributed tier's repeats: each of these is a second or third variant of a distributed
+# test whose first variant stays in the fast suite (the same code path under another type or
+# scheme); they run with the slow tests (``pytest -m slow``).  Measured 2026-12-01 on the
+# 2-core VM at load 2-3: 25-82 s each, about 250 s together.
+SLOW_VARIANTS = {
+    "test_mpi_fdm.py::test_distributed_fdm_runs_agree_with_the_serial_run"
+    "[Navier_Stokes_Cahn_Hilliard_FDM-NS_implicit-CH_implicit-eta]",
+    "test_mpi_fdm.py::test_distributed_fdm_runs_agree_with_the_serial_run"
+    "[Navier_Stokes_FDM-NS_implicit-CH_explicit]",
+    "test_mpi_fdm.py::test_fdm_restarts_interchange_between_distributed_and_serial_runs"
+    "[Shear_NS_LE_CH_FDM-explicit_scheme-implicit_scheme]",
+    "test_mpi_particles.py::test_rigid_bodies_agree_with_the_serial_run"
+    "[Shear_Navier_Stokes_Lees_Edwards]",
+    "test_mpi_particles.py::test_rigid_bodies_agree_with_the_serial_run[Shear_Navier_Stokes]",
+    "test_mpi_particles.py::test_rigid_body_restarts_interchange_between_distributed_and_"
+    "serial_runs[Shear_Navier_Stokes_Lees_Edwards]",
+    "test_mpi_particles.py::test_self_propelled_particles_agree_with_the_serial_run"
+    "[Shear_Navier_Stokes]",
+}
+
+
+def pytest_collection_modifyitems(config, items):
+    import pytest
+    for item in items:
+        if item.nodeid.split("tests/", 1)[-1] in SLOW_VARIANTS:
+            item.add_marker(pytest.mark.slow)

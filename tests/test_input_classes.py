@@ -130,9 +130,10 @@ def test_radius_and_interface_are_in_units_of_dx(monkeypatch):
 
 def test_geometric_checks_in_units_of_dx(tmp_path):
     """DX = 0.5 on a 16^3 mesh: the box is 8 and A = 4 a radius of 2, so 8 particles are a
-    volume fraction of 0.52 (read as radius 4 they were 4.2 and refused); 12 are 0.79."""
+    volume fraction of 0.52 (read as radius 4 they were 4.2 and refused); 16 are 1.05, refused
+    as the original refuses a fraction above 1."""
     text = make_corpus.tiny_sample()
-    for n, fits in ((8, True), (12, False)):
+    for n, fits in ((8, True), (16, False)):
         path = sample_copy(tmp_path, make_corpus.fluid(DX="0.5"),
                            (make_corpus.SPEC, make_corpus.SPEC.replace("{2,", f"{{{n},")),
                            text=text)
@@ -140,7 +141,7 @@ def test_geometric_checks_in_units_of_dx(tmp_path):
             cfg = config.load(path)
             assert cfg.particles.A == 2.0 and cfg.particles.count == 8
         else:
-            with pytest.raises(config.ConfigError, match=r"12 particles of radius A DX = 2 "
+            with pytest.raises(config.ConfigError, match=r"16 particles of radius A DX = 2 "
                                                          r"cannot fit in the box 8 x 8 x 8"):
                 config.load(path)
 

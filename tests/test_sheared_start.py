@@ -95,7 +95,7 @@ def test_a_continued_run_keeps_the_restart_velocities(tmp_path):
     try:
         args = kcli.build_parser().parse_args([f"-I{cont}", "-Ooutput.udf", "-Ddefine.udf",
                                                "-Rrestart.udf", "--quiet", "--overwrite"])
-        _, _, model, resumed, _ = kcli.prepare(args)
+        _, _, model, resumed, *_ = kcli.prepare(args)
     finally:
         os.chdir(cwd)
     assert resumed
