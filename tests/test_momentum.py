@@ -23,6 +23,7 @@ from kapsel.simulation import SOLVERS
 from udf import UDFManager
 
 from test_fdm_model import Args, sample
+from test_spm_validation import exchanged_momentum
 
 ALL_TYPES = [
     ("Navier_Stokes", "explicit_scheme", 200),
@@ -60,7 +61,6 @@ def test_particle_step_exchanges_the_balance(tmp_path, eq, ns, steps):
     the FDM types' non-conservative advection, is measured apart)."""
     m = model(tmp_path, eq, ns, "OFF")
     spm, p = m.spm, m.particles
-    rho, dx3 = spm.rho, spm.dx ** 3
     after = {}
     fluid_step = spm._fluid_step
 
@@ -73,10 +73,7 @@ def test_particle_step_exchanges_the_balance(tmp_path, eq, ns, steps):
         v0, w0 = p.v.copy(), p.omega.copy()
         m.advance()
         dv, dw = p.v - v0, p.omega - w0
-        vp = spm.w.sum(axis=1) * dx3
-        m1 = np.einsum("ns,nsk->nk", spm.w, spm.r) * dx3
-        expect = (rho * vp[:, None] * dv + rho * np.cross(dw, m1)
-                  - p.mass[:, None] * dv).sum(axis=0)
+        expect = exchanged_momentum(spm, dv, dw)
         got = spm.fluid_momentum() - after["P"]
         scale = float(np.abs(p.mass[:, None] * p.v).sum()) + float(np.abs(got).max())
         worst = max(worst, float(np.abs(got - expect).max()) / max(scale, 1e-300))

@@ -143,15 +143,20 @@ TIMES_200 = {
 FAST_200 = {"ex06/s000_t010_free.udf", "ex06/s001_t010_free.udf"}
 
 
-@pytest.mark.parametrize("path", [p for p in RUNS if name_of(p) not in FAST_200], ids=name_of)
-def test_real_input_runs(path, tmp_path, monkeypatch, capsys):
-    inp = run_copy(path, tmp_path)
-    monkeypatch.chdir(tmp_path)
+def _run(inp, d, monkeypatch, capsys):
+    """kapsel-py -I<inp> ... --seed 1 --quiet in ``d``: exit 0; its output.udf."""
+    monkeypatch.chdir(d)
     code = cli.main([f"-I{inp}", "-Ooutput.udf", "-Ddefine.udf", "-Rrestart.udf",
                      "--seed", "1", "--quiet"])
     err = capsys.readouterr().err
     assert code == 0, err
-    out = UDFManager("output.udf")
+    return UDFManager("output.udf")
+
+
+@pytest.mark.parametrize("path", [p for p in RUNS if name_of(p) not in FAST_200], ids=name_of)
+def test_real_input_runs(path, tmp_path, monkeypatch, capsys):
+    inp = run_copy(path, tmp_path)
+    out = _run(inp, tmp_path, monkeypatch, capsys)
     assert out.totalRecord() == 2
     out.jump(1)
     assert out.get("t") == 2.0                       # the record's t is its step
@@ -159,16 +164,9 @@ def test_real_input_runs(path, tmp_path, monkeypatch, capsys):
     assert restart.get("resume.Calculation") != "NEW"
 
 
-# inputs kapsel-py does not yet run for LONG steps (the original does): why, and whose
-# area it is; strict, so that the fix shows up as an XPASS failure and removes the entry
-NOT_YET: dict = {}         # inputs that do not yet run as long as the original runs them
-
-
 def _long_params():
     for p in RUNS:
         marks = () if name_of(p) in FAST_200 else (pytest.mark.slow,)
-        if name_of(p) in NOT_YET:
-            marks += (pytest.mark.xfail(strict=True, reason=NOT_YET[name_of(p)]),)
         yield pytest.param(p, id=name_of(p), marks=marks)
 
 
@@ -181,12 +179,7 @@ def test_real_input_runs_200_steps(path, tmp_path, monkeypatch, capsys):
     steps = min(LONG, cfg.output.total_steps)
     snaps = 10 if steps % 10 == 0 else 1
     inp = run_copy(path, tmp_path, steps, snapshots=snaps)
-    monkeypatch.chdir(tmp_path)
-    code = cli.main([f"-I{inp}", "-Ooutput.udf", "-Ddefine.udf", "-Rrestart.udf",
-                     "--seed", "1", "--quiet"])
-    err = capsys.readouterr().err
-    assert code == 0, err
-    out = UDFManager("output.udf")
+    out = _run(inp, tmp_path, monkeypatch, capsys)
     assert out.totalRecord() == snaps + 1
     box = np.asarray(from_document(UDFManager(inp), inp).mesh.box)
     for r in range(out.totalRecord()):

@@ -65,6 +65,16 @@ def _two_pushed(fluid, mass_ratio):
     return p, (lambda q: (F, T))
 
 
+def exchanged_momentum(spm, dv, dw):
+    """sum_i [RHO V_p,i dV_i + RHO dOmega_i x m_i - M_i dV_i]: the fluid momentum the
+    particles' step adds when their velocities change by dv, dw (``_momentum_balance``)."""
+    dx3, p = spm.dx ** 3, spm.p
+    vp = spm.w.sum(axis=1) * dx3
+    m1 = np.einsum("ns,nsk->nk", spm.w, spm.r) * dx3
+    return (spm.rho * vp[:, None] * dv + spm.rho * np.cross(dw, m1)
+            - p.mass[:, None] * dv).sum(axis=0)
+
+
 def _momentum_balance(spm, steps):
     """The momentum the SPM step exchanges between fluid and particles, step by step.
 
@@ -94,10 +104,7 @@ def _momentum_balance(spm, steps):
         v0, w0 = p.v.copy(), p.omega.copy()
         spm.step()
         dv, dw = p.v - v0, p.omega - w0
-        vp = spm.w.sum(axis=1) * dx3
-        m1 = np.einsum("ns,nsk->nk", spm.w, spm.r) * dx3
-        expect = (rho * vp[:, None] * dv + rho * np.cross(dw, m1)
-                  - p.mass[:, None] * dv).sum(axis=0)
+        expect = exchanged_momentum(spm, dv, dw)
         got = _fluid_momentum(spm) - after_fluid["P"]
         scale = max(scale, np.abs(p.mass[:, None] * p.v).sum())
         worst = max(worst, np.abs(got - expect).max() / scale)

@@ -396,7 +396,7 @@ class MACSolver:
 
     def _stencil_operator(self, ustar):
         """A of ``_assemble`` (constant viscosity) applied by a compiled stencil sweep
-        (kapsel.fluid.stencils.implicit_matvec): the same products summed in the same order
+        (kapsel.fluid.stencils.implicit_matvec_nc): the same products summed in the same order
         as the CSR rows, so bit-identical, without assembling the matrix (64^3: 24 ms per
         step and 70 MB saved, matvec 15 -> 4 ms)."""
         n3 = 3 * int(np.prod(self.shape))
