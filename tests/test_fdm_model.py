@@ -157,28 +157,32 @@ def _force_of(m, psi, phi):
     return m.ch.capillary_force(psi, m.ch.chemical_potential(psi, phi), m.rho)
 
 
-def test_capillary_force_explicit_is_the_originals_with_its_ab2(tmp_path):
-    """explicit_scheme (the original's NS_solver_slavedEuler_explicit): the fluid step takes
-    -psi^n grad mu(psi^n, phi^n) / RHO on the first two steps, then 3/2 F^n - 1/2 F^(n-1);
-    no share of it is moved onto the particles."""
+def test_capillary_force_explicit_enters_the_ab2_once(tmp_path):
+    """explicit_scheme (the original's NS_solver_slavedEuler_explicit): the fluid step's
+    explicit term is n = (u^n.grad)u^n - F^n with the raw F^n = -psi^n grad mu(psi^n, phi^n)
+    / RHO; its Adams-Bashforth combination 3/2 n^n - 1/2 n^(n-1) from the third step on is
+    the original's Update_u_adv_ab2 + Update_u_stress_ab2, and its Poisson right-hand side
+    holds the raw F^n (Set_poisson_rhs_ps).  (Combining F before the MAC step extrapolated
+    it twice: 17 % more velocity than the original's at the third step of two wetted
+    spheres, bench/parity.py.)  No share of F is moved onto the particles."""
+    from kapsel.fluid.operators import advection_nc
     cfg = config.load(sample(tmp_path, particles=2, manual_dt=0.05))
     m = FDMModel(cfg, Args())
-    applied, raw = [], []
+    raw, adv = [], []
     inner = m._capillary_force
 
     def spy():
         raw.append(_force_of(m, m.psi, m.phi))
-        applied.append(inner())
-        return applied[-1]
+        adv.append(advection_nc(m.u, m.dx))
+        return inner()
     m._capillary_force = spy
-    for _ in range(4):
+    for n in range(4):
         m.advance()
-    np.testing.assert_array_equal(applied[0], raw[0])
-    np.testing.assert_array_equal(applied[1], raw[1])
-    for n in (2, 3):
-        np.testing.assert_allclose(applied[n], 1.5 * raw[n] - 0.5 * raw[n - 1],
-                                   rtol=0, atol=1e-15 * np.abs(raw[n]).max())
-    assert np.abs(raw[3] - raw[2]).max() > 1e-8 * np.abs(raw[3]).max()   # AB2 not vacuous
+        want = adv[n] - raw[n]
+        np.testing.assert_allclose(m.mac._n_old, want, rtol=0,
+                                   atol=1e-14 * np.abs(want).max())
+    assert m.mac.step_count >= 3                                     # AB2 reached
+    assert np.abs(raw[3] - raw[2]).max() > 1e-8 * np.abs(raw[3]).max()   # F changes
 
 
 def test_capillary_force_implicit_takes_the_extrapolated_state(tmp_path):

@@ -152,8 +152,11 @@ class FDMModel(Model):
         NS_solver_slavedEuler_explicit / _implicit: Calc_cp, Cp2stress):
         -psi* grad(mu(psi*, phi*)) / RHO at the nodes (central gradient), on the fluid only.
 
-        explicit_scheme: psi* = psi^n, phi* = phi^n, and from the third step on the
-        Adams-Bashforth combination 3/2 F^n - 1/2 F^(n-1) (its Update_u_stress_ab2).
+        explicit_scheme: psi* = psi^n, phi* = phi^n; the force is returned as it is: the
+        MAC step takes it into its explicit term n = (u.grad)u - F, whose Adams-Bashforth
+        combination 3/2 n^n - 1/2 n^(n-1) from the third step on gives the original's
+        Update_u_stress_ab2, and whose Poisson right-hand side holds the raw F^n as the
+        original's Set_poisson_rhs_ps (combining F here as well would extrapolate it twice).
         implicit_scheme: psi* = (3 psi^n - psi^(n-1)) / 2 and phi* the profile at the
         extrapolated positions (3 R^n - R^(n-1)) / 2 (its Calc_ab2_val, Make_phi_s); with
         viscosity_change the viscosity field of psi* (Psi2eta).  The first step takes psi^n
@@ -175,12 +178,8 @@ class FDMModel(Model):
         raw = ch.capillary_force(psi, mu, self.rho)
         if self.eta_field is not None:
             self._update_viscosity(psi)
-        previous, self.last_force = self.last_force, raw
-        if implicit or self.step_index < 2 or previous is None:
-            return raw
-        force = previous * -0.5
-        force += 1.5 * raw
-        return force
+        self.last_force = raw
+        return raw
 
     def _extrapolated_phi(self):
         """phi* of the original's implicit fluid step, the profile at the extrapolated
