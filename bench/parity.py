@@ -160,8 +160,13 @@ LEF, LECH, EL = "Shear_Navier_Stokes_Lees_Edwards_FDM", "Shear_NS_LE_CH_FDM", "E
 SED = [row((16.0, 16.0, 16.0))]
 PAIR48 = [row((18.0, 24.0, 24.0), v=(0.01, 0, 0)), row((30.0, 24.5, 24.0), v=(-0.01, 0, 0))]
 REST2 = [row((16.0, 10.0, 16.0)), row((16.0, 22.0, 16.0))]        # 12 apart in y
-CH8 = [row((8.0 + 16 * i, 8.0 + 16 * j, 8.0 + 16 * k), v=(0.005 * (-1) ** (i + j), 0.003, 0))
-       for i in range(2) for j in range(2) for k in range(2)]
+# The FDM scenes start their particles at rest: with a non-zero initial particle velocity the
+# original's FDM types start from the Fourier coefficients of the velocity field (its
+# initialisation ends with U2zeta_k, sp_3d_ns.cxx:863, which transforms u in place, and the
+# MAC solver then reads u as a real-space field: max|u| 6 for spheres at 0.006); kapsel-py
+# starts from the real field.  The CH8 spheres settle (gravity) among the wetting fields.
+CH8 = [row((8.0 + 16 * i, 8.0 + 16 * j, 8.0 + 16 * k)) for i in range(2) for j in range(2)
+       for k in range(2)]
 ROD = [row((12.0 + 4.0 * b, 16.0, 16.0)) for b in range(3)]        # 3 touching beads (A 2)
 Q45 = (np.cos(np.pi / 8), 0.0, 0.0, np.sin(np.pi / 8))             # 45 degrees about z
 QY = (np.cos(np.pi / 8), 0.0, np.sin(np.pi / 8), 0.0)              # 45 degrees about y
@@ -218,23 +223,23 @@ SCENES = {
         common(FD), solvers(FD, ns="explicit_scheme"), spheres([row((16.0, 14.0, 16.0))]),
         gravity(), wall()), 200),
     "nsch_ee": ("NSCH_FDM NS explicit / CH explicit (dt 0.005), Landau, 8 spheres", merge(
-        common(NSCH, dt=0.005), solvers(NSCH, ns="explicit_scheme", ch="explicit_scheme"), spheres(CH8)), 200),
-    "nsch_ii": ("NSCH_FDM NS implicit / CH implicit, Landau, 8 spheres moving", merge(
-        common(NSCH), solvers(NSCH, ns="implicit_scheme", ch="implicit_scheme"), spheres(CH8)), 200),
+        common(NSCH, dt=0.005), solvers(NSCH, ns="explicit_scheme", ch="explicit_scheme"), spheres(CH8), gravity()), 200),
+    "nsch_ii": ("NSCH_FDM NS implicit / CH implicit, Landau, 8 spheres settling", merge(
+        common(NSCH), solvers(NSCH, ns="implicit_scheme", ch="implicit_scheme"), spheres(CH8), gravity()), 200),
     "nsch_fh": ("NSCH_FDM, Flory-Huggins (0.5, chi 0.5), implicit CH, 8 spheres", merge(
-        common(NSCH), solvers(NSCH, ns="explicit_scheme", ch="implicit_scheme"), spheres(CH8),
+        common(NSCH), solvers(NSCH, ns="explicit_scheme", ch="implicit_scheme"), spheres(CH8), gravity(),
         {f"constitutive_eq.{NSCH}.Potential.type": "Flory_Huggins"}), 200),
     "nsch_ex14": ("NSCH_FDM with ex14's surface terms (d 15, psi_0_p 0.1), 8 spheres", merge(
-        common(NSCH), spheres(CH8), {
+        common(NSCH), spheres(CH8), gravity(), {
             f"constitutive_eq.{NSCH}.Potential.Landau.{k}": v for k, v in (
                 ("composition_ratio", -0.7), ("d", 15.0), ("alpha", 2.0), ("psi_0_p", 0.1),
                 ("psi_0_wall.uniform.psi_0_wall", 1.0), ("w", 0.0))}), 200),
     "nsch_wall": ("NSCH_FDM explicit / implicit, flat wall (Y) wetted (w_wall -1), 2 spheres", merge(
         common(NSCH), solvers(NSCH, ns="explicit_scheme", ch="implicit_scheme"), wall(),
-        spheres([row((10.0, 14.0, 16.0), v=(0.005, 0, 0)), row((22.0, 18.0, 16.0))]),
+        spheres([row((10.0, 14.0, 16.0)), row((22.0, 18.0, 16.0))]), gravity(),
         {f"constitutive_eq.{NSCH}.Potential.Landau.w_wall": -1.0}), 200),
     "nsch_visc": ("NSCH_FDM implicit, viscosity_change ETA_A 1 / ETA_B 5", merge(
-        common(NSCH), solvers(NSCH, ns="implicit_scheme", ch="implicit_scheme"), spheres(CH8),
+        common(NSCH), solvers(NSCH, ns="implicit_scheme", ch="implicit_scheme"), spheres(CH8), gravity(),
         {f"constitutive_eq.{NSCH}.NS_solver.implicit_scheme.viscosity_change": "ON",
          f"constitutive_eq.{NSCH}.NS_solver.implicit_scheme.ON.ETA_A": 1.0,
          f"constitutive_eq.{NSCH}.NS_solver.implicit_scheme.ON.ETA_B": 5.0}), 200),
