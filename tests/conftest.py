@@ -4,6 +4,13 @@ import os
 for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
 
+# Subprocesses (``python -m kapsel.cli`` under mpiexec, strace, the CLI tests) import the code
+# of this checkout, not whichever copy the environment installed (a git worktree beside an
+# editable install of another one).
+_ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+os.environ["PYTHONPATH"] = os.pathsep.join(
+    [_ROOT] + [p for p in os.environ.get("PYTHONPATH", "").split(os.pathsep) if p])
+
 
 # The distributed tier's repeats: each of these is a second or third variant of a distributed
 # test whose first variant stays in the fast suite (the same code path under another type or
