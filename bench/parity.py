@@ -234,6 +234,13 @@ SCENES = {
             f"constitutive_eq.{NSCH}.Potential.Landau.{k}": v for k, v in (
                 ("composition_ratio", -0.7), ("d", 15.0), ("alpha", 2.0), ("psi_0_p", 0.1),
                 ("psi_0_wall.uniform.psi_0_wall", 1.0), ("w", 0.0))}), 200),
+    # nsch_ex14 without what the original gets wrong there (docs/physics-walls-shear.md): with
+    # no wall it still holds x >= L/2 as a wall (psi_0_wall, psi_0_p: wall.cxx:93-105), and its
+    # first implicit NS step extrapolates psi from an unset psi^(-1) (2 psi^0: fdm.cxx:89)
+    "nsch_surf": ("NSCH_FDM, ex14's d 15, alpha 2, composition -0.7 (psi_0 0), NS explicit", merge(
+        common(NSCH), solvers(NSCH, ns="explicit_scheme", ch="implicit_scheme"), spheres(CH8),
+        gravity(), {f"constitutive_eq.{NSCH}.Potential.Landau.{k}": v for k, v in (
+            ("composition_ratio", -0.7), ("d", 15.0), ("alpha", 2.0), ("w", 0.0))}), 200),
     "nsch_wall": ("NSCH_FDM explicit / implicit, flat wall (Y) wetted (w_wall -1), 2 spheres", merge(
         common(NSCH), solvers(NSCH, ns="explicit_scheme", ch="implicit_scheme"), wall(),
         spheres([row((10.0, 14.0, 16.0)), row((22.0, 18.0, 16.0))]), gravity(),

@@ -246,3 +246,29 @@ def test_psi_0_wall_map_patterns_the_wall(tmp_path):
     path = _copy(tmp_path, "ex14", "input.udf", [('     "uniform",\n', '     "user_specify",\n')])
     grid = config.load(path).phase.psi_0_wall
     assert grid.shape == (64, 64) and grid[0, 12] == -1.0 and grid[0, 13] == 1.0
+
+
+@pytest.mark.parametrize("scheme", ["explicit_scheme", "implicit_scheme"])
+def test_psi_0_wall_does_nothing_without_a_wall(scheme):
+    """No wall: psi_0_wall has no effect and a centred sphere keeps psi mirror-symmetric in x.
+    The original computes its wall profile even when switch.wall is NONE (wall.cxx:93-105,
+    Init_bottom_Wall, called from sp_3d_ns.cxx:845 whatever SW_WALL), from the zeroed wall
+    parameters (axis x, lo = hi = 0): the profile is 1 for x >= L/2 and 0.5 on the plane x = 0,
+    and Make_psi_all (fdm.cxx:26) adds psi_0_wall there.  Run by bench/parity.py's nsch_ex14
+    (psi_0_wall 1, no wall), its psi after one step has mean -0.236 on x < L/2 and -0.091 ... 0.33
+    on x >= L/2 along x, where kapsel-py keeps -0.7 (docs/physics-walls-shear.md)."""
+    shape = (16, 16, 16)
+    phi = particle_phi(shape, [(7.5, 7.5, 7.5)])
+    runs = []
+    for psi0w in (0.0, 1.0):
+        ch = CahnHilliard(shape, 1.0, params(scheme, z=0.0, w_wall=0.0, d=3.0, psi_0_p=0.1,
+                                             psi_0_wall=psi0w),
+                          0.01, xi=2.0, preconditioner="fft")
+        psi = -0.7 * (1.0 - phi) + 0.1 * phi      # the original's start, composition -0.7
+        for _ in range(10):
+            ch.step(psi, phi=phi)
+        runs.append(psi)
+    assert np.array_equal(runs[0], runs[1])
+    mirrored = runs[1][::-1, :, :]            # x -> 15 - x about the sphere's centre 7.5
+    assert np.allclose(runs[1], mirrored, atol=1e-10)
+    assert abs(runs[1].mean() - (-0.7 * (1 - phi.mean()) + 0.1 * phi.mean())) < 1e-10
