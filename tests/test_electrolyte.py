@@ -1,5 +1,5 @@
 """The Electrolyte type (PHYSICS-EXTRA §6): input, time step, conservation of ions and
-charge, the Debye-Hueckel double layer, restart, the Coulomb force on a particle."""
+charge, the Debye-Hueckel double layer, restart, the surface charge and normals."""
 import os
 import shutil
 import time
@@ -10,7 +10,7 @@ import pytest
 from kapsel import config
 from kapsel.cli import main
 from runs import continue_input, run_cli
-from kapsel.fluid.ions import Ions, bulk_densities, profile_slope
+from kapsel.fluid.ions import Ions, bulk_densities
 from kapsel.grid import Grid
 from kapsel.io.restart import state_path
 from kapsel.particles.profile import Stencil, g as profile, particle_profiles
@@ -95,13 +95,6 @@ def test_time_step_limit():
     assert electrolyte_dt(0.5, 1.0, 1.0, 1.0, 4.0, 1.0, shape) == pytest.approx(ns / 8)
     assert electrolyte_dt(1.0, 1.0, 1.0, 1.0, 1.0, 1.0, shape, frequency=1.0) == 0.01
     assert electrolyte_dt(1.0, 1.0, 1.0, 0.0, 1.0, 1.0, shape) == ns
-
-
-def test_profile_slope_is_the_derivative_of_the_profile():
-    r = np.linspace(0.5, 6.0, 400)
-    eps = 1e-6
-    num = (profile(r + eps, 3.0, 2.0) - profile(r - eps, 3.0, 2.0)) / (2 * eps)
-    assert np.allclose(profile_slope(r, 3.0, 2.0), num, atol=1e-7)
 
 
 def test_bulk_densities_give_the_debye_length():
@@ -320,24 +313,30 @@ def test_nernst_planck_relaxes_to_the_poisson_boltzmann_double_layer():
     assert np.allclose(ions.fluid_counts(), counts, rtol=1e-10)
 
 
-def test_the_particle_feels_the_whole_force_on_its_charge(tmp_path):
-    """The Coulomb force on a particle's own surface charge acts on the particle, not on the
-    fluid of its interface shell: one step from rest in a field (Z = -10, A = 3, salt-free,
-    16^3) gives the particle the momentum Z E dt (within 3 %: the counterions in the shell
-    add theirs).  Through the fluid (the original's route) only the phi-weighted part of
-    the shell force reached it in a step (0.27 of Z E dt), and at steady state a sphere
-    pushed so moved about 9 % slower than one pushed directly (A = 4, 32^3): most of the
-    electrophoretic mobility's deficit against Henry's."""
-    p = make_input(tmp_path, particles=[[8.2, 8.0, 7.9]], salt=False, field="DC",
-                   charge=-10.0, A=3.0)
+def test_surface_charge_and_normals_are_the_originals(tmp_path):
+    """The surface charge is the compact sine slope (pi / 2 xi) cos(pi (A - r) / xi) of
+    every particle's shell |r - A| < xi / 2 times Z_i, scaled by one factor for all
+    particles so that DX^3 sum |rho_surf| = sum |Z_i| (operate_electrolyte.cxx
+    Make_phi_qq_particle); the surface normal is the sum of the unit radial vectors over
+    the same shells (make_phi.cxx Make_surface_normal)."""
+    p = make_input(tmp_path, particles=[[4.3, 4.1, 3.8], [11.6, 12.0, 11.2]], charge=-10.0)
     m = model_of(p)
-    E = m.field_now()
-    M = m.spm.mass[0]
-    m.advance()
-    got = M * m.particles.v[0] / (-10.0 * E[0] * m.dt)
-    assert abs(got[0] - 1) < 0.03 and np.abs(got[1:]).max() < 1e-3, got
-    F, T = m.ions.particle_force(E)
-    assert np.allclose(F[0], -10.0 * E, rtol=0, atol=1e-3 * abs(10.0 * E[0]))
+    ions, spm = m.ions, m.spm
+    A, xi = m.cfg.particles.A, m.cfg.particles.A_XI
+    assert float(np.abs(ions.rho_surf).sum()) == pytest.approx(20.0, rel=1e-13)
+    dist = np.sqrt(np.einsum("nsc,nsc->ns", spm.r, spm.r))
+    shell = np.abs(dist - A) < xi / 2
+    flat = ions.rho_surf.reshape(-1)
+    assert np.all(flat[np.setdiff1d(np.arange(flat.size), spm.idx[shell])] == 0.0)
+    g = 0.5 * np.pi / xi * np.cos(np.pi * (A - dist[shell]) / xi)
+    factor = flat[spm.idx[shell]] / (-10.0 * g)        # the shells do not overlap here
+    # one factor, ~ 1 / (4 pi A^2): the slope integrates to ~ 1 across the shell
+    assert np.allclose(factor, factor[0], rtol=1e-12)
+    assert abs(factor[0] * 4 * np.pi * A ** 2 - 1) < 0.05, factor[0] * 4 * np.pi * A ** 2
+    n = ions.normal.reshape(3, -1)[:, spm.idx[shell]]
+    assert np.allclose(np.einsum("cs,cs->s", n, n), 1.0, rtol=1e-12)
+    rhat = spm.r[shell] / dist[shell][:, None]
+    assert np.allclose(n.T, rhat, rtol=0, atol=1e-12)
 
 
 def test_an_unstable_manual_time_step_is_named(tmp_path, capsys):
