@@ -224,10 +224,11 @@ def sample_el_input(d):
 
 def test_extended_output_holds_the_charge_fields(tmp_path):
     """Charge YES: surface_charge, solute_charge, e_potential in every frame; Pressure and
-    Tau forced off (FORMAT-OUTPUT.md §3.1).  surface_charge is the charge density itself:
-    DX^3 sum = sum Z (the original writes it times 4 pi a^2), and the frame is neutral."""
+    Tau forced off (FORMAT-OUTPUT.md §3.1).  surface_charge is the original's: the charge
+    density times 4 pi a^2 (DX^3 sum = 4 pi a^2 sum Z), and the frame is neutral."""
     import h5py
     p = sample_el_input(tmp_path)
+    area = 4 * np.pi * config.load(p).particles.A ** 2
     assert cli(tmp_path, p) == 0
     with h5py.File(tmp_path / "output" / "data.h5") as f:
         fr = f["trajectory_data/frame_2/field"]
@@ -235,8 +236,8 @@ def test_extended_output_holds_the_charge_fields(tmp_path):
                                      "solute_charge", "e_potential"])
         surf = fr["surface_charge"][...].astype(float)
         ionic = fr["solute_charge"][...].astype(float)
-        assert surf.sum() == pytest.approx(-20.0, rel=1e-5)
-        assert abs((surf + ionic).sum()) < 1e-4
+        assert surf.sum() == pytest.approx(-20.0 * area, rel=1e-5)
+        assert abs((surf / area + ionic).sum()) < 1e-4
         assert abs(fr["e_potential"][...].astype(float).mean()) < 1e-5
     conf = (tmp_path / "output" / "data.conf").read_text()
     assert " surface_charge" in conf and " e_potential" in conf and "tau_xx" not in conf
@@ -248,13 +249,14 @@ def test_legacy_avs_of_electrolyte_holds_the_charge_fields(tmp_path):
     u = UDFManager(p)
     u.put("BINARY", "output.ON.FileType")
     u.write(p)
+    area = 4 * np.pi * config.load(p).particles.A ** 2
     assert cli(tmp_path, p) == 0
     fld = (tmp_path / "output" / "data.fld").read_text()
     assert "veclen=7" in fld and "label = ux uy uz phi surface_charge rho e_potential" in fld
     raw = np.fromfile(tmp_path / "output" / "avs" / "data_4.dat", dtype=np.float32)
     assert raw.size == 7 * 16 ** 3
     surf = raw[4 * 16 ** 3:5 * 16 ** 3].astype(float)
-    assert surf.sum() == pytest.approx(-20.0, rel=1e-5)
+    assert surf.sum() == pytest.approx(-20.0 * area, rel=1e-5)
 
 
 def test_free_energy_table_on_stderr(tmp_path, capsys, monkeypatch):

@@ -224,7 +224,9 @@ class ElectrolyteModel(SpectralModel):
         def potential():
             ions.potential()
             return ions.potential_real().copy()
-        src["surface_charge"] = lambda: ions.rho_surf.copy()
+        area = 4.0 * np.pi * self.cfg.particles.A ** 2 if self.particles.n else 0.0
+        # the original writes rho_surf 4 pi a^2 (output.cxx Output_charge_field_data)
+        src["surface_charge"] = lambda: ions.rho_surf * area
         src["solute_charge"] = ions.ionic_charge
         src["e_potential"] = potential
         src["concentration"] = lambda: ions.c.copy()
