@@ -76,6 +76,7 @@ class Ions:
         self.grad_psi = g.empty_real()
         self._t = g.empty_real(None)
         self._mask = g.dealias_f
+        self._idx = self._q = self._r = None      # particles' stencil, charges, offsets
         self._ik = (1j * g.kx, 1j * g.ky, 1j * g.kz)
 
     # ------------------------------------------------------------------ particles
@@ -96,7 +97,10 @@ class Ions:
         self.rho_surf[...] = np.bincount(idx.ravel(), weights=(Z[:, None] * slope).ravel(),
                                          minlength=size).reshape(g.shape)
         total = float(np.abs(self.rho_surf).sum()) * self.dv
-        self.rho_surf *= float(np.abs(Z).sum()) / total
+        scale = float(np.abs(Z).sum()) / total
+        self.rho_surf *= scale
+        self._idx, self._r = idx, r
+        self._q = (scale * Z)[:, None] * slope            # each particle's own charge
         with np.errstate(invalid="ignore", divide="ignore"):
             rhat = np.where(shell[..., None], r / dist[..., None], 0.0)
         for c in range(3):
@@ -108,6 +112,7 @@ class Ions:
         np.divide(1.0, n2, out=self._inv_n2, where=self._has_normal)
 
     def no_particles(self):
+        self._idx = self._q = self._r = None
         self.phi[...] = 0.0
         self.rho_surf[...] = 0.0
         self.normal[...] = 0.0
@@ -171,7 +176,8 @@ class Ions:
             c = self.c[s]
             g.rfft_scalar(c, out=self._ch)
             self._ch *= self._mask
-            for d in range(3):
+            g.irfft_scalar(self._ch, out=c)          # c_s truncated in place, as the
+            for d in range(3):                       # original's (Rhs_NS_solute)
                 np.multiply(self._ch, self._ik[d], out=self._vh[d])
             g.irfft(self._vh, out=J)                       # grad c
             a, b = self.L[s] * self.kBT, self.L[s] * self.z[s]
@@ -211,14 +217,31 @@ class Ions:
                 self.c[s] *= self.counts[s] / now[s]
 
     def coulomb_force(self, E=(0.0, 0.0, 0.0), out=None):
-        """Coulomb force density rho_e (E - grad Psi), (3, NX, NY, NZ), with rho_e and
-        grad Psi of the last ``potential`` (the particles' surface charge included: the
-        original puts the whole force on the fluid, sp_3d_ns.cxx Time_evolution_hydro)."""
+        """Coulomb force density of the ions' charge, sum_s z_s c_s (1 - phi) (E - grad Psi),
+        (3, NX, NY, NZ), with grad Psi of the last ``potential``; the particles' own charge
+        gets its force from ``particle_force``."""
         out = self._v if out is None else out
+        rho = self._rho - self.rho_surf
         for d in range(3):
             np.subtract(E[d], self.grad_psi[d], out=out[d])
-            out[d] *= self._rho
+            out[d] *= rho
         return out
+
+    def particle_force(self, E=(0.0, 0.0, 0.0)):
+        """Force and torque (N, 3) on each particle's own surface charge,
+        F_i = DX^3 sum_x rho_surf,i (E - grad Psi), T_i = DX^3 sum_x r x rho_surf,i (E -
+        grad Psi), with grad Psi of the last ``potential`` (r from the particle centre)."""
+        if self._idx is None:
+            return np.zeros((0, 3)), np.zeros((0, 3))
+        idx, q, r = self._idx, self._q, self._r
+        f = np.empty((3,) + idx.shape)
+        for d in range(3):
+            f[d] = q * (E[d] - self.grad_psi[d].reshape(-1)[idx])
+        F = f.sum(axis=2).T * self.dv
+        T = np.stack([(r[..., 1] * f[2] - r[..., 2] * f[1]).sum(axis=1),
+                      (r[..., 2] * f[0] - r[..., 0] * f[2]).sum(axis=1),
+                      (r[..., 0] * f[1] - r[..., 1] * f[0]).sum(axis=1)], axis=1) * self.dv
+        return F, T
 
     # ------------------------------------------------------------------ initial profiles
     def init_uniform(self, counts):
@@ -228,6 +251,40 @@ class Ions:
         vfree = float(np.sum(1.0 - self.phi)) * self.dv
         for s in range(self.S):
             self.c[s] = self.counts[s] / vfree
+
+    def init_poisson_boltzmann_bulk(self, bulk, Z_total, tol=1e-4, mix=0.01, max_iter=99999):
+        """The original's Poisson-Boltzmann start of one particle in a symmetric salt
+        (operate_electrolyte.cxx Set_Poisson_Boltzmann_ion_charge_density_salt): bulk
+        densities n_s (``bulk``) held, c_+ = n_+ e^{-z_+ Psi / kBT} nu, c_- = n_- e^{-z_- Psi
+        / kBT} / nu with nu the root of z_+ n_+ P nu^2 + Z nu + z_- n_- M = 0 (P, M =
+        DX^3 sum (1 - phi) e^{-z Psi / kBT}: the ions neutralise the particle charge Z);
+        Psi <- Psi + mix (Psi[rho_e(c)] - Psi) from Psi = 0 until sum |dPsi| / sum |Psi|
+        < tol, c of the last Psi before the update.  The ion numbers held from then on
+        are those of this state.  Returns the number of iterations."""
+        g = self.grid
+        n = np.asarray(bulk, dtype=float)
+        free = 1.0 - self.phi
+        psi = np.zeros(g.shape)
+        psi_h = g.empty_complex(None)
+        for it in range(1, max_iter + 1):
+            b = [np.exp(-self.z[s] / self.kBT * psi) for s in range(2)]
+            P, M = (float(np.sum(free * b[s])) * self.dv for s in range(2))
+            qa, qb, qc = self.z[0] * n[0] * P, float(Z_total), self.z[1] * n[1] * M
+            nu = (-qb + np.sqrt(qb * qb - 4.0 * qa * qc)) / (2.0 * qa)
+            self.c[0] = n[0] * b[0] * nu
+            self.c[1] = n[1] * b[1] / nu
+            g.rfft_scalar(self.charge_density(), out=psi_h)
+            psi_h *= g.inv_k2
+            psi_h /= self.eps
+            dpsi = g.irfft_scalar(psi_h)
+            dpsi -= psi
+            dpsi *= mix
+            psi += dpsi
+            if float(np.abs(dpsi).sum()) / float(np.abs(psi).sum()) < tol:
+                self.counts = self.fluid_counts()
+                return it
+        raise FloatingPointError(f"the Poisson-Boltzmann iteration of the initial ion "
+                                 f"profile did not converge in {max_iter} iterations")
 
     def init_poisson_boltzmann(self, counts, tol=1e-10, max_iter=2000):
         """The Poisson-Boltzmann equilibrium at fixed ion numbers N_s (canonical):

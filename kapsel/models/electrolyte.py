@@ -91,7 +91,8 @@ class ElectrolyteModel(SpectralModel):
         spm_class = type("IonSPM", (_IonSPM, SPM), {"model": self})
         self.spm = spm_class(self.fluid, self.particles, self.spm_radius(), cfg.particles.A_XI,
                              f.RHO, cfg.mesh.DX, self.dt, rotation=cfg.switches.ROTATION,
-                             forces=overlap_guard(make_forces(cfg, self.particles)), noise=None,
+                             forces=self._with_charge_force(
+                                 overlap_guard(make_forces(cfg, self.particles))), noise=None,
                              dry=self.dry)    # --check: no profiles
         p = self.particles
         self.charges = np.array([cfg.particles.species[s].surface_charge for s in p.species],
@@ -112,12 +113,38 @@ class ElectrolyteModel(SpectralModel):
             return
         if el.init_profile == "Poisson_Boltzmann":
             try:
-                self.pb_iterations = self.ions.init_poisson_boltzmann(counts)
+                if el.salt and p.n == 1:        # the original's one-particle salt start
+                    if el.valency[0] != -el.valency[1]:
+                        raise ConfigError(
+                            "the Poisson-Boltzmann start of one particle in salt needs "
+                            "Valency_positive_ion = -Valency_negative_ion (as the original)",
+                            path="constitutive_eq.Electrolyte.Add_salt.salt",
+                            value=list(el.valency))
+                    from ..fluid.ions import bulk_densities
+                    self.pb_iterations = self.ions.init_poisson_boltzmann_bulk(
+                        bulk_densities(el.valency, el.debye_length, el.dielectric, f.kBT),
+                        float(self.charges.sum()))
+                else:
+                    self.pb_iterations = self.ions.init_poisson_boltzmann(counts)
             except FloatingPointError as e:
                 raise ConfigError(str(e), path="constitutive_eq.Electrolyte.INIT_profile",
                                   value=el.init_profile) from None
         else:
             self.ions.init_uniform(counts)
+
+    _charge_force = None                         # (F, T) on the particles' own charge
+
+    def _with_charge_force(self, forces):
+        """The particles' other forces plus the Coulomb force on their own charge of this
+        step (``Ions.particle_force``, set by ``coulomb_on_fluid``)."""
+        def total(p):
+            F, T = (np.zeros((p.n, 3)), np.zeros((p.n, 3))) if forces is None else forces(p)
+            if self._charge_force is not None:
+                F = F + self._charge_force[0]
+                T = T + self._charge_force[1]
+            return F, T
+        total.virial = getattr(forces, "virial", None)
+        return total
 
     def _geometry(self):
         p, cfg = self.particles, self.cfg
@@ -164,7 +191,9 @@ class ElectrolyteModel(SpectralModel):
         ions = self.ions
         ions.rescale()
         ions.potential()
-        force = ions.coulomb_force(self.field_now())
+        E = self.field_now()
+        force = ions.coulomb_force(E)
+        self._charge_force = ions.particle_force(E) if self.particles.n else None
         force *= self.dt / self.cfg.fluid.RHO
         self.fluid.add_solenoidal(force)
 
