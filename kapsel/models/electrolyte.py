@@ -10,17 +10,21 @@ fluid_solver.cxx NSsolute_solver_Euler):
    step of Navier_Stokes), both from the state of step n;
 2. the particles move (kapsel.particles.spm), their profiles at R^{n+1}; c_s rescaled so
    that each species' number in the fluid keeps its initial value (``Ions.rescale``);
-3. the Coulomb force density of all charges, rho_e (E(t) - grad Psi) with rho_e =
-   rho_surf + sum_s z_s c_s (1 - phi) at R^{n+1} and Psi not truncated, acts on the fluid:
-   u += P T[dt rho_e (E - grad Psi) / RHO]; the particles' own surface charge is pushed
-   through the fluid of their interface shells, as every other force of the SPM step;
+3. the Coulomb force density of the ions, rho_ion (E(t) - grad Psi) with rho_ion =
+   sum_s z_s c_s (1 - phi) and Psi (not truncated) of rho_e = rho_surf + rho_ion at
+   R^{n+1}, acts on the fluid: u += P T[dt rho_ion (E - grad Psi) / RHO]; the force on
+   each particle's own surface charge, F_i = DX^3 sum_x rho_surf,i (E - grad Psi) (and its
+   torque), acts on the particle (``Ions.particle_force``) in the velocity update;
 4. the SPM step from its hydrodynamic force on: the particles' velocities, the rigidity
    increment.
 
-Differences from the original, on purpose (docs/physics-electrolyte.md): the
-Poisson-Boltzmann initial profile is the canonical equilibrium at fixed ion numbers for
-every case (kapsel.fluid.ions); ``kBT`` 0 is refused.  No thermal noise (the original
-skips the thermostat for Electrolyte).
+Differences from the original, on purpose (docs/physics-electrolyte.md): the Coulomb force
+on a particle's own charge acts on the particle (the original adds it to the fluid of the
+interface shell, and its electrophoretic velocity falls 12-25 % short of Henry's); the
+Poisson-Boltzmann start of salt-free or several particles is the canonical equilibrium at
+fixed ion numbers (kapsel.fluid.ions; not yet the original's relaxation); ``saltfree`` +
+``Uniform`` starts neutral; ``kBT`` 0 is refused.  No thermal noise (the original skips the
+thermostat for Electrolyte).
 """
 from __future__ import annotations
 
