@@ -289,6 +289,18 @@ SCENES = {
          f"constitutive_eq.{EL}.Electric_field.ON.DC.Ex": 0.01,
          f"constitutive_eq.{EL}.Electric_field.ON.DC.Ey": 0.0,
          f"constitutive_eq.{EL}.Electric_field.ON.DC.Ez": 0.0}), 200),
+    "el_sphere": ("Electrolyte salt, DC field x+y, 1 charged sphere off the grid (dt 0.005)", merge(
+        common(EL, dt=0.005), spheres([row((15.6, 16.3, 16.1))], mass=1.0),
+        {"object_type.spherical_particle.Particle_spec[0].Surface_charge": -10.0,
+         f"constitutive_eq.{EL}.kBT": 1.0,
+         f"constitutive_eq.{EL}.INIT_profile": "Uniform",
+         f"constitutive_eq.{EL}.Add_salt.type": "salt",
+         f"constitutive_eq.{EL}.Add_salt.salt.Debye_length": 3.0,
+         f"constitutive_eq.{EL}.Electric_field.type": "ON",
+         f"constitutive_eq.{EL}.Electric_field.ON.type": "DC",
+         f"constitutive_eq.{EL}.Electric_field.ON.DC.Ex": 0.02,
+         f"constitutive_eq.{EL}.Electric_field.ON.DC.Ey": 0.01,
+         f"constitutive_eq.{EL}.Electric_field.ON.DC.Ez": 0.0}), 200),
 }
 
 

@@ -4,21 +4,25 @@ the particles' surface charge, Poisson's equation and the Nernst-Planck step.
 Units: elementary charge e = 1, lengths and times as the fluid's.  Per species s: valence
 z_s, Onsager coefficient L_s (diffusion coefficient D_s = kBT L_s).  phi = sum_i phi_i.
 
-    rho_surf = sum_i Z_i |phi_i'(r)| / (DX^3 sum_x |phi_i'|)    (each particle carries Z_i)
+    rho_surf = s sum_i Z_i g(|r - R_i|),  g(r) = (pi / 2 xi) cos(pi (A - r) / xi) for
+               |r - A| < xi / 2 (the compact sine slope), one factor s for all particles:
+               DX^3 sum_x |rho_surf| = sum_i |Z_i|   (operate_electrolyte.cxx
+               Make_phi_qq_particle)
     rho_e    = rho_surf + sum_s z_s c_s (1 - phi)                 (charge density)
     eps lap Psi = -rho_e:  Psi_k = rho_e,k / (eps k^2), Psi_0 = 0  (spectral, periodic)
     dc_s/dt  = div J_s,  J_s = P[L_s (kBT grad c_s + z_s c_s grad Psi_tot)] - c_s u,
     grad Psi_tot = grad Psi - E(t)
 
 P removes the normal component of the diffusive-migrative flux where the surface normal
-n = grad phi (sum of the particles' analytic profile gradients, non-zero only in their
-interface shells) is non-zero: J <- J - n (J.n)/|n|^2 (impermeable particle surfaces).
-The divergence is spectral, its k = 0 mode set to its exact value 0, so sum_x c_s is
-conserved to round-off by the step; the 2/3 rule truncates c_s, Psi and div J (the state
-stays band-limited).  The ions in the fluid, N_s = DX^3 sum_x (1 - phi) c_s, change when
-particles move (the profile covers or uncovers fluid); ``rescale`` multiplies c_s by
-N_s(0) / N_s after each move so that every N_s stays at its initial value to round-off
-(the original's ``Rescale_solute``).
+n = sum_i (r - R_i) / |r - R_i| over the particles' shells |r - R_i| - A| < xi / 2
+(make_phi.cxx Make_surface_normal) is non-zero: J <- J - n (J.n)/|n|^2 (impermeable
+particle surfaces; solute_rhs.cxx Solute_impermeability).
+The divergence is spectral, its k = 0 mode exactly 0, so sum_x c_s is conserved to
+round-off by the step; the 2/3 rule truncates c_s, Psi (of the flux, not of the Coulomb
+force) and div J (the state stays band-limited).  The ions in the fluid, N_s = DX^3 sum_x
+(1 - phi) c_s, change when particles move (the profile covers or uncovers fluid);
+``rescale`` multiplies c_s by N_s(0) / N_s after each move so that every N_s stays at its
+initial value to round-off (the original's ``Rescale_solute``).
 
 The step is explicit Euler (the original's); stable under the time step limit of §6.5,
 dt <= 1 / (kBT L_max K2max) (kapsel.timestep.electrolyte_dt).
@@ -29,23 +33,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..particles.profile import h as _h
-
-__all__ = ["Ions", "profile_slope", "bulk_densities"]
-
-
-def profile_slope(r, A, xi, dx=1.0):
-    """d g / d r of the particle profile g (manual eq 2): <= 0, non-zero only for
-    A - xi/2 < r < A + xi/2.  With h'(x) = 2 DX^2 / x^3 h(x):
-    g' = -(h'(A + xi/2 - r) h(r - A + xi/2) + h(A + xi/2 - r) h'(r - A + xi/2)) / (ho + hi)^2."""
-    r = np.asarray(r, dtype=float)
-    xo = np.maximum(A + 0.5 * xi - r, 1e-3 * dx)      # h = 0 exactly below 1e-3 DX
-    xi_ = np.maximum(r - (A - 0.5 * xi), 1e-3 * dx)
-    ho, hi = _h(xo, dx), _h(xi_, dx)
-    dho = 2 * dx * dx / xo ** 3 * ho
-    dhi = 2 * dx * dx / xi_ ** 3 * hi
-    den = ho + hi
-    return -(dho * hi + ho * dhi) / (den * den)
+__all__ = ["Ions", "bulk_densities"]
 
 
 def bulk_densities(valency, debye_length, eps, kBT):
@@ -88,31 +76,38 @@ class Ions:
         self.grad_psi = g.empty_real()
         self._t = g.empty_real(None)
         self._mask = g.dealias_f
-        self._ik = (1j * g.kx, 1j * g.ky, 1j * g.kz)
         self._idx = self._q = self._r = None      # particles' stencil, charges, offsets
+        self._ik = (1j * g.kx, 1j * g.ky, 1j * g.kz)
 
     # ------------------------------------------------------------------ particles
     def set_particles(self, idx, phi_i, r, Z, A, xi):
-        """phi, rho_surf (each particle normalised to carry exactly Z_i) and the surface
-        normal n = grad phi from the particles' stencil arrays."""
+        """phi, rho_surf and the surface normal from the particles' stencil arrays (idx, phi_i,
+        r: kapsel.particles.spm), as the original's Make_phi_qq_particle and
+        Make_surface_normal (operate_electrolyte.cxx, make_phi.cxx):
+        rho_surf = s sum_i Z_i g(|r|), g the compact sine slope (pi / 2 xi) cos(pi (A - |r|)
+        / xi) for | |r| - A | < xi / 2, with one factor s for all particles making
+        DX^3 sum_x |rho_surf| = sum_i |Z_i|; n = sum_i r / |r| over the same shells."""
         g, size = self.grid, self.grid.size
         self.phi[...] = np.bincount(idx.ravel(), weights=phi_i.ravel(),
                                     minlength=size).reshape(g.shape)
         dist = np.sqrt(np.einsum("nsc,nsc->ns", r, r))
-        slope = profile_slope(dist, A, xi, g.dx)              # (N, S) <= 0
-        w = -slope
-        tot = w.sum(axis=1) * self.dv
-        q = np.asarray(Z, dtype=float)[:, None] * w / tot[:, None]
-        self._idx, self._q, self._r = idx, q, r
-        self.rho_surf[...] = np.bincount(idx.ravel(), weights=q.ravel(),
+        shell = np.abs(A - dist) < 0.5 * xi
+        slope = np.where(shell, 0.5 * np.pi / xi * np.cos(np.pi * (A - dist) / xi), 0.0)
+        Z = np.asarray(Z, dtype=float)
+        self.rho_surf[...] = np.bincount(idx.ravel(), weights=(Z[:, None] * slope).ravel(),
                                          minlength=size).reshape(g.shape)
+        total = float(np.abs(self.rho_surf).sum()) * self.dv
+        scale = float(np.abs(Z).sum()) / total
+        self.rho_surf *= scale
+        self._idx, self._r = idx, r
+        self._q = (scale * Z)[:, None] * slope            # each particle's own charge
         with np.errstate(invalid="ignore", divide="ignore"):
-            rhat = np.where(dist[..., None] > 0, r / dist[..., None], 0.0)
+            rhat = np.where(shell[..., None], r / dist[..., None], 0.0)
         for c in range(3):
-            self.normal[c] = np.bincount(idx.ravel(), weights=(slope * rhat[..., c]).ravel(),
+            self.normal[c] = np.bincount(idx.ravel(), weights=rhat[..., c].ravel(),
                                          minlength=size).reshape(g.shape)
         n2 = np.einsum("c...,c...->...", self.normal, self.normal)
-        self._has_normal = n2 > 1e-300
+        self._has_normal = n2 > 0.0
         self._inv_n2[...] = 0.0
         np.divide(1.0, n2, out=self._inv_n2, where=self._has_normal)
 
@@ -150,13 +145,17 @@ class Ions:
     def total_charge(self):
         return float(np.sum(self.charge_density())) * self.dv
 
-    def potential(self, c=None):
-        """Psi_hat (2/3-truncated) of the charge density, and grad Psi in real space
-        (``self.grad_psi``, without the external field).  Returns Psi_hat."""
+    def potential(self, c=None, truncate=False):
+        """Psi_hat of the charge density (2/3-truncated with ``truncate``: the original's
+        for the ions' flux, fluid_solver.cxx Rhs_NS_Nernst_Planck; not for the Coulomb
+        force, operate_electrolyte.cxx Make_Coulomb_force_x_on_fluid), and grad Psi in real
+        space (``self.grad_psi``, without the external field).  Returns Psi_hat."""
         g = self.grid
         g.rfft_scalar(self.charge_density(c), out=self.psi_hat)
         self.psi_hat *= g.inv_k2
         self.psi_hat /= self.eps
+        if truncate:
+            self.psi_hat *= self._mask
         for d in range(3):
             np.multiply(self.psi_hat, self._ik[d], out=self._vh[d])
         g.irfft(self._vh, out=self.grad_psi)
@@ -177,7 +176,8 @@ class Ions:
             c = self.c[s]
             g.rfft_scalar(c, out=self._ch)
             self._ch *= self._mask
-            for d in range(3):
+            g.irfft_scalar(self._ch, out=c)          # c_s truncated in place, as the
+            for d in range(3):                       # original's (Rhs_NS_solute)
                 np.multiply(self._ch, self._ik[d], out=self._vh[d])
             g.irfft(self._vh, out=J)                       # grad c
             a, b = self.L[s] * self.kBT, self.L[s] * self.z[s]
@@ -216,15 +216,12 @@ class Ions:
             if now[s] > 0:
                 self.c[s] *= self.counts[s] / now[s]
 
-    def coulomb_force(self, E=(0.0, 0.0, 0.0), out=None, surface=True):
-        """Coulomb force density rho (E - grad Psi), (3, NX, NY, NZ), with grad Psi of the
-        last ``potential``: rho = rho_e of that call (``surface``) or only the ions' charge
-        sum_s z_s c_s (1 - phi) (``surface=False``: the particles' own charge is then given
-        its force by ``particle_force``)."""
+    def coulomb_force(self, E=(0.0, 0.0, 0.0), out=None):
+        """Coulomb force density of the ions' charge, sum_s z_s c_s (1 - phi) (E - grad Psi),
+        (3, NX, NY, NZ), with grad Psi of the last ``potential``; the particles' own charge
+        gets its force from ``particle_force``."""
         out = self._v if out is None else out
-        rho = self._rho
-        if not surface:
-            rho = rho - self.rho_surf
+        rho = self._rho - self.rho_surf
         for d in range(3):
             np.subtract(E[d], self.grad_psi[d], out=out[d])
             out[d] *= rho
@@ -236,12 +233,11 @@ class Ions:
         grad Psi), with grad Psi of the last ``potential`` (r from the particle centre)."""
         if self._idx is None:
             return np.zeros((0, 3)), np.zeros((0, 3))
-        idx, q = self._idx, self._q
+        idx, q, r = self._idx, self._q, self._r
         f = np.empty((3,) + idx.shape)
         for d in range(3):
             f[d] = q * (E[d] - self.grad_psi[d].reshape(-1)[idx])
         F = f.sum(axis=2).T * self.dv
-        r = self._r
         T = np.stack([(r[..., 1] * f[2] - r[..., 2] * f[1]).sum(axis=1),
                       (r[..., 2] * f[0] - r[..., 0] * f[2]).sum(axis=1),
                       (r[..., 0] * f[1] - r[..., 1] * f[0]).sum(axis=1)], axis=1) * self.dv
@@ -255,6 +251,40 @@ class Ions:
         vfree = float(np.sum(1.0 - self.phi)) * self.dv
         for s in range(self.S):
             self.c[s] = self.counts[s] / vfree
+
+    def init_poisson_boltzmann_bulk(self, bulk, Z_total, tol=1e-4, mix=0.01, max_iter=99999):
+        """The original's Poisson-Boltzmann start of one particle in a symmetric salt
+        (operate_electrolyte.cxx Set_Poisson_Boltzmann_ion_charge_density_salt): bulk
+        densities n_s (``bulk``) held, c_+ = n_+ e^{-z_+ Psi / kBT} nu, c_- = n_- e^{-z_- Psi
+        / kBT} / nu with nu the root of z_+ n_+ P nu^2 + Z nu + z_- n_- M = 0 (P, M =
+        DX^3 sum (1 - phi) e^{-z Psi / kBT}: the ions neutralise the particle charge Z);
+        Psi <- Psi + mix (Psi[rho_e(c)] - Psi) from Psi = 0 until sum |dPsi| / sum |Psi|
+        < tol, c of the last Psi before the update.  The ion numbers held from then on
+        are those of this state.  Returns the number of iterations."""
+        g = self.grid
+        n = np.asarray(bulk, dtype=float)
+        free = 1.0 - self.phi
+        psi = np.zeros(g.shape)
+        psi_h = g.empty_complex(None)
+        for it in range(1, max_iter + 1):
+            b = [np.exp(-self.z[s] / self.kBT * psi) for s in range(2)]
+            P, M = (float(np.sum(free * b[s])) * self.dv for s in range(2))
+            qa, qb, qc = self.z[0] * n[0] * P, float(Z_total), self.z[1] * n[1] * M
+            nu = (-qb + np.sqrt(qb * qb - 4.0 * qa * qc)) / (2.0 * qa)
+            self.c[0] = n[0] * b[0] * nu
+            self.c[1] = n[1] * b[1] / nu
+            g.rfft_scalar(self.charge_density(), out=psi_h)
+            psi_h *= g.inv_k2
+            psi_h /= self.eps
+            dpsi = g.irfft_scalar(psi_h)
+            dpsi -= psi
+            dpsi *= mix
+            psi += dpsi
+            if float(np.abs(dpsi).sum()) / float(np.abs(psi).sum()) < tol:
+                self.counts = self.fluid_counts()
+                return it
+        raise FloatingPointError(f"the Poisson-Boltzmann iteration of the initial ion "
+                                 f"profile did not converge in {max_iter} iterations")
 
     def init_poisson_boltzmann(self, counts, tol=1e-10, max_iter=2000):
         """The Poisson-Boltzmann equilibrium at fixed ion numbers N_s (canonical):

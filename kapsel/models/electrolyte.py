@@ -1,37 +1,30 @@
 """The ``Electrolyte`` type (PHYSICS-EXTRA §6): charged particles in an electrolyte, on the
 pseudo-spectral fluid of ``Navier_Stokes`` with the ions of kapsel.fluid.ions.
 
-One step (§6.3, with the differences below):
+One step, as the original's (sp_3d_ns.cxx Time_evolution_hydro with
+fluid_solver.cxx NSsolute_solver_Euler):
 
-1. Psi and grad Psi of the charge density rho_e at the current state;
-2. Nernst-Planck: c_s += dt div J_s with the current u and particle positions;
-3. fluid and particles by the SPM step (kapsel.particles.spm) with the Coulomb force
-   density of the ions, rho_ion (E(t) - grad Psi) / RHO, rho_ion = sum_s z_s c_s (1 - phi),
-   as the fluid's body force of this step, and the Coulomb force on each particle's own
-   surface charge, F_i = DX^3 sum_x rho_surf,i (E(t) - grad Psi) (and its torque), as a
-   force on the particle (``Ions.particle_force``);
-4. new profiles; c_s rescaled so that each species' number in the fluid stays at its
-   initial value (``Ions.rescale``).
+1. at R^n: Psi of rho_e (2/3-truncated), grad Psi_tot = grad Psi - E(t); the ions'
+   Nernst-Planck step c_s += dt div J_s with the fluid velocity u^n, and the fluid's
+   plain explicit Euler step u += dt P T[u x omega - nu k^2 u] (not the integrating-factor
+   step of Navier_Stokes), both from the state of step n;
+2. the particles move (kapsel.particles.spm), their profiles at R^{n+1}; c_s rescaled so
+   that each species' number in the fluid keeps its initial value (``Ions.rescale``);
+3. the Coulomb force density of the ions, rho_ion (E(t) - grad Psi) with rho_ion =
+   sum_s z_s c_s (1 - phi) and Psi (not truncated) of rho_e = rho_surf + rho_ion at
+   R^{n+1}, acts on the fluid: u += P T[dt rho_ion (E - grad Psi) / RHO]; the force on
+   each particle's own surface charge, F_i = DX^3 sum_x rho_surf,i (E - grad Psi) (and its
+   torque), acts on the particle (``Ions.particle_force``) in the velocity update;
+4. the SPM step from its hydrodynamic force on: the particles' velocities, the rigidity
+   increment.
 
-Differences from the original, on purpose (docs/physics-electrolyte.md):
-* the fluid step is the integrating-factor (slaved) step of Navier_Stokes, exact for the
-  viscous decay, not the original's plain explicit Euler for zeta, and the Coulomb force
-  enters that step rather than a separate Euler fractional step;
-* the Coulomb force on a particle's own charge acts on the particle; the original adds
-  it to the fluid of the interface shell, where only the phi-weighted part reaches the
-  particle through the SPM exchange: a sphere so pushed (A = 4, 32^3, dt = 0.0715) moved
-  about 9 % slower than under the same force on the particle, and so did its
-  electrophoresis (kappa a = 0.5: 0.805 against 0.892 of Henry's uncorrected velocity);
-* each particle's surface charge is normalised to carry exactly its Z_i (the original
-  scales all particles by one common factor, so identical particles at different sub-grid
-  positions carry slightly different charges);
-* the Poisson-Boltzmann initial profile is the canonical equilibrium at fixed ion numbers
-  for every case (salt-free or salt, one or several particles), solved by a screened
-  Newton-like iteration (kapsel.fluid.ions); with a field on, the run starts from it;
-* the surface-charge output field is the charge density rho_surf itself (DX^3 sum =
-  sum_i Z_i), not rho_surf 4 pi a^2.
-
-No thermal noise (the original skips the thermostat for Electrolyte).
+Differences from the original, on purpose (docs/physics-electrolyte.md): the Coulomb force
+on a particle's own charge acts on the particle (the original adds it to the fluid of the
+interface shell, and its electrophoretic velocity falls 12-25 % short of Henry's); the
+Poisson-Boltzmann start of salt-free or several particles is the canonical equilibrium at
+fixed ion numbers (kapsel.fluid.ions; not yet the original's relaxation); ``saltfree`` +
+``Uniform`` starts neutral; ``kBT`` 0 is refused.  No thermal noise (the original skips the
+thermostat for Electrolyte).
 """
 from __future__ import annotations
 
@@ -67,6 +60,25 @@ def ion_numbers(el, charges, free_volume: float, kBT: float) -> np.ndarray:
                      nn * free_volume + Z[Z > 0].sum() / (-zn)])
 
 
+class _IonSPM:
+    """The SPM step of the Electrolyte type (module docstring): the fluid's step is
+    ``model.fluid_and_ions`` and the Coulomb force reaches the fluid just before the
+    hydrodynamic force is taken.  Mixed into kapsel.particles.spm.SPM."""
+    model = None
+
+    def _fluid_step(self):
+        self.model.fluid_and_ions()
+        if not self.p.n:                        # no hydrodynamic force to wait for
+            self.model.coulomb_on_fluid()
+        elif self.mode == "spectral":
+            self.fluid.velocity(out=self.u)
+
+    def _hydro_sums(self):
+        self.model.coulomb_on_fluid()
+        self.fluid.velocity(out=self.u)
+        return super()._hydro_sums()
+
+
 class ElectrolyteModel(SpectralModel):
     def __init__(self, cfg, args):
         from ..fluid.ions import Ions
@@ -80,17 +92,16 @@ class ElectrolyteModel(SpectralModel):
         self.grid = Grid(cfg.mesh.shape, cfg.mesh.DX, threads=self.threads)
         self.fluid = SpectralNS(self.grid, f.RHO, f.ETA, self.dt, fix_cell=cfg.switches.fix_cell)
         self.particles = make_particles(cfg, self.rng)
-        self._charge_force = None                  # (F, T) on the particles' own charge
-        self.spm = SPM(self.fluid, self.particles, self.spm_radius(), cfg.particles.A_XI, f.RHO,
-                       cfg.mesh.DX, self.dt, rotation=cfg.switches.ROTATION,
-                       forces=self._with_charge_force(
-                           overlap_guard(make_forces(cfg, self.particles))), noise=None,
-                       dry=self.dry)    # --check: no profiles
+        spm_class = type("IonSPM", (_IonSPM, SPM), {"model": self})
+        self.spm = spm_class(self.fluid, self.particles, self.spm_radius(), cfg.particles.A_XI,
+                             f.RHO, cfg.mesh.DX, self.dt, rotation=cfg.switches.ROTATION,
+                             forces=self._with_charge_force(
+                                 overlap_guard(make_forces(cfg, self.particles))), noise=None,
+                             dry=self.dry)    # --check: no profiles
         p = self.particles
         self.charges = np.array([cfg.particles.species[s].surface_charge for s in p.species],
                                 dtype=float)
         self.ions = Ions(self.grid, el.valency, el.onsager, el.dielectric, f.kBT, self.dt)
-        self._force_hat = self.grid.empty_complex()
         self._dt_limit = self._ion_limit()
         self._u = self.grid.empty_real()
         if self.dry:      # --check: no profiles, no ion densities; the signs of the ion
@@ -106,16 +117,30 @@ class ElectrolyteModel(SpectralModel):
             return
         if el.init_profile == "Poisson_Boltzmann":
             try:
-                self.pb_iterations = self.ions.init_poisson_boltzmann(counts)
+                if el.salt and p.n == 1:        # the original's one-particle salt start
+                    if el.valency[0] != -el.valency[1]:
+                        raise ConfigError(
+                            "the Poisson-Boltzmann start of one particle in salt needs "
+                            "Valency_positive_ion = -Valency_negative_ion (as the original)",
+                            path="constitutive_eq.Electrolyte.Add_salt.salt",
+                            value=list(el.valency))
+                    from ..fluid.ions import bulk_densities
+                    self.pb_iterations = self.ions.init_poisson_boltzmann_bulk(
+                        bulk_densities(el.valency, el.debye_length, el.dielectric, f.kBT),
+                        float(self.charges.sum()))
+                else:
+                    self.pb_iterations = self.ions.init_poisson_boltzmann(counts)
             except FloatingPointError as e:
                 raise ConfigError(str(e), path="constitutive_eq.Electrolyte.INIT_profile",
                                   value=el.init_profile) from None
         else:
             self.ions.init_uniform(counts)
 
+    _charge_force = None                         # (F, T) on the particles' own charge
+
     def _with_charge_force(self, forces):
         """The particles' other forces plus the Coulomb force on their own charge of this
-        step (``Ions.particle_force``, set by ``advance``)."""
+        step (``Ions.particle_force``, set by ``coulomb_on_fluid``)."""
         def total(p):
             F, T = (np.zeros((p.n, 3)), np.zeros((p.n, 3))) if forces is None else forces(p)
             if self._charge_force is not None:
@@ -137,32 +162,44 @@ class ElectrolyteModel(SpectralModel):
         return external_field(self.el, self.time)
 
     def advance(self):
-        E = self.field_now()
-        ions = self.ions
-        ions.potential()
-        self.fluid.velocity(out=self._u)
-        # rho_e of the state before the ion step: the ions' charge forces the fluid, the
-        # particles' own charge forces the particles
-        force = ions.coulomb_force(E, surface=False)
-        self._charge_force = ions.particle_force(E) if self.particles.n else None
-        force /= self.cfg.fluid.RHO
-        fh = self._force_hat
-        self.grid.forward(force, out=fh)
-        self.grid.project(fh)
-        ions.step(self._u, E)
+        self.spm.step()
+        self.tick()
+
+    def fluid_and_ions(self):
+        """Step 1 of the module docstring: the ions' and the fluid's explicit Euler steps
+        from the state at t^n (fluid_solver.cxx NSsolute_solver_Euler)."""
+        ions, fl, g = self.ions, self.fluid, self.grid
+        ions.potential(truncate=True)
+        fl.velocity(out=self._u)
+        nl = fl._nonlinear()                 # u x omega (projected below), k = 0 mode 0
+        g.project(nl)
+        uh = fl.u_hat
+        nl -= (fl.nu * g.k2) * uh
+        nl *= self.dt
+        uh += nl
+        uh *= g.dealias_f
+        fl.apply_fix_cell()
+        fl.step_index += 1
+        ions.step(self._u, self.field_now())
         if self.dt > 2 * self._dt_limit:         # past the ion step's limit: name it first
             what = self._ions_broke()
             if what is not None:
                 from ..simulation import InstabilityError
                 raise InstabilityError(what)
-        self.fluid.force_hat = fh
-        try:
-            self.spm.step()
-        finally:
-            self.fluid.force_hat = None
+
+    def coulomb_on_fluid(self):
+        """Steps 2-3 of the module docstring at the particles' new positions: the ions
+        rescaled, then u += P T[dt rho_e (E - grad Psi) / RHO] (sp_3d_ns.cxx
+        Time_evolution_hydro, operate_electrolyte.cxx Make_Coulomb_force_x_on_fluid)."""
         self._geometry()
+        ions = self.ions
         ions.rescale()
-        self.tick()
+        ions.potential()
+        E = self.field_now()
+        force = ions.coulomb_force(E)
+        self._charge_force = ions.particle_force(E) if self.particles.n else None
+        force *= self.dt / self.cfg.fluid.RHO
+        self.fluid.add_solenoidal(force)
 
     def _ion_limit(self) -> float:
         from ..timestep import kmax2
@@ -220,7 +257,9 @@ class ElectrolyteModel(SpectralModel):
         def potential():
             ions.potential()
             return ions.potential_real().copy()
-        src["surface_charge"] = lambda: ions.rho_surf.copy()
+        area = 4.0 * np.pi * self.cfg.particles.A ** 2 if self.particles.n else 0.0
+        # the original writes rho_surf 4 pi a^2 (output.cxx Output_charge_field_data)
+        src["surface_charge"] = lambda: ions.rho_surf * area
         src["solute_charge"] = ions.ionic_charge
         src["e_potential"] = potential
         src["concentration"] = lambda: ions.c.copy()
