@@ -426,3 +426,19 @@ def test_11_continuation_without_seed_keeps_the_runs_seed(tmp_path, capsys, monk
     assert RUN_MARK in first and "random seed 11 " in first
     with np.load(d / "restart.udf.state.npz") as z:
         assert str(z["seed"]).strip('"') == "11"
+
+
+def test_a_fifo_in_place_of_a_snapshot_file_is_not_opened(tmp_path):
+    """A continuation reads the times of the snapshot files on disk: a FIFO at such a path is
+    treated as no file (it would block the open for ever), as the audit of 2026-12-02 found
+    for velocity_1.h5 of an FDM continuation."""
+    import threading
+    from kapsel.io.fields import _stored_time
+    fifo = tmp_path / "velocity_1.h5"
+    os.mkfifo(fifo)
+    got = []
+    t = threading.Thread(target=lambda: got.append(_stored_time(str(fifo), 1.5)), daemon=True)
+    t.start()
+    t.join(10)
+    assert not t.is_alive(), "the FIFO was opened"
+    assert got == [1.5]

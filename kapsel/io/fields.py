@@ -311,7 +311,11 @@ def _xmf_times(path: str) -> dict[int, float]:
 
 
 def _stored_time(path: str, default: float) -> float:
+    """The time attribute of a snapshot file on disk; ``default`` when there is none (or the
+    path is no regular file: a FIFO there would block the open; the run then replaces it)."""
+    from udf.files import check_regular
     try:
+        check_regular(path)
         with h5py.File(path, "r") as f:
             t = f.attrs.get("time")
     except OSError:
