@@ -393,3 +393,36 @@ def test_large_arrays_are_written_in_blocks_with_the_same_bytes(monkeypatch):
         for c in (1, 2, 5, 13):
             monkeypatch.setattr(W, "CHUNK_NUMBERS", c)
             assert W.format_value(arr, t, ndim) == whole, (shape, c)
+
+
+def test_large_array_text_is_written_block_by_block(monkeypatch):
+    """write_pieces forms a large array's blocks one at a time (udf.writer._Blocks): the
+    work memory of writing a 2^21-number field (about 40 MB of text) is that of one block
+    (about 7 bytes per byte of its text: 2^16 numbers here), not the whole text's, and the
+    bytes are those of the joined text."""
+    import hashlib
+    import tracemalloc
+    import numpy as np
+    import udf.writer as W
+    from udf.schema import Primitive
+    arr = np.random.default_rng(2).normal(size=(128, 128, 128))
+    t = Primitive("double")
+    monkeypatch.setattr(W, "CHUNK_NUMBERS", 1 << 16)
+    pieces = []
+    W._emit(pieces, arr, t, 3, False)
+    class Sink:              # a file that keeps only a hash of what it is given
+        def __init__(self):
+            self.n, self.h = 0, hashlib.sha256()
+
+        def write(self, b):
+            self.n += len(b)
+            self.h.update(b)
+
+    fh = Sink()
+    tracemalloc.start()
+    W.write_pieces(fh, pieces)
+    peak = tracemalloc.get_traced_memory()[1]
+    tracemalloc.stop()
+    assert peak < 0.5 * fh.n, (peak, fh.n)
+    text = "".join(map(str, pieces)).encode()
+    assert fh.h.digest() == hashlib.sha256(text).digest()

@@ -116,27 +116,45 @@ def format_value(v, t, ndim: int, single: bool = False) -> str:
     return "".join(map(str, out))
 
 
-# numbers formatted at a time: format_array holds about 7 bytes of work per byte of text, so
-# a restart's velocity field (10^8 numbers, 1.3 GB of text at 256 x 256 x 512) is formatted
-# in blocks of rows, not at once
-CHUNK_NUMBERS = 1 << 21
+# numbers formatted at a time: format_array holds about 55 bytes of work per number (the
+# text and its masks), so a restart's velocity field (10^8 numbers, 1.3 GB of text at
+# 256 x 256 x 512) is formatted in blocks of rows, each written before the next is formed
+# (_Blocks): the whole text is never held (2^18 numbers: about 15 MB of work)
+CHUNK_NUMBERS = 1 << 18
+
+
+class _Blocks:
+    """A large array's text as blocks of rows formed one at a time when iterated (the same
+    bytes as one format_array call: the blocks are joined by the separator between rows);
+    ``write_pieces`` writes each block before the next is formatted."""
+    __slots__ = ("v", "t", "ndim", "single", "rows", "sep")
+
+    def __init__(self, v, t, ndim, single, rows, sep):
+        self.v, self.t, self.ndim, self.single, self.rows, self.sep = v, t, ndim, single, rows, sep
+
+    def __iter__(self):
+        yield "["
+        for s in range(0, len(self.v), self.rows):
+            if s:
+                yield self.sep
+            yield _Raw(format_array(self.v[s:s + self.rows], self.t, self.ndim,
+                                    self.single).buf[1:-1])
+        yield "]"
+
+    def __str__(self):
+        return "".join(map(str, self))
 
 
 def _emit_array(out, v, t, ndim, single):
-    """An array's text, formatted in blocks of rows along its first axis (the same bytes as
-    one format_array call: the blocks are joined by the separator between rows)."""
+    """An array's text: one format_array call, or _Blocks of rows along its first axis when
+    it has more than CHUNK_NUMBERS numbers."""
     per_row = v[0].size if len(v) else 0
     if len(v) < 2 or v.size <= CHUNK_NUMBERS or per_row == 0:
         out.append(format_array(v, t, ndim, single))
         return
     rows = max(1, CHUNK_NUMBERS // per_row)
     sep = "\n" if (ndim if isinstance(t, Primitive) else ndim + 1) > 1 else ","
-    out.append("[")
-    for s in range(0, len(v), rows):
-        if s:
-            out.append(sep)
-        out.append(_Raw(format_array(v[s:s + rows], t, ndim, single).buf[1:-1]))
-    out.append("]")
+    out.append(_Blocks(v, t, ndim, single, rows, sep))
 
 
 def _emit(out, v, t, ndim, single):
@@ -197,7 +215,12 @@ def write_pieces(fh, pieces) -> None:
     """Write pieces to a binary file, coalescing small strings."""
     small: list[str] = []
     for p in pieces:
-        if isinstance(p, _Raw):
+        if isinstance(p, _Blocks):
+            if small:
+                fh.write("".join(small).encode("utf-8"))
+                small = []
+            write_pieces(fh, p)
+        elif isinstance(p, _Raw):
             if small:
                 fh.write("".join(small).encode("utf-8"))
                 small = []
