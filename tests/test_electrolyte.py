@@ -127,30 +127,46 @@ def debye_hueckel(r, Z, a, kappa, eps):
     return Z / (4 * np.pi * eps * (1 + kappa * a)) * np.exp(-kappa * (r - a)) / r
 
 
+# one sphere (Z -1, A 4, XI 2) in a 1:1 salt of Debye length 3, off the grid by 0.3 in x
+_N, _A, _XI, _LAM, _Z, _EPS = 32, 4.0, 2.0, 3.0, -1.0, 1.0
+
+
+def _sphere_in_salt():
+    """(grid, R, ions) of that sphere, its ions not yet started."""
+    grid = Grid((_N, _N, _N))
+    R = np.array([[_N / 2 + 0.3, _N / 2, _N / 2]])
+    idx, phi, r = particle_profiles(R, Stencil(_A, _XI, 1.0), grid.shape, 1.0)
+    ions = Ions(grid, (1.0, -1.0), (1.0, 1.0), _EPS, 1.0, 0.05)
+    ions.set_particles(idx, phi, r, [_Z], _A, _XI)
+    return grid, R, ions
+
+
+def _debye_hueckel_error(grid, R, ions):
+    """(psi, relative error of psi - psi(corner) against Debye-Hueckel on the shell
+    a + xi/2 <= d <= a + xi/2 + 2 lambda)."""
+    ions.potential()
+    psi = ions.potential_real()
+    x, y, z = grid.coordinates()
+    d = np.sqrt((x - R[0, 0]) ** 2 + (y - R[0, 1]) ** 2 + (z - R[0, 2]) ** 2)
+    sel = (d >= _A + _XI / 2) & (d <= _A + _XI / 2 + 2 * _LAM)
+    far = np.unravel_index(np.argmax(d), d.shape)
+    ref = (debye_hueckel(d[sel], _Z, _A, 1 / _LAM, _EPS)
+           - debye_hueckel(d[far], _Z, _A, 1 / _LAM, _EPS))
+    return psi, np.abs(psi[sel] - psi[far] - ref) / np.abs(ref)
+
+
 def test_double_layer_matches_debye_hueckel():
     """Poisson-Boltzmann equilibrium of a weakly charged sphere (e Psi / kBT < 0.05) in a
     1:1 salt, lambda_D = 3, A = 4, xi = 2 on 32^3: Psi(r) within 5 % of the linearised
     (Debye-Hueckel) potential for a + xi/2 <= r <= a + xi/2 + 2 lambda_D.  The periodic
     potential has zero mean (Psi_k=0 = 0), so both are measured from their value at the
     point farthest from the particle (the corner of the box)."""
-    N, A, xi, lam, Z, eps = 32, 4.0, 2.0, 3.0, -1.0, 1.0
-    grid = Grid((N, N, N))
-    R = np.array([[N / 2 + 0.3, N / 2, N / 2]])
-    idx, phi, r = particle_profiles(R, Stencil(A, xi, 1.0), grid.shape, 1.0)
-    ions = Ions(grid, (1.0, -1.0), (1.0, 1.0), eps, 1.0, 0.05)
-    ions.set_particles(idx, phi, r, [Z], A, xi)
+    grid, R, ions = _sphere_in_salt()
     vfree = float(np.sum(1 - ions.phi))
-    n = bulk_densities((1.0, -1.0), lam, eps, 1.0)
-    ions.init_poisson_boltzmann([n[0] * vfree - Z, n[1] * vfree])
-    ions.potential()
-    psi = ions.potential_real()
-    x, y, z = grid.coordinates()
-    d = np.sqrt((x - R[0, 0]) ** 2 + (y - R[0, 1]) ** 2 + (z - R[0, 2]) ** 2)
-    sel = (d >= A + xi / 2) & (d <= A + xi / 2 + 2 * lam)
-    far = np.unravel_index(np.argmax(d), d.shape)
-    ref = debye_hueckel(d[sel], Z, A, 1 / lam, eps) - debye_hueckel(d[far], Z, A, 1 / lam, eps)
+    n = bulk_densities((1.0, -1.0), _LAM, _EPS, 1.0)
+    ions.init_poisson_boltzmann([n[0] * vfree - _Z, n[1] * vfree])
+    psi, err = _debye_hueckel_error(grid, R, ions)
     assert np.abs(psi).max() < 0.05
-    err = np.abs(psi[sel] - psi[far] - ref) / np.abs(ref)
     assert err.max() < 0.05, err.max()
 
 
@@ -158,25 +174,13 @@ def test_one_particle_in_salt_starts_from_the_originals_double_layer():
     """One particle in salt (the original's Set_Poisson_Boltzmann_ion_charge_density_salt):
     bulk densities held, a neutralising factor nu; the start is neutral to round-off and
     its potential within 5 % of Debye-Hueckel as the canonical start's (same sphere)."""
-    N, A, xi, lam, Z, eps = 32, 4.0, 2.0, 3.0, -1.0, 1.0
-    grid = Grid((N, N, N))
-    R = np.array([[N / 2 + 0.3, N / 2, N / 2]])
-    idx, phi, r = particle_profiles(R, Stencil(A, xi, 1.0), grid.shape, 1.0)
-    ions = Ions(grid, (1.0, -1.0), (1.0, 1.0), eps, 1.0, 0.05)
-    ions.set_particles(idx, phi, r, [Z], A, xi)
-    n = bulk_densities((1.0, -1.0), lam, eps, 1.0)
-    it = ions.init_poisson_boltzmann_bulk(n, Z)
+    grid, R, ions = _sphere_in_salt()
+    n = bulk_densities((1.0, -1.0), _LAM, _EPS, 1.0)
+    it = ions.init_poisson_boltzmann_bulk(n, _Z)
     assert 10 < it < 5000
     assert abs(ions.total_charge()) < 1e-10
     assert np.allclose(ions.counts, ions.fluid_counts(), rtol=1e-14)
-    ions.potential()
-    psi = ions.potential_real()
-    x, y, z = grid.coordinates()
-    d = np.sqrt((x - R[0, 0]) ** 2 + (y - R[0, 1]) ** 2 + (z - R[0, 2]) ** 2)
-    sel = (d >= A + xi / 2) & (d <= A + xi / 2 + 2 * lam)
-    far = np.unravel_index(np.argmax(d), d.shape)
-    ref = debye_hueckel(d[sel], Z, A, 1 / lam, eps) - debye_hueckel(d[far], Z, A, 1 / lam, eps)
-    err = np.abs(psi[sel] - psi[far] - ref) / np.abs(ref)
+    _psi, err = _debye_hueckel_error(grid, R, ions)
     assert err.max() < 0.05, err.max()
 
 
