@@ -209,7 +209,7 @@ class ElectrolyteModel(SpectralModel):
     def _ions_broke(self) -> str | None:
         """The message naming the ion step when the ion densities are not finite, or negative
         with dt past twice the explicit step's limit; else None."""
-        lim = self._ion_limit()
+        lim = self._dt_limit
         c = self.ions.c
         if not np.isfinite(c).all() or (self.dt > 2 * lim and c.min() < 0):
             return (f"the ion densities are not finite or negative; the explicit "
