@@ -58,3 +58,29 @@ def test_shear_continuation_is_bit_identical(tmp_path, eq, kw):
         g = UDFManager(str(tmp_path / "one" / "restart.udf")).get(
             f"resume.{kind}.Saved_Data.oblique.degree_oblique")
         assert g != 0.0 and abs(g) <= 0.5 + 1e-6
+
+
+@pytest.mark.parametrize("eq,kw", [CASES[1], CASES[2]], ids=["LE", "LE_FDM"])
+def test_continuation_keeps_the_frames_own_clock(tmp_path, eq, kw):
+    """The sheared fluid's clock is accumulated (t += dt) and the frame strain is a function
+    of it: with dt 0.05, 0.05 added 6 times is not 6 x 0.05, so a continuation that took the
+    time from the step count would differ in the last bit (found by the kill sweep of
+    tests/test_kill_points.py; the state file keeps the clock, ``fluid_time``)."""
+    runs = {}
+    for name, nsnap in (("one", 4), ("two", 2)):
+        d = tmp_path / name
+        path = inp(d, eq, nsnap, **kw)
+        u = UDFManager(path)
+        u.put("manual", "time_increment.type")
+        u.put(0.05, "time_increment.manual.delta_t")
+        u.put(3, "output.GTS")
+        u.write(path)
+        assert cli(d, path) == 0
+        runs[name] = d
+    continue_input(runs["two"])
+    assert cli(runs["two"], str(runs["two"] / "cont.udf")) == 0
+    a = saved_data(str(runs["one"] / "restart.udf"))
+    b = saved_data(str(runs["two"] / "restart.udf"))
+    assert set(a) == set(b)
+    for k in a:
+        assert np.array_equal(a[k], b[k]), k

@@ -261,7 +261,10 @@ class ShearLEModel(SpectralModel):
 
     # ------------------------------------------------------------------ restart
     def exact_state(self) -> dict:
-        return {"u_hat": self.global_u_hat().copy(), "remaps": int(self.fluid.remaps)}
+        """The velocity, the re-mapping count and the fluid's own clock (accumulated
+        t += dt: the frame strain is a function of it, so a continuation takes it exact)."""
+        return {"u_hat": self.global_u_hat().copy(), "remaps": int(self.fluid.remaps),
+                "fluid_time": float(self.fluid.time)}
 
     def accumulators(self) -> dict:
         st = self.stress
@@ -297,7 +300,7 @@ class ShearLEModel(SpectralModel):
                 raise ConfigError(f"the restart's velocity has shape {exact['u_hat'].shape}, "
                                   f"the mesh needs {want}",
                                   path="resume.CONTINUE.Saved_Data.Zeta[]", value="shape")
-            self.fluid.set_time(self.time, exact.get("remaps"))
+            self.fluid.set_time(exact.get("fluid_time", self.time), exact.get("remaps"))
             self.fluid.set_contravariant_hat(self.local(exact["u_hat"]))
         else:
             fl = self.fluid
@@ -556,6 +559,7 @@ class ShearFDMModel(FDMModel):
     def exact_state(self) -> dict:
         st = super().exact_state()
         st["remaps"] = int(self.mac.remaps)
+        st["fluid_time"] = float(self.mac.time)     # the frame's clock (ShearLEModel)
         return st
 
     def accumulators(self) -> dict:
@@ -568,7 +572,8 @@ class ShearFDMModel(FDMModel):
         self.field_stress_sum = values["field"]
 
     def load_fields(self, fields: dict, exact) -> None:
-        self.mac.set_time(self.time, (exact or {}).get("remaps"))
+        exact = exact or {}
+        self.mac.set_time(exact.get("fluid_time", self.time), exact.get("remaps"))
         super().load_fields(fields, exact)
 
 
