@@ -198,6 +198,24 @@ def existing_outputs(args, cfg) -> str | None:
     return None
 
 
+def irregular_outputs(args, cfg) -> str | None:
+    """The files a run replaces besides -O and -R (the field series' .xmf, output.AVS's
+    file) must be regular files if they exist: a FIFO or a device there is never replaced
+    (as -O and -R, check_output_paths)."""
+    import stat
+
+    from udf.files import kind_of
+    from .io.writers import new_run_targets
+    for what, path in new_run_targets(cfg, args):
+        try:
+            mode = os.stat(path).st_mode
+        except OSError:
+            continue
+        if not stat.S_ISREG(mode):
+            return f"{what}: is {kind_of(mode)}, not a regular file; it is never replaced"
+    return None
+
+
 class _DirLock:
     """flock(2) on a directory's own descriptor: no file is created, and the system drops
     the lock however the process ends."""
@@ -537,7 +555,7 @@ def _check_inputs(args, locks, dist, overrides=None):
         raise BadInput(problem)
     _START.check()
     writes = dist is None or dist.root
-    problem = check_output_paths(args) if writes else None
+    problem = (check_output_paths(args) or irregular_outputs(args, cfg)) if writes else None
     if problem:
         raise BadInput(problem)
     resumed = cfg.resume.calculation != "NEW"

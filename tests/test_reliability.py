@@ -398,20 +398,54 @@ def test_10_analyze_cna_on_a_small_box(tmp_path, capsys):
 
 
 # ------------------------------------------------- 11. temporaries and the seed
+def dead_pid() -> int:
+    """The pid of a process that has ended (the writer of a killed write)."""
+    p = subprocess.Popen(["true"])
+    p.wait()
+    return p.pid
+
+
 def test_11_temporaries_of_killed_writes_are_removed(tmp_path, capsys, monkeypatch):
+    """A continuation removes what killed writes left (their writer's pid no longer runs)
+    and keeps the work in progress of a live writer (here: this test's parent process, as
+    an `analyze` writing its table into the run's directory would be)."""
     d = small(tmp_path, gts=2, nsnap=2)
     assert cli(d, "input.udf") == 0
-    left = [d / ".restart.udf.state.npz.4242.0123abcd.kapsel-tmp",
-            d / ".velocity_2.h5.4242.89abcdef.kapsel-tmp",
-            d / "restart.udf.state.npz.tmp4242", d / ".output.udf.99.deadbeef.tmp"]
+    pid = dead_pid()
+    left = [d / f".restart.udf.state.npz.{pid}.0123abcd.kapsel-tmp",
+            d / f".velocity_2.h5.{pid}.89abcdef.kapsel-tmp",
+            d / f"restart.udf.state.npz.tmp{pid}", d / f".output.udf.{pid}.deadbeef.tmp"]
     for p in left:
         p.write_bytes(b"x" * 1000)
     (d / "notes.tmp").write_text("mine")          # not ours: kept
+    live = d / f".sq.txt.{os.getppid()}.00112233.kapsel-tmp"
+    live.write_text("in progress")
     put(d, "restart.udf", "restart.udf", output__Num_snap=3)
     monkeypatch.chdir(d)
     assert main(["-Irestart.udf", "-Ooutput.udf", "-Ddefine.udf", "-Rrestart.udf"]) == 0
     assert "removed 4 temporary files" in capsys.readouterr().err
     assert not any(p.exists() for p in left) and (d / "notes.tmp").exists()
+    assert live.read_text() == "in progress"
+
+
+def test_11_analyze_removes_what_its_killed_writes_left(tmp_path, capsys):
+    """`analyze sq` removes the temporaries a killed `analyze` left of the files it writes
+    (its table and plot), and nothing else."""
+    from kapsel.cli import main as kmain
+    import h5py
+    d = tmp_path / "run"
+    d.mkdir()
+    with h5py.File(d / "orderparam_0.h5", "w") as f:
+        f["PSI"] = np.random.default_rng(0).standard_normal((8, 8, 8))
+    pid = dead_pid()
+    mine = [d / f".sq.txt.{pid}.0123abcd.kapsel-tmp", d / f".sq.png.{pid}.89abcdef.kapsel-tmp"]
+    other = d / f".output.udf.{pid}.deadbeef.kapsel-tmp"      # a run's: under its lock
+    for p in mine + [other]:
+        p.write_bytes(b"x")
+    assert kmain(["analyze", "sq", str(d), "--table", str(d / "sq.txt"),
+                  "--plot", str(d / "sq.png")]) == 0
+    assert not any(p.exists() for p in mine) and other.exists()
+    assert (d / "sq.txt").is_file()
 
 
 def test_11_continuation_without_seed_keeps_the_runs_seed(tmp_path, capsys, monkeypatch):
@@ -442,3 +476,83 @@ def test_a_fifo_in_place_of_a_snapshot_file_is_not_opened(tmp_path):
     t.join(10)
     assert not t.is_alive(), "the FIFO was opened"
     assert got == [1.5]
+
+
+# ------------------------------------------------- 5. FIFOs and devices among the outputs
+def _extended(d):
+    put(d, "input.udf", "input.udf", output__AVS="ON", output__ON__Out_dir="avs",
+        output__ON__Out_name="data", output__ON__FileType="EXTENDED",
+        output__ON__EXTENDED__Print_field__Crop="NO")
+
+
+@pytest.mark.parametrize("target", ["fifo", "/dev/zero"])
+def test_5_fifo_or_device_in_place_of_an_output_is_never_replaced(tmp_path, target, capsys,
+                                                                   monkeypatch):
+    """The files a run replaces besides -O / -R (output.AVS's file, the .xmf series, the
+    .dat tables) are refused with one line before anything is written when they are a FIFO
+    or a device (a symbolic link to /dev/zero), by a continuation and by a new run with
+    --overwrite, as -O and -R are; never read (a FIFO would block, /dev/zero never ends),
+    never replaced."""
+    d = small(tmp_path, gts=2, nsnap=2)
+    _extended(d)
+    assert cli(d, "input.udf") == 0
+    put(d, "restart.udf", "cont.udf", output__Num_snap=3)
+    before = (d / "output.udf").read_bytes()
+    for rel in ("avs/data.h5", "velocity_field.xmf"):
+        p = d / rel
+        saved = p.read_bytes()
+        p.unlink()
+        os.mkfifo(p) if target == "fifo" else os.symlink(target, p)
+        for args in (["-Icont.udf"], ["-Iinput.udf", "--overwrite"]):
+            code, err = main_in(d, capsys, monkeypatch, *args, "-Ooutput.udf",
+                                "-Ddefine.udf", "-Rrestart.udf")
+            assert code == 2, err
+            assert "not a regular file; it is never replaced" in one_line(err), err
+            assert rel.split("/")[-1] in err
+        assert (d / "output.udf").read_bytes() == before
+        assert p.is_fifo() if target == "fifo" else p.is_symlink()
+        p.unlink()
+        p.write_bytes(saved)
+
+
+def test_5_fifo_in_place_of_a_table_is_never_replaced(tmp_path, capsys, monkeypatch):
+    from test_shear_le import make_input as le_input
+    d = tmp_path / "le"
+    le_input(str(d), particles=1, gts=2, nsnap=2, npx=3)
+    put(d, "input.udf", "input.udf", A=1.5, A_XI=1.0)
+    assert cli(d, "input.udf") == 0
+    put(d, "restart.udf", "cont.udf", output__Num_snap=3)
+    (d / "shear_stress.dat").unlink()
+    os.mkfifo(d / "shear_stress.dat")
+    code, err = main_in(d, capsys, monkeypatch, "-Icont.udf", "-Ooutput.udf", "-Ddefine.udf",
+                        "-Rrestart.udf")
+    assert code == 2 and "shear_stress.dat: is a FIFO" in one_line(err), err
+
+
+def test_5_readers_refuse_fifos(tmp_path):
+    """Every reader of a file a run left (the journal, the trajectory, a table, output.udf's
+    run id, a legacy AVS .fld) opens it through udf.files.open_regular: a FIFO is refused at
+    once, never waited on."""
+    import threading
+    from kapsel.io import avs, records
+    from kapsel.io.journal import JournaledFile, journal_path, recover
+    from udf.files import NotRegularFile
+    fifo = tmp_path / "data.h5"
+    os.mkfifo(fifo)
+    os.mkfifo(journal_path(str(tmp_path / "other.h5")))
+    calls = [lambda: JournaledFile(str(fifo)), lambda: recover(str(tmp_path / "other.h5")),
+             lambda: records.TableLog(str(fifo), ("a",), append=True),
+             lambda: records.run_id(str(fifo)), lambda: avs._kept_blocks(str(fifo), 10)]
+    got = []
+
+    def attempt():
+        for c in calls:
+            try:
+                got.append(c())
+            except NotRegularFile:
+                got.append("refused")
+    t = threading.Thread(target=attempt, daemon=True)
+    t.start()
+    t.join(20)
+    assert not t.is_alive(), f"a FIFO was opened and waited on after {got}"
+    assert got == ["refused"] * 3 + [None, []]

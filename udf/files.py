@@ -21,7 +21,8 @@ import stat
 TEMP_SUFFIX = ".kapsel-tmp"
 # ours, and the names of earlier versions (atomic.py's ".<name>.<pid>.<hex>.tmp",
 # restart.py's "<name>.tmp<pid>")
-_TEMP_NAMES = re.compile(r"(^\..+\.\d+\.[0-9a-f]{8}(\.tmp|\.kapsel-tmp)$)|(^[^.].*\.tmp\d+$)")
+_TEMP_NAMES = re.compile(r"(^\.(?P<a>.+)\.(?P<pa>\d+)\.[0-9a-f]{8}(\.tmp|\.kapsel-tmp)$)"
+                         r"|(^(?P<b>[^.].*)\.tmp(?P<pb>\d+)$)")
 
 
 class NotRegularFile(OSError):
@@ -105,6 +106,12 @@ def write_file(path, write) -> None:
         raise
 
 
+def remove_temporaries_of(path) -> list[str]:
+    """Delete what killed writes of ``path`` left next to it (:func:`remove_temporaries`)."""
+    directory, name = os.path.split(os.path.abspath(os.fspath(path)))
+    return remove_temporaries(directory, of={name})
+
+
 def write_stream(path, write) -> None:
     """:func:`write_file` for a writer of a binary stream: ``write(fh)``."""
     fd, tmp = create_temporary(path)
@@ -122,16 +129,36 @@ def write_stream(path, write) -> None:
         raise
 
 
-def remove_temporaries(directory) -> list[str]:
-    """Delete the temporary files killed writes left in ``directory``; returns their
-    names.  Only under the run's lock of that directory."""
+def _writer_alive(pid: int) -> bool:
+    """Whether process ``pid`` (the writer named in a temporary's name) still runs here."""
+    if pid == os.getpid():
+        return True
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except OSError:          # another user's process: alive
+        return True
+    return True
+
+
+def remove_temporaries(directory, of=None) -> list[str]:
+    """Delete the temporary files killed writes left in ``directory`` (those whose writer,
+    the pid in the name, no longer runs: a live writer's file is its work in progress);
+    ``of``: only the temporaries of these file names.  Returns their names.  A run calls it
+    under its lock of the directory; an analysis for the files it writes."""
     try:
         names = os.listdir(directory)
     except OSError:
         return []
     gone = []
     for name in names:
-        if not is_temporary(name):
+        m = _TEMP_NAMES.match(name)
+        if m is None:
+            continue
+        target, pid = (m.group("a"), m.group("pa")) if m.group("a") else (m.group("b"),
+                                                                          m.group("pb"))
+        if (of is not None and target not in of) or _writer_alive(int(pid)):
             continue
         p = os.path.join(directory, name)
         try:
@@ -157,20 +184,41 @@ def check_regular(path) -> None:
         raise NotRegularFile(0, f"is {kind_of(mode)}, not a regular file", os.fspath(path))
 
 
-def open_regular(path, mode: str = "rb", **kw):
-    """``open(path, mode)`` for reading a regular file only: the check and the open are
-    one (O_NONBLOCK, so a FIFO is refused, not waited on)."""
-    fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | getattr(os, "O_CLOEXEC", 0))
+def os_open_regular(path, flags: int = os.O_RDONLY, mode: int = 0o666) -> int:
+    """``os.open(path, flags, mode)`` of a regular file only: the check and the open are one
+    (O_NONBLOCK, so a FIFO is refused, not waited on; a new file made by O_CREAT is regular)."""
+    fd = os.open(path, flags | os.O_NONBLOCK | getattr(os, "O_CLOEXEC", 0), mode)
     try:
         st = os.fstat(fd)
         if not stat.S_ISREG(st.st_mode):
             raise NotRegularFile(0, f"is {kind_of(st.st_mode)}, not a regular file",
                                  os.fspath(path))
         os.set_blocking(fd, True)
+        return fd
+    except BaseException:
+        os.close(fd)
+        raise
+
+
+def open_regular(path, mode: str = "rb", **kw):
+    """``open(path, mode)`` for reading a regular file only (:func:`os_open_regular`)."""
+    fd = os_open_regular(path)
+    try:
         return os.fdopen(fd, mode, **kw)
     except BaseException:
         os.close(fd)
         raise
+
+
+def write_failure(e: OSError) -> str:
+    """Why a write failed, in the user's words (the disk is full, the quota is exceeded, or
+    the system's own reason)."""
+    import errno
+    if e.errno == errno.ENOSPC or "No space left" in str(e):
+        return "the disk is full (No space left on device)"
+    if e.errno == errno.EDQUOT:
+        return "the disk quota is exceeded"
+    return e.strerror or str(e)
 
 
 def read_bytes(path) -> bytes:

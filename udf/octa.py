@@ -195,7 +195,8 @@ class UDFManager(_Base):
             raise RuntimeError(f"write(record={record!r}): expected 0, 1 or -1")
         from .manager import atomic_write_text
         if mode == 1 and os.path.exists(target):
-            with open(target, encoding="utf-8") as fh:
+            from .files import open_regular
+            with open_regular(target, "r", encoding="utf-8") as fh:
                 text = fh.read()
             atomic_write_text(target, [text] + [p for r in recs for p in self.record_pieces(r)])
         elif mode in (0, 1):

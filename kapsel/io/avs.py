@@ -31,6 +31,8 @@ import re
 
 import numpy as np
 
+from udf.files import open_regular
+
 from .atomic import atomic_write, atomic_write_text
 
 LABELS = "ux uy uz phi pressure tau_xy tau_yz tau_zx tau_xx tau_yy"
@@ -234,7 +236,7 @@ def _g3(table) -> bytes:
 def _kept_blocks(path, upto):
     """(step, block) of an existing .fld with step <= ``upto`` ([] if none)."""
     try:
-        with open(path, encoding="utf-8") as fh:
+        with open_regular(path, "r", encoding="utf-8") as fh:
             text = fh.read()
     except OSError:
         return []

@@ -327,6 +327,8 @@ def read_snapshot(path, dataset: str | None = None) -> np.ndarray:
     """One field dataset of a snapshot file as a float64 array indexed [x, y, z]
     (``dataset`` defaults to the file's first one); ``dataset="U"`` of a velocity file gives
     the vector (3, NX, NY, NZ)."""
+    from udf.files import check_regular
+    check_regular(path)
     with h5py.File(path, "r") as f:
         if dataset == "U" and "U" not in f:
             return np.stack([np.asarray(f[c][()], dtype=np.float64).T

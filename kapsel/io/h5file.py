@@ -14,7 +14,7 @@ import os
 
 import h5py
 
-from udf.files import create_temporary, put_in_place, remove
+from udf.files import create_temporary, os_open_regular, put_in_place, remove
 
 
 def _pwrite_all(fd, data, off) -> None:
@@ -141,7 +141,7 @@ def append_h5(path, change, **kw) -> None:
     a file that is derived data and rebuilt whole when a run starts, such as the XDMF
     sidecars).  A failed write removes the file and raises OSError naming it: never a
     half-written file that a reader trips over, never HDF5's crash at exit."""
-    fd = os.open(path, os.O_RDWR)
+    fd = os_open_regular(path, os.O_RDWR)
     target = SafeFile(fd, path)
     try:
         try:

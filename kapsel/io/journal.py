@@ -18,7 +18,7 @@ import os
 import struct
 import zlib
 
-from udf.files import fsync_directory
+from udf.files import fsync_directory, open_regular, os_open_regular
 
 from .h5file import SafeFile, _pwrite_all
 
@@ -41,7 +41,7 @@ def recover(path) -> bool:
     was killed or failed mid-transaction); True if it did."""
     jpath = journal_path(path)
     try:
-        with open(jpath, "rb") as fh:
+        with open_regular(jpath) as fh:
             data = fh.read()
     except FileNotFoundError:
         return False
@@ -63,7 +63,7 @@ def recover(path) -> bool:
             break
         entries.append((off, body))
         pos = end
-    fd = os.open(path, os.O_RDWR)
+    fd = os_open_regular(path, os.O_RDWR)
     try:
         for off, body in entries:
             _pwrite_all(fd, body, off)
@@ -105,7 +105,7 @@ class JournaledFile(SafeFile):
 
     def __init__(self, path, create: bool = False):
         flags = os.O_RDWR | (os.O_CREAT | os.O_TRUNC if create else 0)
-        super().__init__(os.open(os.fspath(path), flags, 0o666), path)
+        super().__init__(os_open_regular(os.fspath(path), flags), path)
         self.jpath = journal_path(path)
         self.committed = os.fstat(self.fd).st_size
         self.jfd = None

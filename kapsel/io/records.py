@@ -92,7 +92,7 @@ class OutputUDF:
             times.append(float(old.get("t")))
         keep = sum(1 for t in times if t <= step + 0.5)   # t: a step, at single precision
         if keep < len(times) or old.torn_tail:
-            with open(self.path, "rb") as fh:
+            with open_regular(self.path) as fh:
                 data = fh.read()
             starts, i = [], data.find(b"\\begin{record}")
             while i >= 0:
@@ -141,7 +141,7 @@ def run_comment(run_id: str, seed: int) -> str:
 def run_id(path: str) -> str | None:
     """The run id in the first line of an output.udf written by kapsel-py, else None."""
     try:
-        with open(path, "rb") as fh:
+        with open_regular(path) as fh:
             first = fh.readline(400).decode("utf-8", "replace")
     except OSError:
         return None

@@ -171,7 +171,8 @@ class ElectrolyteTable:
 
 def _last_row_step(path):
     try:
-        with open(path, encoding="utf-8") as fh:
+        from udf.files import open_regular
+        with open_regular(path, "r", encoding="utf-8") as fh:
             rows = [ln for ln in fh if ln.strip() and not ln.startswith("#")]
         return int(rows[-1].split()[0]) if rows else None
     except (OSError, ValueError, IndexError):
@@ -294,4 +295,10 @@ def new_run_targets(cfg, args) -> list:
         ext = ".h5" if spec.FileType == "EXTENDED" else ".fld"
         path = os.path.join(field_directory(cfg, args), spec.Out_name + ext)
         out.append((f"the output.AVS file {path}", path))
+    from ..config import SHEAR_TYPES        # the tables of make_writers, from the input
+    if cfg.type in SHEAR_TYPES:
+        out.append(("the table shear_stress.dat", os.path.join(out_dir, "shear_stress.dat")))
+    if cfg.particles.object_type == "rigid" and cfg.particles.count:
+        out.append(("the table rotational_energy.dat",
+                    os.path.join(out_dir, "rotational_energy.dat")))
     return out
