@@ -18,7 +18,6 @@ distributed), ``sheared`` (a per-step stress table: ``shear_table``, ``shear_tab
 """
 from __future__ import annotations
 
-import errno
 import os
 import signal
 import sys
@@ -158,11 +157,8 @@ def planned_files(cfg, args, model, resumed: bool = False) -> list[tuple[str, st
 
 
 def _write_error(e: OSError) -> str:
-    if e.errno == errno.ENOSPC or "No space left" in str(e):
-        return "the disk is full (No space left on device)"
-    if e.errno == errno.EDQUOT:
-        return "the disk quota is exceeded"
-    return e.strerror or str(e)
+    from udf.files import write_failure
+    return write_failure(e)
 
 
 class RunError(Exception):

@@ -1,8 +1,10 @@
 """Kill a run at exact system calls, or make them fail with ENOSPC, and continue it
 (tests/kill_points.py; strace's fault injection, installed by ``make test``).
 
-Two inputs, both 8^3 with noise: Navier_Stokes (spectral) with output.AVS EXTENDED, and
-Navier_Stokes_FDM (per-snapshot .h5 and .xmf files); GTS 2, Num_snap 3.  The windows: every
+Three inputs, all 8^3 with noise: Navier_Stokes (spectral) with output.AVS EXTENDED,
+Navier_Stokes_FDM (per-snapshot .h5 and .xmf files), and Shear_Navier_Stokes_Lees_Edwards
+with a rigid rod and legacy AVS (shear_stress.dat, rotational_energy.dat, the .fld/.dat
+files); GTS 2, Num_snap 3.  The windows: every
 write / pwrite64 / rename / fsync of the snapshot at step 4 (output.udf record, field files,
 EXTENDED frame and its journal, .conf/.xdmf, checkpoint), and of the end of the run (final
 restart pair, closing the trajectory).
@@ -16,6 +18,7 @@ import os
 import re
 import shutil
 
+import numpy as np
 import pytest
 
 import kill_points as kp
@@ -50,7 +53,32 @@ def _fdm(d):
     u.write(os.path.join(d, "input.udf"))
 
 
-INPUTS = {"spectral-EXTENDED": _spectral, "FDM": _fdm}
+def _sheared_rigid_avs(d):
+    """The writers the other two do not have: shear_stress.dat, rotational_energy.dat and
+    the legacy AVS files (Shear_Navier_Stokes_Lees_Edwards, AC shear, one free rigid rod of
+    3 beads, noise)."""
+    import sys
+    sys.path.insert(0, os.path.join(kp.ROOT, "bench"))
+    from parity import LE, common, merge, rigid, row, shear
+    from udf import UDFManager
+    base = os.path.join(kp.ROOT, "samples", "kapsel-udf", "ex14")     # define.udf 4.1
+    os.makedirs(d, exist_ok=True)
+    for f in ("define.udf", "kapsel_unit.udf"):
+        shutil.copy(os.path.join(base, f), os.path.join(d, f))
+    u = UDFManager(os.path.join(base, "input.udf"))
+    edits = merge(common(LE, n=3, dt=0.05, gts=2, objects="rigid"),
+                  rigid([row((2.0 + 2.0 * b, 4.0, 4.0)) for b in range(3)], 3, mass=1.0),
+                  shear(LE, rate=0.01, ac=True, freq=0.01),
+                  {"A": 1.5, "A_XI": 1.0, f"constitutive_eq.{LE}.kBT": 0.5,
+                   "output.Num_snap": 3, "output.AVS": "ON", "output.ON.Out_dir": "avs",
+                   "output.ON.Out_name": "data", "output.ON.FileType": "BINARY"})
+    for k, v in edits.items():
+        u.put(np.array(v, dtype=float) if isinstance(v, list) and v and isinstance(v[0], list)
+              else v, k)
+    u.write(os.path.join(d, "input.udf"))
+
+
+INPUTS = {"spectral-EXTENDED": _spectral, "FDM": _fdm, "sheared-rigid-AVS": _sheared_rigid_avs}
 
 
 class Case:
@@ -113,6 +141,13 @@ def _points(window, kinds=kp.KINDS):
     return [(k, n) for k, n, _ in window if k in kinds]
 
 
+def _frame(window):
+    """The field writes of a window: the pwrite64 calls of the HDF5 files (EXTENDED frame,
+    per-snapshot .h5), or the writes of the legacy AVS files."""
+    return _points(window, ("pwrite64",)) or [(k, n) for k, n, t in window
+                                              if k == "write" and "/avs/" in t]
+
+
 def _pick(case):
     """The fast selection: the last two renames of each window (the checkpoint; the state
     file and restart.udf of the final pair: a kill between them is case 2 of issue 26),
@@ -122,9 +157,9 @@ def _pick(case):
     for window in (case.snapshot, case.final):
         renames = [(k, n) for k, n, t in window if k == "rename"]
         out += renames[-2:]
-        h5 = [(k, n) for k, n, t in window if k == "pwrite64"]
-        if h5:
-            out.append(h5[len(h5) // 2])
+        frame = _frame(window)
+        if frame:
+            out.append(frame[len(frame) // 2])
     fsyncs = [(k, n) for k, n, t in case.final if k == "fsync"]
     out.append(fsyncs[len(fsyncs) // 2])
     return sorted(set(out))
@@ -135,13 +170,13 @@ def test_kill_between_the_final_renames_and_in_a_frame(case):
     case 2) and at the middle pwrite64 of the snapshot (the EXTENDED frame, case 1; a
     per-snapshot .h5 file of the FDM type)."""
     renames = [(k, n) for k, n, _ in case.final if k == "rename"]
-    pw = _points(case.snapshot, ("pwrite64",))
+    pw = _frame(case.snapshot)
     for kind, n in (renames[-1], pw[len(pw) // 2]):
         _kill(case, kind, n)
 
 
 def test_enospc_in_a_snapshot_is_one_line_and_loses_nothing(case):
-    writes = _points(case.snapshot, ("pwrite64",))
+    writes = _frame(case.snapshot)
     _enospc(case, *writes[len(writes) // 3])
 
 

@@ -12,9 +12,15 @@ import os
 import sys
 
 
-def _fail(msg: str) -> int:
+def _fail(msg: str, code: int = 2) -> int:
+    """One line on stderr; exit 2 (what was asked cannot be done) or 1 (a write failed)."""
     print(f"kapsel-py analyze: error: {msg}", file=sys.stderr)
-    return 2
+    return code
+
+
+def _write_failed(path, e: OSError) -> int:
+    from udf.files import write_failure
+    return _fail(f"cannot write {path}: {write_failure(e)}", 1)
 
 
 def cmd_sq(a) -> int:
@@ -62,11 +68,14 @@ def cmd_sq(a) -> int:
     if not rows:
         return _fail(f"no readable orderparam_<n>.h5 file in {a.directory}")
     text = "\n".join(lines) + "\n"
+    from udf.files import remove_temporaries_of
+
     from ..io.atomic import atomic_write_text
     try:
+        remove_temporaries_of(table)
         atomic_write_text(table, text)
     except OSError as e:
-        return _fail(f"cannot write {table}: {e.strerror}")
+        return _write_failed(table, e)
     print("\n".join(lines[:len(rows) + 1]))
     print(f"S(q) table written to {table}")
     try:
@@ -88,7 +97,7 @@ def cmd_sq(a) -> int:
     try:
         save_figure(fig, plot, dpi=120)
     except OSError as e:
-        return _fail(f"cannot write {plot}: {e.strerror}")
+        return _write_failed(plot, e)
     print(f"plot written to {plot}")
     return 0
 
@@ -109,8 +118,10 @@ def _output_problem(path) -> str | None:
 
 
 def save_figure(fig, path, **kw) -> None:
-    """``fig.savefig`` through a temporary file and a rename (udf.files)."""
-    from udf.files import write_stream
+    """``fig.savefig`` through a temporary file and a rename (udf.files); what killed
+    writes of ``path`` left is removed first."""
+    from udf.files import remove_temporaries_of, write_stream
+    remove_temporaries_of(path)
     fmt = os.path.splitext(path)[1].lstrip(".") or "png"
     write_stream(path, lambda fh: fig.savefig(fh, format=fmt, **kw))
 
@@ -126,9 +137,11 @@ def cmd_erotate(a) -> int:
 
 
 def cmd_show(a) -> int:
-    from .show import ShowError, run
+    from .show import ShowError, ShowWriteError, run
     try:
         return run(a)
+    except ShowWriteError as e:
+        return _write_failed(e.filename, e)
     except ShowError as e:
         return _fail(str(e))
 

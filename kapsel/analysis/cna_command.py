@@ -86,8 +86,9 @@ def run(a) -> int:
         try:
             _write_labels(a.labels, rows)
         except OSError as e:
-            print(f"kapsel-py analyze cna: error: cannot write {a.labels}: {e.strerror}",
-                  file=sys.stderr)
+            from udf.files import write_failure
+            print(f"kapsel-py analyze cna: error: cannot write {a.labels}: "
+                  f"{write_failure(e)}", file=sys.stderr)
             return 1
         print(f"labels written to {a.labels}")
     return 0
@@ -95,7 +96,9 @@ def run(a) -> int:
 
 def _write_labels(path, rows) -> None:
     """The labels as HDF5 (.h5, .hdf5) or CSV, atomically (kapsel.io: a killed or failed
-    write leaves the old file or none)."""
+    write leaves the old file or none; what killed writes left is removed first)."""
+    from udf.files import remove_temporaries_of
+    remove_temporaries_of(path)
     if path.endswith((".h5", ".hdf5")):
         from ..io.h5file import write_h5
 

@@ -33,6 +33,10 @@ class ShowError(Exception):
     """A run directory the picture cannot be made from: one line for the user."""
 
 
+class ShowWriteError(OSError):
+    """A picture that cannot be written (``filename``: its path)."""
+
+
 # ---------------------------------------------------------------------------- reading
 def snapshot_files(run_dir: str) -> dict[int, dict]:
     """Field snapshots on disk: n -> {"time": t or None, "psi": path, "u": path} (the kinds
@@ -258,14 +262,11 @@ def render(path: str, rec: Records, index: int, fields: dict | None, z_index=Non
         ax_e.set_xlabel("step")
     fig.canvas.draw()
     bb = ax.get_window_extent()
-    tmp = f"{path}.{os.getpid()}.tmp.png"
+    from .cli import save_figure
     try:
-        fig.savefig(tmp, dpi=DPI)
-        os.replace(tmp, path)
+        save_figure(fig, path, dpi=DPI)
     finally:
         plt.close(fig)
-        if os.path.exists(tmp):
-            os.unlink(tmp)
     size = (int(round(FIGSIZE[0] * DPI)), int(round(FIGSIZE[1] * DPI)))
     return Picture(path, kind, k, sl, vmin, vmax, cmap, (bb.x0, bb.y0, bb.x1, bb.y1), size)
 
@@ -328,6 +329,9 @@ def run(a) -> int:
             print(f"kapsel-py analyze show: record {i} (t = {rec.t[i]:g}) has no field "
                   f"snapshot file; drawing its particles only", file=sys.stderr)
         name = f"show_{n}.png" if n is not None else f"show_record{i}.png"
-        pic = render(os.path.join(out_dir, name), rec, i, fields, a.z, table)
+        try:
+            pic = render(os.path.join(out_dir, name), rec, i, fields, a.z, table)
+        except OSError as e:
+            raise ShowWriteError(e.errno, e.strerror, os.path.join(out_dir, name)) from None
         print(f"picture of record {i} (t = {rec.t[i]:g}) written to {pic.path}")
     return 0
