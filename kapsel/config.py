@@ -18,13 +18,8 @@ from udf import UDFError
 
 from .particles.janus import read_spec as read_janus
 
-SPECTRAL_TYPES = ("Navier_Stokes", "Shear_Navier_Stokes", "Shear_Navier_Stokes_Lees_Edwards",
-                  "Electrolyte")
-FDM_TYPES = ("Navier_Stokes_FDM", "Navier_Stokes_Cahn_Hilliard_FDM",
-             "Shear_Navier_Stokes_Lees_Edwards_FDM", "Shear_NS_LE_CH_FDM")
-PHASE_TYPES = ("Navier_Stokes_Cahn_Hilliard_FDM", "Shear_NS_LE_CH_FDM")
-SHEAR_TYPES = ("Shear_Navier_Stokes", "Shear_Navier_Stokes_Lees_Edwards",
-               "Shear_Navier_Stokes_Lees_Edwards_FDM", "Shear_NS_LE_CH_FDM")
+from .typespec import TYPES, names, spec
+
 
 
 def plain(value):
@@ -273,12 +268,17 @@ class RunConfig:
     input_path: str = ""
 
     @property
+    def spec(self):
+        """The type's kapsel.typespec.TypeSpec."""
+        return spec(self.type)
+
+    @property
     def is_fdm(self) -> bool:
-        return self.type in FDM_TYPES
+        return self.spec.fdm
 
     @property
     def has_phase_field(self) -> bool:
-        return self.type in PHASE_TYPES
+        return self.spec.phase
 
 
 # ---------------------------------------------------------------------------------------
@@ -400,6 +400,9 @@ def from_document(doc: udf.UDFManager, input_path: str = "") -> RunConfig:
     r = _Reader(doc)
     _check_is_input(doc, input_path)
     eq_type = r.get("constitutive_eq.type")
+    if eq_type not in TYPES:
+        r.fail("constitutive_eq.type", eq_type, f"is not implemented in kapsel-py "
+                                                f"(implemented: {', '.join(TYPES)})")
     base = f"constitutive_eq.{eq_type}"
 
     # ---- mesh ------------------------------------------------------------------------
@@ -425,7 +428,7 @@ def from_document(doc: udf.UDFManager, input_path: str = "") -> RunConfig:
                             ("alpha_v", r.non_negative), ("alpha_o", r.non_negative)):
             with r.block():
                 fl[name] = check(f"{base}.{name}")
-        if eq_type in FDM_TYPES:
+        if spec(eq_type).fdm:
             sp = f"{base}.NS_solver"
             fl["ns_solver"] = r.get(f"{sp}.type")
             if fl["ns_solver"] == "implicit_scheme":
@@ -440,11 +443,11 @@ def from_document(doc: udf.UDFManager, input_path: str = "") -> RunConfig:
                                "must be at least 1")
                     fl["maximum_iteration"] = it
                 vc = f"{sp}.implicit_scheme.viscosity_change"
-                if eq_type in PHASE_TYPES and r.has(vc) and r.get(vc) == "ON":
+                if spec(eq_type).phase and r.has(vc) and r.get(vc) == "ON":
                     fl["viscosity_change"] = True
                     fl["ETA_A"] = r.positive(f"{vc.rsplit('.', 1)[0]}.ON.ETA_A")
                     fl["ETA_B"] = r.positive(f"{vc.rsplit('.', 1)[0]}.ON.ETA_B")
-        if eq_type == "Electrolyte" and fl.get("kBT") == 0:
+        if spec(eq_type).ions and fl.get("kBT") == 0:
             # the Bjerrum length e^2 / (4 pi eps kBT) and the ions' Boltzmann factors
             # divide by kBT (PHYSICS-EXTRA §6)
             r.fail(f"{base}.kBT", 0.0, "must be positive for Electrolyte: the Bjerrum length "
@@ -454,7 +457,7 @@ def from_document(doc: udf.UDFManager, input_path: str = "") -> RunConfig:
 
     # ---- shear -----------------------------------------------------------------------
     shear = None
-    if eq_type in SHEAR_TYPES:
+    if spec(eq_type).sheared:
         with r.block():
             ef = f"{base}.External_field"
             kind = r.get(f"{ef}.type")
@@ -463,13 +466,13 @@ def from_document(doc: udf.UDFManager, input_path: str = "") -> RunConfig:
             shear = Shear(kind, rate, freq)
 
     electrolyte = None
-    if eq_type == "Electrolyte":
+    if spec(eq_type).ions:
         with r.block():
             electrolyte = _electrolyte(r, base)
 
     # ---- phase field -----------------------------------------------------------------
     phase = None
-    if eq_type in PHASE_TYPES:
+    if spec(eq_type).phase:
         with r.block():
             phase = _phase_field(r, base, eq_type, mesh)
 
@@ -819,7 +822,7 @@ def _switches(r: _Reader, obj: str, species: list, mesh, particles, eq_type: str
     wall = _wall(r, eq_type, mesh, particles, inter)
     quincke, dipoles = _electric(r, obj, species, mesh)
     fix = tuple(r.get(f"switch.FIX_CELL.{ax}") == "ON" for ax in "xyz")
-    if eq_type in SHEAR_TYPES:      # the original forces FIX_CELL.y ON for all four
+    if spec(eq_type).sheared:       # the original forces FIX_CELL.y ON for all four
         fix = (fix[0], True, fix[2])
     obl = r.optional("switch.ns_solver.OBL_INT", "linear")
     slip = _slip_switches(r, species)
@@ -861,10 +864,10 @@ def _surface_terms(r: _Reader, pp: str, eq_type: str, mesh: Mesh) -> dict:
     for name in ("z", "w_wall", "psi_0_p"):
         if r.has(f"{pp}.{name}"):
             out[name] = r.finite(f"{pp}.{name}")
-    if out.get("z", 0.0) != 0 and eq_type not in ("Navier_Stokes_Cahn_Hilliard_FDM",
-                                                  "Shear_NS_LE_CH_FDM"):
-        r.fail(f"{pp}.z", out["z"], f"is read by the original for Navier_Stokes_Cahn_Hilliard_FDM "
-                                    f"and Shear_NS_LE_CH_FDM only, not {eq_type} (set it to 0)")
+    if out.get("z", 0.0) != 0 and not spec(eq_type).surface_z:
+        r.fail(f"{pp}.z", out["z"], f"is read by the original for "
+                                    f"{' and '.join(names(surface_z=True))} only, not {eq_type} "
+                                    f"(set it to 0)")
     w = f"{pp}.psi_0_wall"
     if r.has(f"{w}.type"):
         kind = r.get(f"{w}.type")
@@ -884,18 +887,15 @@ def _surface_terms(r: _Reader, pp: str, eq_type: str, mesh: Mesh) -> dict:
     return out
 
 
-WALL_TYPES = ("Navier_Stokes", "Navier_Stokes_FDM", "Navier_Stokes_Cahn_Hilliard_FDM")
-
-
 def _wall(r: _Reader, eq_type: str, mesh: Mesh, particles, inter: Interactions):
     """switch.wall (optional, NONE if absent): FLAT walls for the types the original allows
     them in, with XI < DH DX < L - 2 A (solid thicker than the interface, room for a
     particle between the walls)."""
     if not r.has("switch.wall.type") or r.get("switch.wall.type") == "NONE":
         return None
-    if eq_type not in WALL_TYPES:
+    if not spec(eq_type).walls:
         r.fail("switch.wall.type", r.get("switch.wall.type"),
-               f"FLAT walls are available for {', '.join(WALL_TYPES)} only (as in the "
+               f"FLAT walls are available for {', '.join(names(walls=True))} only (as in the "
                f"original), not {eq_type}; set it to NONE")
     f = "switch.wall.FLAT"
     axis = {"X": 0, "Y": 1, "Z": 2}[r.get(f"{f}.axis")]
@@ -951,7 +951,7 @@ def _field_output(r: _Reader, mesh: Mesh, eq_type: str = "") -> FieldOutput:
                        f"start + (count-1) stride < {n} (N{ax.upper()} = {n})")
             slabs.append((start, count, stride))
         slabs = tuple(slabs)
-    el = eq_type == "Electrolyte"
+    el = spec(eq_type).ions
     return FieldOutput(out_dir, name, kind, slabs, yes["Vel"], yes["Phi"], el and yes["Charge"],
                        yes["Pressure"] and not el, yes["Tau"] and not el)
 
@@ -1048,7 +1048,7 @@ def memory_estimate(mesh: Mesh, eq_type: str, n_particles: int, A=None, xi=None)
     """Peak bytes of a run (BYTES_PER_POINT and the per-particle figures above); ``A``,
     ``xi``: the particles' radius and interface width (lengths), for their stencil size."""
     points = float(np.prod(mesh.shape, dtype=float))
-    per_point = BYTES_PER_POINT["phase" if eq_type in PHASE_TYPES else "fluid"]
+    per_point = BYTES_PER_POINT["phase" if spec(eq_type).phase else "fluid"]
     if n_particles:
         per_point += BYTES_PER_POINT_WITH_PARTICLES
     return points * per_point + float(n_particles) * (

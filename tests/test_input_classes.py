@@ -12,7 +12,7 @@ import sys
 import numpy as np
 import pytest
 
-from kapsel import cli, config
+from kapsel import cli, config, typespec
 from udf import UDFManager
 
 HERE = os.path.dirname(os.path.abspath(__file__))
@@ -258,5 +258,5 @@ def test_sheared_types_force_fix_cell_y_on():
     doc = udf.UDFManager(path)
     for ax in "xyz":
         doc.put("OFF", f"switch.FIX_CELL.{ax}")
-    if doc.get("constitutive_eq.type") not in config.SHEAR_TYPES:
+    if not typespec.spec(doc.get("constitutive_eq.type")).sheared:
         assert config.from_document(doc, path).switches.fix_cell == (False, False, False)

@@ -87,20 +87,20 @@ class _Series:
 
 def series_for(cfg_type: str, n_particles: int) -> list:
     """The files the original writes for a type (empty for the spectral types)."""
-    from ..config import FDM_TYPES
-    if cfg_type not in FDM_TYPES:
+    from ..typespec import spec
+    ts = spec(cfg_type)
+    if not ts.fdm:
         return []
     out = []
-    if cfg_type == "Navier_Stokes_Cahn_Hilliard_FDM":
-        out.append(_Series("fluid_phase", "orderparam", "scalar", (("PSI_ALL", "psi_all", None),)))
-    elif cfg_type == "Shear_NS_LE_CH_FDM":
-        out.append(_Series("fluid_phase", "orderparam", "scalar", (("PSI", "psi", None),)))
+    if ts.psi_file is not None:          # PSI_ALL (psi with the particles' psi_0_p) or PSI
+        out.append(_Series("fluid_phase", "orderparam", "scalar",
+                           ((ts.psi_file, ts.psi_file.lower(), None),)))
     if n_particles:
         out.append(_Series("particle_phase", "particle", "scalar", (("PHI", "phi", None),)))
         out.append(_Series("particle_coordinate", "particle_data", "particles", ()))
     out.append(_Series("velocity_field", "velocity", "vector",
                        tuple((f"U{c}", "u", i) for i, c in enumerate("XYZ"))))
-    if cfg_type == "Navier_Stokes_Cahn_Hilliard_FDM":
+    if ts.flux_file:
         out.append(_Series("flux_field", "flux", "vector",
                            tuple((f"FLUX_{c}", "flux", i) for i, c in enumerate("XYZ"))))
     return out

@@ -238,7 +238,7 @@ def field_writer(cfg, args, snap, announce: bool = True):
     else:
         from .avs import LegacyAVS
         w = LegacyAVS(directory, spec, cfg.mesh.shape, cfg.mesh.DX, cfg.output.Num_snap,
-                      snap.n_particles, snap.particles, charge=cfg.type == "Electrolyte")
+                      snap.n_particles, snap.particles, charge=cfg.spec.ions)
     if announce and not getattr(args, "quiet", False):
         print(w.console(), end="", file=sys.stderr)
     return w
@@ -295,8 +295,7 @@ def new_run_targets(cfg, args) -> list:
         ext = ".h5" if spec.FileType == "EXTENDED" else ".fld"
         path = os.path.join(field_directory(cfg, args), spec.Out_name + ext)
         out.append((f"the output.AVS file {path}", path))
-    from ..config import SHEAR_TYPES        # the tables of make_writers, from the input
-    if cfg.type in SHEAR_TYPES:
+    if cfg.spec.sheared:                    # the tables of make_writers, from the input
         out.append(("the table shear_stress.dat", os.path.join(out_dir, "shear_stress.dat")))
     if cfg.particles.object_type == "rigid" and cfg.particles.count:
         out.append(("the table rotational_energy.dat",

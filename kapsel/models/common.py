@@ -10,8 +10,14 @@ import sys
 
 import numpy as np
 
-from ..config import SHEAR_TYPES, ConfigError, RunConfig
+from ..config import ConfigError, RunConfig
+from ..typespec import TYPES
 from ..particles.state import ParticleState
+
+
+def _sheared(cfg) -> bool:
+    t = getattr(cfg, "type", None)
+    return t in TYPES and TYPES[t].sheared
 
 
 def time_step(cfg: RunConfig) -> float:
@@ -135,7 +141,7 @@ def _placed(cfg, kind, n, radius, rng):
                              f"{cfg.particles.A:g}")
     inter = cfg.interactions
     sigma = None
-    if getattr(cfg, "type", "") in SHEAR_TYPES:
+    if _sheared(cfg):
         sigma = pf.sheared_lj_dia(inter.LJ_powers, cfg.particles.A, cfg.particles.A_XI)
     if kind == "uniform_random":
         R = placement.uniform_random(n, radius, box, rng)
@@ -210,7 +216,7 @@ def make_forces(cfg: RunConfig, particles: ParticleState, strain=None, wall=None
 
     virial = np.zeros((3, 3))       # sum over pairs of f_a dr_b of the last call
     lj_dia = None
-    if getattr(cfg, "type", "") in SHEAR_TYPES:       # LJ_dia of the sheared types
+    if _sheared(cfg):                                   # LJ_dia of the sheared types
         lj_dia = pf.sheared_lj_dia(inter.LJ_powers, cfg.particles.A, cfg.particles.A_XI)
         if lj_dia == 2.0 * cfg.particles.A:
             lj_dia = None
@@ -421,7 +427,7 @@ class Model:
         if self.spm_drag == "original" or not cfg.particles.count:
             return A
         where = f"--spm-drag {self.spm_drag}"
-        if cfg.type == "Electrolyte":
+        if cfg.spec.ions:
             raise ConfigError("not available for Electrolyte (the ions' profile would keep "
                               "the radius A)", where=where)
         from ..particles.drag_calibration import OutOfCalibration, profile_radius

@@ -32,9 +32,9 @@ import sys
 
 __all__ = ["DISTRIBUTED", "Dist", "launched_size", "start"]
 
-DISTRIBUTED = ("Navier_Stokes", "Shear_Navier_Stokes", "Shear_Navier_Stokes_Lees_Edwards",
-               "Navier_Stokes_FDM", "Navier_Stokes_Cahn_Hilliard_FDM",
-               "Shear_Navier_Stokes_Lees_Edwards_FDM", "Shear_NS_LE_CH_FDM")
+from ..typespec import names
+
+DISTRIBUTED = names(distributed=True)       # kapsel.typespec
 
 _SIZE_VARS = ("PMI_SIZE", "OMPI_COMM_WORLD_SIZE", "MV2_COMM_WORLD_SIZE", "PMIX_SIZE")
 

@@ -54,7 +54,6 @@ __all__ = ["JanusSpec", "Janus", "read_spec", "check_types", "PROPULSIONS"]
 
 PROPULSIONS = ("OFF", "TUMBLER", "SQUIRMER", "OBSTACLE")
 AXES = {"X": 0, "Y": 1, "Z": 2}
-SELF_PROPELLED_TYPES = ("Navier_Stokes", "Shear_Navier_Stokes")   # §3.1 restrictions
 
 
 @dataclass(frozen=True)
@@ -119,10 +118,12 @@ def check_types(r, eq_type: str, rotation: bool, specs, counts, path: str) -> No
         return
     k = active[0]
     where = f"{path}[{k}].janus_propulsion"
-    if eq_type not in SELF_PROPELLED_TYPES:
+    from ..typespec import names, spec
+    if not spec(eq_type).self_propelled:           # §3.1 restrictions
         r.fail(where, specs[k].propulsion,
                f"self-propelled particles (TUMBLER, SQUIRMER) need constitutive_eq "
-               f"Navier_Stokes or Shear_Navier_Stokes, as in the original (not {eq_type})")
+               f"{' or '.join(names(self_propelled=True))}, as in the original (not "
+               f"{eq_type})")
     if not rotation:
         r.fail("switch.ROTATION", "OFF", "self-propelled particles (TUMBLER, SQUIRMER) need "
                                          "switch.ROTATION ON, as in the original")

@@ -1,0 +1,59 @@
+"""The ``constitutive_eq.type`` values: one :class:`TypeSpec` each, the single place that says
+what a type is (its grid, whether it carries an order parameter, a shear, ions; what the
+original allows with it).  Everything that asks "which types ..." asks here (:func:`spec`,
+:func:`names`); a type's model registers its factory with ``kapsel.simulation.register``.
+
+Adding a type: one ``TypeSpec`` line below and the module of its model (its
+``@register(name)`` factory), plus the type's block in define.udf.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+__all__ = ["TypeSpec", "TYPES", "spec", "names"]
+
+
+@dataclass(frozen=True)
+class TypeSpec:
+    """What one constitutive_eq.type is (manual §2, §4.1)."""
+    name: str
+    grid: str                     # "spectral" (Fourier collocation) or "fdm" (staggered MAC)
+    phase: bool = False           # a Cahn-Hilliard order parameter psi (§2.3)
+    sheared: bool = False         # an imposed shear flow (zigzag or Lees-Edwards, §2.4)
+    ions: bool = False            # electrolyte ions and the Poisson-Boltzmann start (§2.5)
+    walls: bool = False           # switch.wall FLAT accepted (as the original)
+    self_propelled: bool = False  # TUMBLER / SQUIRMER janus particles accepted (§3.1)
+    distributed: bool = True      # runs on more than one MPI rank
+    surface_z: bool = False       # the Cahn-Hilliard surface term z is read (PHYSICS-EXTRA §1.3)
+    psi_file: str | None = None   # the dataset of psi in orderparam_<n>.h5 (FDM CH types)
+    flux_file: bool = False       # flux_<n>.h5 and flux_field.xmf (the original's CH flux)
+
+    @property
+    def fdm(self) -> bool:
+        return self.grid == "fdm"
+
+
+TYPES = {s.name: s for s in (
+    TypeSpec("Navier_Stokes", "spectral", walls=True, self_propelled=True),
+    TypeSpec("Shear_Navier_Stokes", "spectral", sheared=True, self_propelled=True),
+    TypeSpec("Shear_Navier_Stokes_Lees_Edwards", "spectral", sheared=True),
+    TypeSpec("Electrolyte", "spectral", ions=True, distributed=False),
+    TypeSpec("Navier_Stokes_FDM", "fdm", walls=True),
+    TypeSpec("Navier_Stokes_Cahn_Hilliard_FDM", "fdm", phase=True, walls=True, surface_z=True,
+             psi_file="PSI_ALL", flux_file=True),
+    TypeSpec("Shear_Navier_Stokes_Lees_Edwards_FDM", "fdm", sheared=True),
+    TypeSpec("Shear_NS_LE_CH_FDM", "fdm", phase=True, sheared=True, surface_z=True,
+             psi_file="PSI"),
+)}
+
+
+def spec(name: str) -> TypeSpec:
+    """The TypeSpec of a type name (KeyError for a name that is no type)."""
+    return TYPES[name]
+
+
+def names(**flags) -> tuple[str, ...]:
+    """The type names whose TypeSpec has every given attribute value, in the order above,
+    e.g. ``names(sheared=True)``."""
+    return tuple(n for n, s in TYPES.items()
+                 if all(getattr(s, k) == v for k, v in flags.items()))
