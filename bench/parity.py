@@ -245,6 +245,13 @@ SCENES = {
         common(NSCH), solvers(NSCH, ns="explicit_scheme", ch="implicit_scheme"), wall(),
         spheres([row((10.0, 14.0, 16.0)), row((22.0, 18.0, 16.0))]), gravity(),
         {f"constitutive_eq.{NSCH}.Potential.Landau.w_wall": -1.0}), 200),
+    # nsch_wall with the explicit Cahn-Hilliard scheme, which wets the wall's faces everywhere
+    # as kapsel-py does; what differs is the original's penalty on the half of the solid next
+    # to lo only (docs/physics-walls-shear.md)
+    "nsch_wall_ee": ("NSCH_FDM explicit / explicit (dt 0.005), flat wall (Y) wetted (w_wall -1), 2 spheres", merge(
+        common(NSCH, dt=0.005), solvers(NSCH, ns="explicit_scheme", ch="explicit_scheme"), wall(),
+        spheres([row((10.0, 14.0, 16.0)), row((22.0, 18.0, 16.0))]), gravity(),
+        {f"constitutive_eq.{NSCH}.Potential.Landau.w_wall": -1.0}), 400),
     "nsch_visc": ("NSCH_FDM implicit, viscosity_change ETA_A 1 / ETA_B 5", merge(
         common(NSCH), solvers(NSCH, ns="implicit_scheme", ch="implicit_scheme"), spheres(CH8), gravity(),
         {f"constitutive_eq.{NSCH}.NS_solver.implicit_scheme.viscosity_change": "ON",

@@ -85,14 +85,39 @@ def test_b_grid_operators_adjoint_and_symbols():
     m = op.b_grid_null_modes((8, 8, 8))
     assert np.array_equal(m, np.abs(s) < 1e-12) and m.sum() == 20
     # momentum-conserving forms: every operator sums to zero
-    eta = rng.random(sh) + 0.5
-    for f in (op.advection(u, dx), op.viscous_variable(u, eta, dx), op.laplacian(u, dx),
-              op.grad_b(p, dx)):
+    for f in (op.advection(u, dx), op.laplacian(u, dx), op.grad_b(p, dx)):
         assert np.abs(f.sum(axis=(1, 2, 3))).max() < 1e-11
-    # uniform eta: the viscous operator is eta * (lap u + grad div u), lap part exact
-    w, _ = shear_wave(sh, dx)
-    assert np.abs(op.viscous_variable(w, np.full(sh, 1.3), dx)
-                  - 1.3 * op.laplacian(w, dx)).max() < 1e-12
+    # uniform eta: the original's variable-viscosity term is eta lap u exactly (any u)
+    assert np.abs(op.viscous_variable_nc(u, np.full(sh, 1.3), dx)
+                  - 1.3 * op.laplacian(u, dx)).max() < 1e-12
+
+
+def test_viscous_variable_nc_is_the_originals_second_order_form():
+    """viscous_variable_nc = eta lap u + D eta . (D u + D u^T) (the original's node form,
+    CHNS_MAC_solver_implicit_viscosity): for the divergence-free u_x = sin(k y) and
+    eta = 2 + cos(k y) + sin(k x)/2 it converges to div(eta (grad u + grad u^T)) =
+    (d_y(eta k cos k y), d_x eta k cos k y, 0) at second order; its grid sum is not zero."""
+    errs = []
+    for n in (16, 32):
+        dx = 1.0
+        k = 2 * np.pi / n
+        x = np.arange(n) * dx
+        X, Y, _ = np.meshgrid(x, x, x, indexing="ij")
+        u = np.zeros((3, n, n, n))
+        u[0] = np.sin(k * Y)
+        eta = 2.0 + np.cos(k * Y) + 0.5 * np.sin(k * X)
+        exact = np.zeros_like(u)
+        exact[0] = -k * k * np.sin(k * Y) * eta - k * np.sin(k * Y) * k * np.cos(k * Y)
+        exact[1] = 0.5 * k * np.cos(k * X) * k * np.cos(k * Y)
+        v = op.viscous_variable_nc(u, eta, dx)
+        errs.append(np.abs(v - exact).max() / np.abs(exact).max())
+        if n == 16:
+            g = op.grad_central(eta, dx)
+            assert np.array_equal(op.viscous_variable_nc(u, eta, dx, grad_eta=g), v)
+    rng = np.random.default_rng(3)                  # not a flux form: the sum is not zero
+    w, e = rng.standard_normal((3, 8, 8, 8)), 1.0 + rng.random((8, 8, 8))
+    assert np.abs(op.viscous_variable_nc(w, e, 1.0).sum(axis=(1, 2, 3))).min() > 1e-3
+    assert 3.5 < errs[0] / errs[1] < 4.5 and errs[1] < 5e-3
 
 
 @pytest.mark.parametrize("sh", [(5, 6, 7), (1, 16, 1), (2, 8, 2)])
@@ -368,10 +393,12 @@ def test_step_then_spectral_projection_is_divergence_free():
 @pytest.mark.parametrize("variable", [False, True])
 def test_momentum_changes_by_the_advection(scheme, variable):
     """The original's advection (u.grad)u is not in conservative form (fdm.cxx
-    U2advection): the momentum changes by the sum of the advection term alone (the
-    viscous and pressure terms are differences of periodic fluxes and sum to zero).
-    Explicit (first step): dP = -RHO DX^3 dt sum (u.grad)u; implicit: dP = -RHO DX^3
-    dt/2 sum (u*.grad)(u^{n+1} + u^n), to the solver's tolerance."""
+    U2advection), nor is its variable-viscosity term (fdm_matrix_solver.cxx
+    CHNS_MAC_solver_implicit_viscosity: eta lap u + D eta . (D u + D u^T)): the momentum
+    changes by the sums of these terms (the constant-viscosity and pressure terms are
+    differences of periodic fluxes and sum to zero).  Explicit (first step): dP = RHO DX^3
+    dt sum (V(u) - (u.grad)u); implicit: dP = RHO DX^3 dt/2 sum (V(u^{n+1} + u^n) -
+    (u*.grad)(u^{n+1} + u^n)), to the solver's tolerance; V = 0 for constant viscosity."""
     rng = np.random.default_rng(4)
     sh, dt = (12, 12, 12), 0.05
     u = 0.2 * rng.standard_normal((3,) + sh) + np.array([0.5, -0.3, 0.2])[:, None, None, None]
@@ -380,11 +407,19 @@ def test_momentum_changes_by_the_advection(scheme, variable):
     u0 = u.copy()
     p0 = s.momentum(u)
     s.step(u, eta_field=eta)
+
+    def visc(w):
+        if eta is None:
+            return np.zeros(3)
+        return op.viscous_variable_nc(w, eta, 1.0).sum(axis=(1, 2, 3)) / RHO
     if scheme == "explicit_scheme":
-        dP = -RHO * dt * op.advection_nc(u0, 1.0).sum(axis=(1, 2, 3))
+        dP = RHO * dt * (visc(u0) - op.advection_nc(u0, 1.0).sum(axis=(1, 2, 3)))
     else:
-        dP = -RHO * 0.5 * dt * op.advection_nc_linear(u0, u + u0, 1.0).sum(axis=(1, 2, 3))
+        dP = RHO * 0.5 * dt * (visc(u + u0)
+                               - op.advection_nc_linear(u0, u + u0, 1.0).sum(axis=(1, 2, 3)))
     assert np.abs(dP).max() > 1e-6 * np.abs(u0).sum()          # the test is not vacuous
+    if variable:                                  # the viscous part is not vacuous either
+        assert np.abs(visc(u0)).max() > 1e-6 * np.abs(u0).sum()
     assert np.abs(s.momentum(u) - p0 - dP).max() < 1e-12 * np.abs(u0).sum()
 
 

@@ -13,8 +13,10 @@ Velocities at the nodes, pressure at the cell centres (see kapsel.fluid.operator
   has none, ``preconditioner=None``): 64^3, 8 particles, dt auto: 5 -> 1 iterations per step
   at the same tolerance, step 126-132 -> 98-105 ms.  For constant viscosity the operator is
   applied by a compiled stencil sweep (kapsel.fluid.stencils), bit-identical to the CSR
-  rows it replaces.  With ``eta_field`` the viscous term is the full
-  ∇·η(∇u + ∇u^T)/ρ (components coupled), otherwise ν∇²u.
+  rows it replaces.  With ``eta_field`` the viscous term is ∇·η(∇u + ∇u^T)/ρ in the
+  original's node form for ∇·u = 0, (η∇²u + ∇η·(∇u + ∇u^T))/ρ with central differences
+  (operators.viscous_variable_nc; its CSR rows have the original's 11 entries: components
+  coupled through ∂_i u_j), otherwise ν∇²u.
 
 Choices, measured on this 2-core machine (shared, so +-30 %; ms, min of repeats):
 
@@ -24,9 +26,10 @@ Choices, measured on this 2-core machine (shared, so +-30 %; ms, min of repeats)
   Poisson solve (rfftn + scale + irfftn): 32^3 0.10 vs 0.34, 64^3 1.06 vs 3.36 -> pyfftw
   (scipy.fft kept as ``fft='scipy'``).
 * BiCGSTAB operator: assembled CSR (fixed sparsity pattern, data refilled each step, 7 slots
-  per row, 15 with variable eta) vs matrix-free LinearOperator over the numpy stencils:
+  per row, 11 with variable eta) vs matrix-free LinearOperator over the numpy stencils:
     const eta  32^3: build 0.34, matvec 0.30 vs 1.06;  64^3: build 4.9, matvec 4.6 vs 5.9
-    var eta    32^3: build 2.3,  matvec 0.73 vs 1.46;  64^3: build 27,  matvec 11 vs 14
+    var eta    32^3: build 2.3,  matvec 0.82 vs 1.9;   64^3: build 38,  matvec 14 vs 33
+               (11 slots, 2026-12-02, the other core busy)
   step (const eta, dt = RHO DX^2/(ETA pi^2)): 32^3 6.3 vs 11.0, 64^3 76 vs 95 -> CSR
   (``linear='matfree'`` kept).  With threads > 1 and 3N >= 500 000 the CSR rows are split in
   blocks applied in threads (sparsetools releases the GIL): matvec 64^3 4.5 -> 3.2 ms, but
@@ -38,8 +41,9 @@ Choices, measured on this 2-core machine (shared, so +-30 %; ms, min of repeats)
   preconditioner keeps it: its symbol is 1 at k = 0, so preconditioned corrections still
   have zero sum.
 
-Advection is in divergence form ∇·(u u) (∇·(u* u^{n+1/2}) in the implicit scheme) with central
-differences at the nodes, so total momentum is conserved to round-off by both schemes.
+Advection is the original's non-conservative (u·∇)u ((u*·∇)u^{n+1/2} in the implicit scheme)
+with central differences at the nodes, and so is the variable-viscosity term: total momentum
+changes by their grid sums only (tests/test_mac.py), the other terms sum to zero.
 """
 import numpy as np
 import scipy.fft
@@ -156,7 +160,8 @@ class MACSolver:
         self._n_old = None          # explicit: (u.grad)u - f of the last step (AB2)
         self.step_count = 0         # steps done (a restart sets it): the original's jikan.ts
         self._pattern = None
-        self._eta_faces = None
+        self._eta_grad = None       # D eta of the step's viscosity field (viscosity_change)
+        self._visc_work = None
         self._thread_min_rows = 500_000        # threaded CSR matvec only above this size
 
     def _make_poisson(self, threads, fft):
@@ -275,6 +280,7 @@ class MACSolver:
         if not self._have_old:
             self._u_old[...] = u
             self._have_old = True
+        self._eta_grad = None if eta_field is None else self._viscosity_gradient(eta_field)
         if self.scheme == "explicit_scheme":
             self._step_explicit(u, force, eta_field)
         else:
@@ -283,13 +289,17 @@ class MACSolver:
         return u
 
     def _viscous(self, u, eta_field, out):
-        """(1/rho) div(eta (grad u + grad u^T)), or nu lap u when eta_field is None."""
+        """(1/rho) div(eta (grad u + grad u^T)) in the original's node form
+        (operators.viscous_variable_nc, with the step's D eta), or nu lap u when eta_field
+        is None."""
         if eta_field is None:
             op.laplacian(u, self.dx, out=out)
             out *= self.nu
         else:
-            op.viscous_variable(u, eta_field, self.dx, out=out, work=self._w2,
-                                eta_faces=self._eta_faces)
+            if self._visc_work is None:
+                self._visc_work = np.empty((11,) + self.fshape)
+            op.viscous_variable_nc(u, eta_field, self.dx, out=out, grad_eta=self._eta_grad,
+                                   work=self._visc_work)
             out *= 1.0 / self.rho
         return out
 
@@ -299,8 +309,9 @@ class MACSolver:
     def _advection_linear(self, a, w, out):
         return op.advection_nc_linear(a, w, self.dx, out=out)
 
-    def _face_viscosities(self, eta_field):
-        return op.face_viscosities(eta_field)
+    def _viscosity_gradient(self, eta_field):
+        """D eta (central, at the nodes) of the step's viscosity field."""
+        return op.grad_central(eta_field, self.dx)
 
     def _step_explicit(self, u, force, eta_field):
         """The original's explicit scheme (fdm.cxx NS_solver_slavedEuler_explicit, eqs
@@ -311,7 +322,6 @@ class MACSolver:
         original's is kept: the final spectral projection of the SPM step removes nearly all
         of the difference, 3e-7 of max|u| per step on one settling sphere.)"""
         dt = self.dt
-        self._eta_faces = None if eta_field is None else self._face_viscosities(eta_field)
         n = self._advection(u, out=self._v1)
         if force is not None:
             n -= force
@@ -417,7 +427,6 @@ class MACSolver:
         n3 = 3 * int(np.prod(self.shape))
         shape = (3,) + self.shape
         h = 0.5 * self.dt
-        self._eta_faces = None if eta_field is None else self._face_viscosities(eta_field)
         tmp = np.empty(shape)
 
         def mv(x):
@@ -444,14 +453,12 @@ class MACSolver:
             for j in range(3):
                 c.append(sh(e[j]) + i * n)
                 c.append(sh(tuple(-q for q in e[j])) + i * n)
-            if variable:
+            if variable:                # component j != i at n +- e_i (D_i u_j)
                 for j in range(3):
                     if j == i:
                         continue
-                    for sj in (1, -1):
-                        for si in (1, -1):
-                            s = tuple(sj * e[j][a] + si * e[i][a] for a in range(3))
-                            c.append(sh(s) + j * n)
+                    for si in (1, -1):
+                        c.append(sh(tuple(si * q for q in e[i])) + j * n)
             cols.append(np.stack(c, axis=1))
         indices = np.concatenate(cols, axis=0).astype(np.int32)
         nslot = indices.shape[1]
@@ -463,9 +470,11 @@ class MACSolver:
     def _assemble(self, ustar, eta_field):
         """CSR matrix of A = I + dt/2 N(u*, .) - dt/2 V (fixed pattern, data refilled).
 
-        Slots of row (component i, node n): n, n+e_x, n-e_x, n+e_y, ..., then (variable eta)
-        the cross-term corners of the other components.  Filled slot-major in ``T`` and
-        copied transposed into the row-major CSR data."""
+        Slots of row (component i, node n): n, n+e_x, n-e_x, n+e_y, ..., then (variable eta,
+        the original's 11-entry rows of CHNS_MAC_solver_implicit_viscosity) component j != i
+        at n + e_i, n - e_i: V_i = (eta lap u_i + sum_j D_j eta (D_j u_i + D_i u_j)) / rho
+        (operators.viscous_variable_nc).  Filled slot-major in ``T`` and copied transposed
+        into the row-major CSR data."""
         variable = eta_field is not None
         if self._pattern is None or self._pattern["variable"] != variable:
             self._pattern = self._build_pattern(variable)
@@ -473,9 +482,6 @@ class MACSolver:
         n = int(np.prod(self.shape))
         data, T = P["data"], P["T"]
         dx, h = self.dx, 0.5 * self.dt
-        sh = op.shift_assign
-        t = self._s
-        tv = t.reshape(-1)
         if not variable:
             c = h * self.nu / dx ** 2
             T[0] = 1.0 + 6.0 * c
@@ -488,39 +494,36 @@ class MACSolver:
             data[1] = data[0]
             data[2] = data[0]
         else:
-            eta = eta_field
+            eta = eta_field.reshape(-1)
+            ge = self._eta_grad if self._eta_grad is not None else \
+                self._viscosity_gradient(eta_field)
+            ge = ge.reshape(3, n)
             g = h / (self.rho * dx * dx)
-            ef = op.face_viscosities(eta).reshape(3, n)
-            efm = np.empty_like(ef)            # eta at i-1/2
-            for j in range(3):
-                sh(efm[j].reshape(self.shape), ef[j].reshape(self.shape), -1, j)
-            # advection part of the 6 neighbour slots, shared by the components
+            c1 = h / (2.0 * self.rho * dx)
+            # advection - eta lap part of the 6 neighbour slots, shared by the components
             adv = P["adv"]
             for j in range(3):
                 uj = ustar[j].reshape(-1)
                 np.multiply(uj, h / (2 * dx), out=adv[2 * j])
+                adv[2 * j] -= g * eta
                 np.multiply(uj, -h / (2 * dx), out=adv[2 * j + 1])
+                adv[2 * j + 1] -= g * eta
             for i in range(3):
-                T[0] = 1.0
+                np.multiply(eta, 6.0 * g, out=T[0])
+                T[0] += 1.0
                 for j in range(3):
-                    m = g * (2.0 if j == i else 1.0)
-                    fp, fm = ef[j], efm[j]
-                    np.multiply(fp, m, out=T[1 + 2 * j])
-                    np.multiply(fm, m, out=T[2 + 2 * j])
-                    T[0] += T[1 + 2 * j]
-                    T[0] += T[2 + 2 * j]
-                    np.subtract(adv[2 * j], T[1 + 2 * j], out=T[1 + 2 * j])
-                    np.subtract(adv[2 * j + 1], T[2 + 2 * j], out=T[2 + 2 * j])
+                    m = c1 * (2.0 if j == i else 1.0)
+                    np.multiply(ge[j], -m, out=T[1 + 2 * j])
+                    T[1 + 2 * j] += adv[2 * j]
+                    np.multiply(ge[j], m, out=T[2 + 2 * j])
+                    T[2 + 2 * j] += adv[2 * j + 1]
                 k = 7
                 for j in range(3):
                     if j == i:
                         continue
-                    for sj in (1, -1):
-                        sh(t, eta, sj, j)
-                        for si in (1, -1):
-                            # D_j(eta D_i w_j): coefficient sj*si*eta[n+sj e_j]/(4dx^2)
-                            np.multiply(tv, -sj * si * 0.25 * g, out=T[k])
-                            k += 1
+                    for si in (1, -1):
+                        np.multiply(ge[j], -si * c1, out=T[k])
+                        k += 1
                 data[i] = T.T
         return self._csr(P)
 
@@ -624,7 +627,7 @@ class DistributedMAC(MACSolver):
         self.fshape = tuple(grid.local_shape)
         self.halo = Halo(grid, 1)
         super().__init__(grid.shape, dx, rho, eta, dt, **kw)
-        self._eta_pad = None        # eta_field widened (with _eta_faces of it)
+        self._eta_pad = None        # eta_field widened (with _eta_grad of it)
 
     def _make_poisson(self, threads, fft):
         return _PoissonPencil(self.grid, self.dx)
@@ -676,10 +679,11 @@ class DistributedMAC(MACSolver):
         out[...] = h.interior(A)
         return out
 
-    def _face_viscosities(self, eta_field):
+    def _viscosity_gradient(self, eta_field):
+        """D eta on the widened block (kept with the widened eta, ``_eta_pad``)."""
         h = self.halo
         self._eta_pad = np.array(h.pad(eta_field, key="eta"))
-        return op.face_viscosities(self._eta_pad)
+        return op.grad_central(self._eta_pad, self.dx)
 
     def _viscous(self, u, eta_field, out):
         h = self.halo
@@ -688,9 +692,9 @@ class DistributedMAC(MACSolver):
         if eta_field is None:
             op.laplacian(U, self.dx, out=V)
             V *= self.nu
-        else:                       # _eta_faces, _eta_pad: set by the step
-            op.viscous_variable(U, self._eta_pad, self.dx, out=V, work=h.work((2,), "w2"),
-                                eta_faces=self._eta_faces)
+        else:                       # _eta_grad, _eta_pad: set by the step
+            op.viscous_variable_nc(U, self._eta_pad, self.dx, out=V, grad_eta=self._eta_grad,
+                                   work=h.work((11,), "visc_nc"))
             V *= 1.0 / self.rho
         out[...] = h.interior(V)
         return out
@@ -740,7 +744,6 @@ class DistributedMAC(MACSolver):
                 kernel(X, US, a, c, OUT)
                 return np.array(h.interior(OUT)).reshape(-1)
             return LinearOperator((n3, n3), matvec=mv, dtype=np.float64)
-        self._eta_faces = None if eta_field is None else self._face_viscosities(eta_field)
         T = h.work((3,), "mvt")
         O = h.work((3,), "mvo")
 
@@ -753,8 +756,8 @@ class DistributedMAC(MACSolver):
                 op.laplacian(X, self.dx, out=T)
                 np.multiply(T, self.nu, out=T)
             else:
-                op.viscous_variable(X, self._eta_pad, self.dx, out=T, work=h.work((2,), "w2"),
-                                    eta_faces=self._eta_faces)
+                op.viscous_variable_nc(X, self._eta_pad, self.dx, out=T,
+                                       grad_eta=self._eta_grad, work=h.work((11,), "mv_nc"))
                 np.multiply(T, 1.0 / self.rho, out=T)
             np.subtract(O, hdt * T, out=O)
             return np.array(h.interior(O)).reshape(-1)

@@ -9,8 +9,9 @@ caller-supplied ``out=`` / ``work=`` buffers (no ``np.roll`` temporaries, no loo
 ``laplacian``, ``advection``, ``div_b`` and ``grad_b`` run as compiled single sweeps
 (kapsel.fluid.stencils, bit-identical) on C-contiguous float64 arrays once kapsel.compiled
 has loaded them.
-``out`` must not alias the input.  Every operator is a difference of periodic fluxes, so its sum
-over the grid vanishes: momentum is conserved to round-off.
+``out`` must not alias the input.  Every operator but the original's non-conservative forms
+(``advection_nc*``, ``viscous_variable_nc``) is a difference of periodic fluxes, so its sum
+over the grid vanishes.
 
 Fourier symbols are for ``numpy``/``pyfftw`` ``rfftn`` over the three grid axes of arrays in the
 layout above (index Fourier convention, no cell-centre phase factor needed for the B-grid
@@ -24,7 +25,7 @@ __all__ = [
     "shift_assign", "shift_add", "shift_sub", "cdiff_acc",
     "laplacian", "grad_central", "div_central", "div_b", "grad_b",
     "advection", "advection_linear", "advection_nc", "advection_nc_linear",
-    "symbol_inverse_laplacian", "viscous_variable", "face_viscosities",
+    "symbol_inverse_laplacian", "viscous_variable_nc",
     "wavenumbers", "symbol_laplacian", "symbol_central", "symbol_div_grad_b",
     "b_grid_null_modes", "inverse_div_grad_b", "symbol_div_b", "symbol_grad_b",
 ]
@@ -299,52 +300,36 @@ def advection_linear(a, w, dx, out=None, work=None):
 
 
 # --------------------------------------------------------------------------- variable viscosity
-def face_viscosities(eta, out=None):
-    """eta at the half-way points i+1/2 along each axis: (eta[i] + eta[i+1]) / 2 -> (3, ...)."""
-    out = _buf(out, (3,) + eta.shape)
-    for ax in range(3):
-        _avg(out[ax], eta, 1, ax)
-    return out
+def viscous_variable_nc(u, eta, dx, out=None, grad_eta=None, work=None):
+    """The original's viscous term with the viscosity field eta at the nodes (eq 23 with
+    viscosity_change; fdm_matrix_solver.cxx CHNS_MAC_solver_implicit_viscosity,
+    fdm_phase_separation.cxx Set_poisson_rhs_viscosity): div(eta (grad u + grad u^T)) in
+    the non-conservative form it takes for div u = 0,
 
+        out_i = eta lap u_i + sum_j D_j eta (D_j u_i + D_i u_j),
 
-def viscous_variable(u, eta, dx, out=None, eta_faces=None, work=None):
-    """div(eta (grad u + grad u^T)) at the nodes, eta a node field (eq 15, 23).
-
-    component i = sum_j d_j(eta_f d_j u_i) + d_i(eta_f d_i u_i)     [compact, eta at faces]
-                + sum_{j != i} D_j(eta D_i u_j)                    [central, cross terms]
-    For uniform eta the compact part is eta * laplacian(u) exactly.  Flux form: sums to zero.
-    ``eta_faces`` from face_viscosities(eta) (reuse inside iterative solves);
-    ``work``: (2, NX, NY, NZ) scratch.
-    """
+    lap the 7-point Laplacian, D_j the central difference (f[+e_j] - f[-e_j]) / (2 DX).
+    For uniform eta it is eta lap u exactly.  Not a difference of fluxes: its sum over the
+    grid is not zero where eta varies.  ``grad_eta``: D eta (3, ...) (reused inside
+    iterative solves); ``work``: (11, NX, NY, NZ) scratch (D u and two fields)."""
     shp = u.shape[1:]
-    out = _buf(out, u.shape)
-    ef = face_viscosities(eta) if eta_faces is None else eta_faces
-    w = np.empty((2,) + shp) if work is None else work
-    t0, t1 = w[0], w[1]
-    inv2 = 1.0 / (dx * dx)
+    out = laplacian(u, dx, out)
+    out *= eta
+    g = grad_central(eta, dx) if grad_eta is None else grad_eta
+    w = np.empty((11,) + shp) if work is None else work
+    du = w[:9].reshape((3, 3) + shp)                 # du[i, j] = D_j u_i
+    acc, t = w[9], w[10]
     for i in range(3):
-        o = out[i]
-        o[...] = 0.0
+        grad_central(u[i], dx, out=du[i])
+    for i in range(3):
+        np.multiply(g[i], du[i, i], out=acc)
+        acc *= 2.0
         for j in range(3):
-            _fdiff(t0, u[i], j)
-            np.multiply(t0, ef[j], out=t0)
-            if j == i:
-                t0 *= 2.0
-            # o += t0[i] - t0[i-1]
-            np.add(o, t0, out=o)
-            shift_sub(o, t0, -1, j)
-        o *= inv2
-        # cross terms, central, scale 1/(4 dx^2)
-        t1[...] = 0.0
-        for j in range(3):
-            if j == i:
-                continue
-            t0[...] = 0.0
-            _cdiff_acc(t0, u[j], i)
-            np.multiply(t0, eta, out=t0)
-            _cdiff_acc(t1, t0, j)
-        t1 *= 0.25 * inv2
-        np.add(o, t1, out=o)
+            if j != i:
+                np.add(du[i, j], du[j, i], out=t)
+                t *= g[j]
+                acc += t
+        out[i] += acc
     return out
 
 
