@@ -186,7 +186,15 @@ class Restart(Activity):
         self.base = None         # fingerprint of the restart.udf text on disk
         self.step = None         # step of the last saved state
         self.full = None         # step of the last full restart.udf
-        self.define_doc = None
+        self.define_doc = None   # define.udf's schema, read once here (a run that writes)
+        if model.restart_kind is not None:
+            import udf
+            try:
+                self.define_doc = udf.UDFManager(schema_from=args.define)
+            except udf.UDFError as e:
+                from .simulation import RunError
+                raise RunError(f"cannot read -D{args.define} for the restart file: {e}") \
+                    from None
 
     def continues(self, fingerprint, step, full):
         """The restart.udf on disk is the one the run continues: checkpoints go on
@@ -205,14 +213,11 @@ class Restart(Activity):
         full = full or self.base is None
         kind, data, exact = model.restart_state(checkpoint=not full)
         if full:
-            self.base = write_restart(args.restart, args.define, self.doc, kind,
+            self.base = write_restart(args.restart, self.define_doc, self.doc, kind,
                                       model.step_index, model.time, model.particles, data,
                                       exact, previous=self.base)
             self.full = model.step_index
         else:
-            if self.define_doc is None:
-                from udf import UDFManager
-                self.define_doc = UDFManager(schema_from=args.define)
             write_checkpoint(args.restart, self.define_doc, kind, model.step_index,
                              model.time, model.particles, data, exact, self.base,
                              complete=model.checkpoint_complete)
@@ -223,7 +228,7 @@ class Restart(Activity):
         if writes and self.step is not None and self.full != self.step:
             from .io.restart import complete_restart
             try:
-                complete_restart(self.args.restart, self.args.define, self.doc)
+                complete_restart(self.args.restart, self.define_doc, self.doc)
             except OSError:
                 pass        # the checkpoint still continues the run from restart.udf
 

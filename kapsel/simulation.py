@@ -161,6 +161,11 @@ def _write_error(e: OSError) -> str:
     return write_failure(e)
 
 
+def _disk_full(e: OSError) -> bool:
+    import errno
+    return e.errno in (errno.ENOSPC, errno.EDQUOT) or "No space left" in str(e)
+
+
 class RunError(Exception):
     """The run stopped before its end (an instability, a solver that did not converge, a
     file that cannot be written, no memory): ``str(e)`` is the message the command line
@@ -210,7 +215,7 @@ class TimeLoop:
         self.lockstep = model.lockstep
         self.writes = self.lockstep is None or self.lockstep.dist.root
         self.snap = None
-        self.state = "new"                 # "open" once the writers are open, then "closed"
+        self.state = "new"       # "opening" the writers, "open" once they are, then "closed"
         self.closing = "failed"            # the reason the activities are closed with
         self.stop = None                   # the signal that asks the run to stop
         self.between, self.outputs = [], []
@@ -255,9 +260,11 @@ class TimeLoop:
             args = self.args
             what = e.filename or (f"an output file in "
                                   f"{os.path.dirname(os.path.abspath(args.output))}")
-            raise RunError(f"cannot write {what} at step {model.step_index}: "
-                           f"{_write_error(e)}. {restart_hint(self.restart.step, args)}. "
-                           f"Free some space and continue from it.") from None
+            verb = "open" if getattr(e, "kapsel_opening", False) else "write"
+            raise RunError(f"cannot {verb} {what} at step {model.step_index}: "
+                           f"{_write_error(e)}. {restart_hint(self.restart.step, args)}."
+                           + (" Free some space and continue from it." if _disk_full(e)
+                              else "")) from None
 
     def _guarded(self, target):
         if self.nothing_to_do:
@@ -281,17 +288,26 @@ class TimeLoop:
     def _open(self):
         """The writers opened on the initial (or restored) state, and its snapshot when
         its step is one."""
+        import udf
         model = self.model
-        self.state = "open"
-        for a in self.between:
-            a.open(self)
+        self.state = "opening"
 
         def open_outputs():
             self.snap = model.snapshot()
             for a in self.outputs:
                 a.open(self)
             return self.snap
-        first = self._output(open_outputs)
+        try:
+            for a in self.between:
+                a.open(self)
+            first = self._output(open_outputs)
+        except OSError as e:            # a file that cannot be opened (advance_to says so)
+            e.kapsel_opening = True
+            raise
+        except udf.UDFError as e:       # output.udf (or what it includes) unreadable
+            raise RunError(f"cannot continue {self.args.output}: {e}. "
+                           f"{restart_hint(self.restart.step, self.args)}.") from None
+        self.state = "open"
         if model.step_index % self.cfg.output.GTS == 0 and model.step_index <= self.total:
             try:
                 self._output_round(self._due(self.outputs), first)
@@ -403,7 +419,7 @@ class TimeLoop:
     def _close(self, reason):
         if self.state == "closed":
             return
-        opened = self.state == "open"
+        opened = self.state in ("open", "opening")
         self.state = "closed"
         if opened:
             for a in self.between + self.outputs:
@@ -439,7 +455,7 @@ class TimeLoop:
                 and _same_file(source[0], args.restart):
             # killed between the two renames of its last restart write: the text
             from .io.restart import complete_restart   # from the state file's copy
-            complete_restart(args.restart, args.define, self.doc)
+            complete_restart(args.restart, self.restart.define_doc or args.define, self.doc)
         return (f"{args.input} holds the end of its run (its last snapshot at step "
                 f"{self.total} = output.Num_snap {cfg.output.Num_snap} x output.GTS "
                 f"{cfg.output.GTS}): nothing to do. To run longer, raise output.Num_snap in "

@@ -556,3 +556,23 @@ def test_5_readers_refuse_fifos(tmp_path):
     t.join(20)
     assert not t.is_alive(), f"a FIFO was opened and waited on after {got}"
     assert got == ["refused"] * 3 + [None, []]
+
+
+def test_define_file_is_read_once_at_start_up(tmp_path):
+    """The restart writes take define.udf's schema as read at start-up: the file removed
+    (or unreadable: EIO, EACCES) during the run changes nothing, and the restart written
+    is the one an undisturbed run writes.  (Before: every full restart write read the
+    file again, and a read failure there ended in a UDFError traceback.)"""
+    from test_api import _api, _input
+    runs = {}
+    for name in ("kept", "removed"):
+        d = tmp_path / name
+        d.mkdir()
+        _input(str(d), "Navier_Stokes_FDM")
+        sim = _api(str(d), overrides={"output.Num_snap": 2})
+        sim.run(2)
+        if name == "removed":
+            (d / "define.udf").rename(d / "define.away")
+        sim.run()
+        runs[name] = (d / "restart.udf").read_bytes()
+    assert runs["kept"] == runs["removed"]

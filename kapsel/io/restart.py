@@ -163,13 +163,14 @@ def _remove(path):
         pass
 
 
-def write_restart(path: str, define_path: str, input_doc: UDFManager, kind: str, step: int,
+def write_restart(path: str, define, input_doc: UDFManager, kind: str, step: int,
                   time: float, particles, fields: dict, exact: dict | None = None,
                   table: np.ndarray | None = None, previous: str | None = None) -> str:
     """Write ``path`` (restart.udf) and its state file for the state after ``step`` steps
     (jikan.ts = step - 1, §6.3).  ``fields``: Saved_Data items by name (``oblique`` etc. as
     plain values); ``exact``: arrays (or JSON-able values) the schema has no place for;
-    ``table``: the sParticle table instead of ``particles``.  Returns the fingerprint of the
+    ``table``: the sParticle table instead of ``particles``; ``define``: define.udf's path,
+    or a UDFManager(schema_from=define.udf) read once.  Returns the fingerprint of the
     data written (``write_checkpoint``'s ``base``).
 
     The pair is replaced in two renames, the state file first.  ``previous``: the
@@ -178,7 +179,7 @@ def write_restart(path: str, define_path: str, input_doc: UDFManager, kind: str,
     kill between the renames continues from this state, not from the older text.  Without
     it (the file at ``path`` belongs to no run of this time line) the old text is removed
     before the renames."""
-    doc = UDFManager(schema_from=define_path)
+    doc = define.blank() if isinstance(define, UDFManager) else UDFManager(schema_from=define)
     for name, value in input_doc.common.items():
         if name in doc.schema.global_items:
             doc.common[name] = value
@@ -302,7 +303,7 @@ def _split_checkpoint(state: dict):
             exact)
 
 
-def complete_restart(path: str, define_path: str, input_doc: UDFManager) -> int | None:
+def complete_restart(path: str, define, input_doc: UDFManager) -> int | None:
     """Write the full restart.udf of the checkpoint in its state file (a run that failed
     after its last checkpoint); returns its step, or None if the state is no checkpoint."""
     try:
@@ -312,7 +313,7 @@ def complete_restart(path: str, define_path: str, input_doc: UDFManager) -> int 
     if _CK + "base" not in state or not bool(state.get(_CK + "complete", False)):
         return None
     kind, step, time, table, fields, exact = _split_checkpoint(state)
-    write_restart(path, define_path, input_doc, kind, step, time, None, fields, exact,
+    write_restart(path, define, input_doc, kind, step, time, None, fields, exact,
                   table=table, previous=str(state[_CK + "base"]))
     return step
 
