@@ -46,20 +46,31 @@ def command(inp="input.udf", seed=3):
         + (["--seed", str(seed)] if seed is not None else [])
 
 
-def run(d, cmd, strace=None, timeout=300):
+def mpiexec():
+    """The mpiexec of the `mpi` extra (next to the interpreter), else the system's."""
+    here = os.path.dirname(sys.executable)
+    return shutil.which("mpiexec", path=here) or shutil.which("mpiexec")
+
+
+def run(d, cmd, strace=None, timeout=300, ranks=1):
+    """``cmd`` in directory ``d``, under ``strace strace...`` if given; with ``ranks`` > 1
+    a distributed run (mpiexec, MPMD: strace on rank 0 only, the rank that writes)."""
     pre = ["strace", "-qq", *strace] if strace else []
-    return subprocess.run(pre + cmd, cwd=d, capture_output=True, text=True, env=env(),
+    argv = pre + cmd
+    if ranks > 1:
+        argv = [mpiexec(), "-n", "1"] + argv + [":", "-n", str(ranks - 1)] + cmd
+    return subprocess.run(argv, cwd=d, capture_output=True, text=True, env=env(),
                           timeout=timeout)
 
 
 _CALL = re.compile(r"^(\w+)\((.*)$")
 
 
-def trace(d, cmd):
+def trace(d, cmd, ranks=1):
     """[(kind, n, text)] of the run's write/pwrite64/rename/fsync calls in order, n
-    counting from 1 per kind."""
+    counting from 1 per kind (of rank 0 in a distributed run)."""
     log = os.path.abspath(d) + ".strace"
-    r = run(d, cmd, ["-y", "-o", log, "-e", "trace=" + ",".join(KINDS)])
+    r = run(d, cmd, ["-y", "-o", log, "-e", "trace=" + ",".join(KINDS)], ranks=ranks)
     assert r.returncode == 0, r.stderr
     calls, count = [], dict.fromkeys(KINDS, 0)
     with open(log) as fh:
@@ -144,15 +155,16 @@ def compare_runs(a, b) -> list[str]:
     return diffs
 
 
-def kill_and_continue(base, ref, cmd, kind, n, inject="signal=KILL"):
+def kill_and_continue(base, ref, cmd, kind, n, inject="signal=KILL", ranks=1):
     """Copy the fresh input directory ``base``, run it with the fault (kind, n), continue
     if killed; returns (fault run, continuation or None, directory)."""
     d = os.path.join(os.path.dirname(ref), f"kill-{kind}-{n}-{inject.split('=')[-1]}")
     if os.path.exists(d):
         shutil.rmtree(d)
     shutil.copytree(base, d)
-    first = run(d, cmd, ["-o", "/dev/null", "-e", f"inject={kind}:{inject}:when={n}"])
+    first = run(d, cmd, ["-o", "/dev/null", "-e", f"inject={kind}:{inject}:when={n}"],
+                ranks=ranks)
     if inject != "signal=KILL":
         return first, None, d
-    cont = run(d, command("restart.udf", seed=None))
+    cont = run(d, command("restart.udf", seed=None), ranks=ranks)
     return first, cont, d

@@ -4,7 +4,8 @@
 Three inputs, all 8^3 with noise: Navier_Stokes (spectral) with output.AVS EXTENDED,
 Navier_Stokes_FDM (per-snapshot .h5 and .xmf files), and Shear_Navier_Stokes_Lees_Edwards
 with a rigid rod and legacy AVS (shear_stress.dat, rotational_energy.dat, the .fld/.dat
-files); GTS 2, Num_snap 3.  The windows: every
+files); GTS 2, Num_snap 3; and the FDM input run on 2 ranks (mpiexec, rank 0 -- the rank
+that writes -- under strace, the continuation on 2 ranks again).  The windows: every
 write / pwrite64 / rename / fsync of the snapshot at step 4 (output.udf record, field files,
 EXTENDED frame and its journal, .conf/.xdmf, checkpoint), and of the end of the run (final
 restart pair, closing the trajectory).
@@ -78,7 +79,19 @@ def _sheared_rigid_avs(d):
     u.write(os.path.join(d, "input.udf"))
 
 
-INPUTS = {"spectral-EXTENDED": _spectral, "FDM": _fdm, "sheared-rigid-AVS": _sheared_rigid_avs}
+# name: (input, ranks); the 2-rank run is killed on rank 0, the rank that writes
+INPUTS = {"spectral-EXTENDED": (_spectral, 1), "FDM": (_fdm, 1),
+          "sheared-rigid-AVS": (_sheared_rigid_avs, 1), "FDM-2-ranks": (_fdm, 2)}
+
+
+def _can_run(name) -> bool:
+    if INPUTS[name][1] == 1:
+        return True
+    try:
+        import mpi4py  # noqa: F401
+    except ImportError:
+        return False
+    return kp.mpiexec() is not None
 
 
 class Case:
@@ -86,10 +99,11 @@ class Case:
 
     def __init__(self, root, name):
         self.base = os.path.join(root, "base")
-        INPUTS[name](self.base)
+        build, self.ranks = INPUTS[name]
+        build(self.base)
         self.ref = os.path.join(root, "ref")
         shutil.copytree(self.base, self.ref)
-        self.calls = kp.trace(self.ref, kp.command())      # the uninterrupted run
+        self.calls = kp.trace(self.ref, kp.command(), self.ranks)   # the uninterrupted run
         self.snapshot, self.final = kp.windows(self.calls, 4)
 
     def check_numbering(self) -> None:
@@ -97,7 +111,7 @@ class Case:
         on the first)."""
         d = self.ref + "-again"
         shutil.copytree(self.base, d)
-        again = kp.trace(d, kp.command())
+        again = kp.trace(d, kp.command(), self.ranks)
         shutil.rmtree(d)
         assert [c[:2] for c in again] == [c[:2] for c in self.calls], \
             "the system calls of two runs of one input differ: cannot number them"
@@ -105,12 +119,16 @@ class Case:
 
 @pytest.fixture(scope="module", params=list(INPUTS))
 def case(request, tmp_path_factory):
+    if not _can_run(request.param):
+        pytest.skip("the mpi extra (mpi4py, mpiexec) is not installed")
     return Case(str(tmp_path_factory.mktemp(request.param)), request.param)
 
 
 def _kill(case, kind, n):
-    first, cont, d = kp.kill_and_continue(case.base, case.ref, kp.command(), kind, n)
-    assert first.returncode == -9, first.stderr          # SIGKILL at that call
+    first, cont, d = kp.kill_and_continue(case.base, case.ref, kp.command(), kind, n,
+                                          ranks=case.ranks)
+    # SIGKILL at that call (mpiexec reports its rank's signal as exit 9)
+    assert first.returncode == (-9 if case.ranks == 1 else 9), first.stderr
     assert cont.returncode == 0, cont.stderr
     assert "Traceback" not in cont.stderr
     assert kp.compare_runs(case.ref, d) == []
@@ -120,7 +138,7 @@ def _kill(case, kind, n):
 
 def _enospc(case, kind, n):
     first, _, d = kp.kill_and_continue(case.base, case.ref, kp.command(), kind, n,
-                                       inject="error=ENOSPC")
+                                       inject="error=ENOSPC", ranks=case.ranks)
     if first.returncode == 0:       # a write whose failure nothing sees (stderr): nothing
         assert kp.compare_runs(case.ref, d) == []       # to say, nothing lost
         shutil.rmtree(d)
@@ -130,8 +148,9 @@ def _enospc(case, kind, n):
     assert "the disk is full" in line, line
     assert kp.temporaries(d) == []
     # nothing lost: once space is free, the run continues to the uninterrupted result
-    cont = kp.run(d, kp.command("restart.udf", seed=None)) if os.path.exists(
-        os.path.join(d, "restart.udf")) else kp.run(d, kp.command() + ["--overwrite"])
+    cont = kp.run(d, kp.command("restart.udf", seed=None), ranks=case.ranks) if os.path.exists(
+        os.path.join(d, "restart.udf")) else kp.run(d, kp.command() + ["--overwrite"],
+                                                    ranks=case.ranks)
     assert cont.returncode == 0, cont.stderr
     assert kp.compare_runs(case.ref, d) == []
     shutil.rmtree(d)
