@@ -12,6 +12,7 @@ import numpy as np
 
 from ..config import ConfigError, RunConfig
 from ..typespec import TYPES
+from ..particles.interactions import make_forces  # noqa: F401  (the models' import)
 from ..particles.state import ParticleState
 
 
@@ -174,135 +175,6 @@ def _check_between_walls(cfg, R, radius):
                           f"fluid lies between {lo:g} and {cfg.mesh.box[axis] - lo:g} along "
                           f"{'XYZ'[axis]})", path="switch.INIT_distribution.type",
                           value=cfg.switches.init_distribution)
-
-
-def make_forces(cfg: RunConfig, particles: ParticleState, strain=None, wall=None):
-    """``forces(p) -> (F, T, min_ratio)``: pair interactions (skipped for LJ_truncate NONE;
-    not between beads of one rigid body), FENE bonds of chains (kapsel.particles.chains),
-    net gravity, and the dipole forces and torques and Quincke constraint torque
-    (kapsel.particles.dipoles); None when a scene has none of them.  ``strain()``: the
-    Lees-Edwards frame strain of the sheared types (pairs by the Lees-Edwards minimum
-    image).  ``wall``: a kapsel.particles.walls.FlatWall whose particle-wall forces are
-    added per bead."""
-    inter = cfg.interactions
-    pairs = inter.LJ_truncate != "NONE" and particles.n > 1 and inter.EPSILON > 0
-    # (rigid bodies carry their net gravity themselves: kapsel.particles.rigid)
-    gravity = (inter.G != 0 and particles.n > 0
-               and getattr(particles.constraints, "gravity", None) is None)
-    chain = cfg.particles.object_type == "chain" and particles.n > 1
-    sw = getattr(cfg, "switches", None)
-    quincke, dipoles = getattr(sw, "quincke", None), getattr(sw, "dipoles", None)
-    electric = None
-    if particles.n and (quincke is not None or dipoles is not None):
-        from ..particles.dipoles import make_electric
-        electric = make_electric(dipoles, quincke, cfg.mesh.box, particles.n, strain=strain)
-    if wall is not None and (wall.truncate == "NONE" or particles.n == 0):
-        wall = None
-    if not (pairs or gravity or chain or electric or wall is not None):
-        return None
-    from ..particles import forces as pf
-    box = cfg.mesh.box
-    g = None
-    if gravity:
-        ratio = np.array([cfg.particles.species[s].MASS_RATIO for s in particles.species])
-        g = pf.gravity_force(particles.radius, ratio, cfg.fluid.RHO, inter.G, inter.G_direction)
-    zeros = np.zeros((particles.n, 3))
-    group = getattr(particles.constraints, "body", None)     # beads of one rigid body
-    bonds = None
-    if cfg.particles.object_type == "chain":
-        from ..particles import chains
-        bonds = chains.chain_bonds([s.beads for s in cfg.particles.species
-                                    for _ in range(s.number)])
-
-    virial = np.zeros((3, 3))       # sum over pairs of f_a dr_b of the last call
-    lj_dia = None
-    if _sheared(cfg):                                   # LJ_dia of the sheared types
-        lj_dia = pf.sheared_lj_dia(inter.LJ_powers, cfg.particles.A, cfg.particles.A_XI)
-        if lj_dia == 2.0 * cfg.particles.A:
-            lj_dia = None
-
-    def forces(p):
-        if pairs:
-            F, _, ratio_min = pf.pair_forces(p.R, box, p.radius, inter.LJ_powers, inter.EPSILON,
-                                             inter.LJ_truncate, group=group,
-                                             strain=strain() if strain is not None else 0.0,
-                                             virial=virial, sigma=lj_dia)
-        else:
-            F, ratio_min = zeros.copy(), np.inf
-        if g is not None:
-            F = F + g
-        if wall is not None:
-            Fw, _, ratio_w = wall.forces(p.R, p.radius)
-            F = F + Fw
-            ratio_min = min(ratio_min, ratio_w)
-        if bonds is not None:
-            Fb, stretch = chains.fene_forces(p.R, box, p.radius, *bonds, inter.EPSILON,
-                                             strain=strain() if strain is not None else 0.0)
-            if stretch >= chains.BOND_BREAK:
-                raise FloatingPointError(f"a chain bond stretched to {stretch:.3f} of the FENE "
-                                         f"maximum R0 = {chains.FENE_R0} (2 A)")
-            F = F + Fb
-        T = zeros
-        if electric is not None:          # dipoles (Ewald) and the Quincke constraint
-            Fe, T = electric(p)
-            F = F + Fe
-        return F, T, ratio_min
-    forces.virial = virial
-    # a distributed run with particles owned by ranks (kapsel.parallel.particles): the
-    # reach of the forces (length) for the halos, and the forces of a rank's table
-    forces.cutoff = 0.0
-    if pairs:
-        forces.cutoff = pf.interaction_range(inter.LJ_powers, inter.LJ_truncate) * (
-            2.0 * float(np.max(particles.radius)) if lj_dia is None else lj_dia)
-    if bonds is not None:           # a bond is shorter than R0 (the run stops before)
-        forces.cutoff = max(forces.cutoff,
-                            chains.FENE_R0 * 2.0 * float(np.max(particles.radius)))
-    if electric is not None:        # the Ewald sum's real-space reach (dipoles)
-        forces.cutoff = max(forces.cutoff, float(electric.reach))
-    forces.local = None
-    if wall is None:
-        ratios = (np.array([s.MASS_RATIO for s in cfg.particles.species]) if gravity
-                  else None)
-        starts = None
-        if bonds is not None:       # first bead of every chain (bead g bonds to g + 1)
-            per_chain = [s.beads for s in cfg.particles.species for _ in range(s.number)]
-            starts = np.concatenate([np.cumsum(per_chain), [0]])
-
-        def local(p, weight, gid, reduce=None):
-            """``forces`` of a rank's table (owned + ghosts; ``gid`` the global ids):
-            pair forces (not between beads of one rigid body), gravity, FENE bonds, dipoles
-            and the Quincke constraint (``reduce``: sum over the ranks, for the Ewald sum),
-            the virial counting each pair once over the ranks (``weight`` 1 owned, 0
-            ghost) -> (F, T, min pair ratio, max bond stretch); complete on the owned
-            rows."""
-            if pairs:
-                F, _, ratio_min = pf.pair_forces(
-                    p.R, box, p.radius, inter.LJ_powers, inter.EPSILON, inter.LJ_truncate,
-                    group=None if group is None else group[gid],
-                    strain=strain() if strain is not None else 0.0, virial=virial,
-                    sigma=lj_dia, weight=weight)
-            else:
-                F, ratio_min = np.zeros((p.n, 3)), np.inf
-            if gravity:
-                F = F + pf.gravity_force(p.radius, ratios[p.species], cfg.fluid.RHO, inter.G,
-                                         inter.G_direction)
-            stretch = 0.0
-            if starts is not None:
-                order = np.argsort(gid)
-                sg = gid[order]
-                k = np.minimum(np.searchsorted(sg, gid + 1), max(len(sg) - 1, 0))
-                i = np.flatnonzero(~np.isin(gid + 1, starts) & (sg[k] == gid + 1))
-                Fb, stretch = chains.fene_forces(p.R, box, p.radius, i, order[k[i]],
-                                                 inter.EPSILON,
-                                                 strain=strain() if strain is not None else 0.0)
-                F = F + Fb
-            T = np.zeros((p.n, 3))
-            if electric is not None:
-                Fe, T = electric.local(p, int(np.count_nonzero(weight)), reduce)
-                F = F + Fe
-            return F, T, ratio_min, stretch
-        forces.local = local
-    return forces
 
 
 def make_noise(cfg: RunConfig, particles: ParticleState, seed: int):
