@@ -70,7 +70,7 @@ class StabilityCheck(Activity):
     every_rank = True
 
     def __call__(self, loop):
-        from .simulation import check_step
+        from .checks import check_step
         check_step(loop.model)
 
 
@@ -88,7 +88,7 @@ class StressTable(Activity):
         self.table.print_header()
 
     def __call__(self, loop):
-        from .simulation import table_row
+        from .checks import table_row
         self.table.row(table_row(loop.model))
 
 
@@ -143,11 +143,11 @@ class FiniteCheck(Activity):
 
     def before_round(self, loop):
         if loop.lockstep is not None:
-            from .simulation import check_step
+            from .checks import check_step
             check_step(loop.model)
 
     def __call__(self, loop):
-        from .simulation import check_finite, check_step
+        from .checks import check_finite, check_step
         check_finite(loop.model, loop.snap)
         if loop.lockstep is None:
             check_step(loop.model)
@@ -192,7 +192,7 @@ class Restart(Activity):
             try:
                 self.define_doc = udf.UDFManager(schema_from=args.define)
             except udf.UDFError as e:
-                from .simulation import RunError
+                from .errors import RunError
                 raise RunError(f"cannot read -D{args.define} for the restart file: {e}") \
                     from None
 

@@ -184,7 +184,7 @@ class ElectrolyteModel(SpectralModel):
         if self.dt > 2 * self._dt_limit:         # past the ion step's limit: name it first
             what = self._ions_broke()
             if what is not None:
-                from ..simulation import InstabilityError
+                from ..errors import InstabilityError
                 raise InstabilityError(what)
 
     def coulomb_on_fluid(self):

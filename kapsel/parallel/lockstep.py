@@ -70,7 +70,7 @@ class Lockstep:
 
 
 def _error(kind, message):
-    from ..simulation import InstabilityError
+    from ..errors import InstabilityError
     from ..fluid.mac import SolverDidNotConverge
     for cls in (InstabilityError, SolverDidNotConverge, FloatingPointError, OSError,
                 KeyboardInterrupt):
