@@ -622,10 +622,12 @@ def main(argv=None) -> int:
         return fail(f"out of memory while setting up the run (before its first step; "
                     f"nothing was written){_address_limit_note()}", EXIT_RUN_FAILED)
     except ImportError as e:
-        if "failed to map segment" not in str(e) and "Cannot allocate memory" not in str(e):
-            raise
-        return fail(f"out of memory while loading the program's libraries ({e.name or e}"
-                    f"){_address_limit_note()}", EXIT_RUN_FAILED)
+        if "failed to map segment" in str(e) or "Cannot allocate memory" in str(e):
+            return fail(f"out of memory while loading the program's libraries ({e.name or e}"
+                        f"){_address_limit_note()}", EXIT_RUN_FAILED)
+        if "Permission denied" in str(e) or "Input/output error" in str(e):
+            return fail(f"cannot load a library the program needs: {e}", EXIT_RUN_FAILED)
+        raise
     finally:
         for fh in locks:
             fh.close()

@@ -576,3 +576,24 @@ def test_define_file_is_read_once_at_start_up(tmp_path):
         sim.run()
         runs[name] = (d / "restart.udf").read_bytes()
     assert runs["kept"] == runs["removed"]
+
+
+def test_a_library_that_cannot_be_read_is_one_line(tmp_path, capsys, monkeypatch):
+    """A shared library or module the run loads later (numpy's random, h5py) that cannot
+    be read (EACCES, EIO: found by injecting EACCES at every openat of a continuation) is
+    one line and exit 1; any other ImportError stays a traceback (a broken install or a bug
+    must show where)."""
+    import kapsel.cli as kcli
+    d = small(tmp_path)
+
+    def fails(args, locks):
+        raise ImportError("/x/_generator.so: cannot open shared object file: Permission denied")
+    monkeypatch.setattr(kcli, "_main", fails)
+    code, err = main_in(d, capsys, monkeypatch, "-Iinput.udf")
+    assert code == 1 and "cannot load a library" in one_line(err)
+
+    def other(args, locks):
+        raise ImportError("No module named 'nothing'")
+    monkeypatch.setattr(kcli, "_main", other)
+    with pytest.raises(ImportError):
+        main_in(d, capsys, monkeypatch, "-Iinput.udf")
