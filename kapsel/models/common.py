@@ -221,12 +221,18 @@ def make_forces(cfg: RunConfig, particles: ParticleState, strain=None, wall=None
         if lj_dia == 2.0 * cfg.particles.A:
             lj_dia = None
 
+    # r_c / sigma: LJ_truncate OFF within half the box (the original's A_R_cutoff, sigma 2A)
+    rc = None
+    if pairs:
+        rc = pf.interaction_range(inter.LJ_powers, inter.LJ_truncate, min(box),
+                                  2.0 * float(np.max(particles.radius)))
+
     def forces(p):
         if pairs:
             F, _, ratio_min = pf.pair_forces(p.R, box, p.radius, inter.LJ_powers, inter.EPSILON,
                                              inter.LJ_truncate, group=group,
                                              strain=strain() if strain is not None else 0.0,
-                                             virial=virial, sigma=lj_dia)
+                                             virial=virial, sigma=lj_dia, cutoff=rc)
         else:
             F, ratio_min = zeros.copy(), np.inf
         if g is not None:
@@ -252,7 +258,7 @@ def make_forces(cfg: RunConfig, particles: ParticleState, strain=None, wall=None
     # reach of the forces (length) for the halos, and the forces of a rank's table
     forces.cutoff = 0.0
     if pairs:
-        forces.cutoff = pf.interaction_range(inter.LJ_powers, inter.LJ_truncate) * (
+        forces.cutoff = rc * (
             2.0 * float(np.max(particles.radius)) if lj_dia is None else lj_dia)
     if bonds is not None:           # a bond is shorter than R0 (the run stops before)
         forces.cutoff = max(forces.cutoff,
@@ -280,7 +286,7 @@ def make_forces(cfg: RunConfig, particles: ParticleState, strain=None, wall=None
                     p.R, box, p.radius, inter.LJ_powers, inter.EPSILON, inter.LJ_truncate,
                     group=None if group is None else group[gid],
                     strain=strain() if strain is not None else 0.0, virial=virial,
-                    sigma=lj_dia, weight=weight)
+                    sigma=lj_dia, weight=weight, cutoff=rc)
             else:
                 F, ratio_min = np.zeros((p.n, 3)), np.inf
             if gravity:
