@@ -264,3 +264,69 @@ def test_temperature_alphas_of_the_memory_langevin_prediction():
     assert av * rv == pytest.approx(1.0) and ao * ro == pytest.approx(1.0)
     heavy = kinetic_temperature_ratios(4.0, mass_ratio=100.0)
     assert rv < heavy[0] < 1.0 and ro < heavy[1] < 1.0
+
+
+def test_off_cutoff_stays_within_half_the_box():
+    """LJ_truncate OFF: r_c = min(N_min DX / 2, 2.5 sigma), the original's A_R_cutoff
+    (PHYSICS-EXTRA.md §5); 2.5 sigma without a box; ON / NONE keep theirs."""
+    assert F.interaction_range("12:6", "OFF", 32.0, 8.0) == 2.0
+    assert F.interaction_range("12:6", "OFF", 64.0, 8.0) == 2.5
+    assert F.interaction_range("12:6", "OFF") == 2.5
+    assert F.interaction_range("12:6", "ON", 32.0, 8.0) == 2.0 ** (1 / 6)
+    assert F.interaction_range("macro_vdw", "OFF", 30.0, 8.0) == 30.0 / 16.0
+    assert F.interaction_range("12:6", "NONE", 32.0, 8.0) == 0.0
+
+
+def _sample_forces(R, box=32.0):
+    import types
+    from kapsel.models.common import make_forces
+    from kapsel.particles.state import ParticleState
+    inter = types.SimpleNamespace(LJ_truncate="OFF", EPSILON=5.0, LJ_powers="12:6", G=0.0,
+                                  G_direction="-Z")
+    cfg = types.SimpleNamespace(type="Navier_Stokes_Cahn_Hilliard_FDM", interactions=inter,
+                                mesh=types.SimpleNamespace(box=np.array([box] * 3)),
+                                particles=types.SimpleNamespace(
+                                    object_type="spherical_particle", A=4.0, A_XI=2.0),
+                                switches=types.SimpleNamespace(wall=None))
+    n = len(R)
+    p = ParticleState.spheres([0] * n, [4.0] * n, [1.0] * n, 1.0)
+    p.R[:] = R
+    return make_forces(cfg, p)(p)[0]
+
+
+# the manual's sample (32^3, A 4, LJ 12:6 OFF, EPSILON 5) at step 11 of the original's run
+_SAMPLE_R = np.array([[5.749, 26.136, 5.870], [18.709, 13.509, 0.811], [10.118, 1.960, 2.677],
+                      [31.260, 31.301, 27.968], [1.698, 8.604, 2.953], [22.0, 3.5, 20.5],
+                      [9.0, 20.0, 12.0], [14.0, 27.0, 19.0]])
+
+
+def test_run_pair_forces_cut_at_half_the_box():
+    """A run's LJ OFF pair force (make_forces) ends at half the 32 box (r_c = 2 sigma =
+    16, not 2.5 sigma = 20): a pair 12 sqrt 2 = 16.97 apart feels nothing, one 10 sqrt 2 =
+    14.14 apart the LJ force."""
+    far = _sample_forces(np.array([[5.0, 5, 5], [17.0, 17, 5]]))
+    assert np.all(far == 0.0)
+    near = _sample_forces(np.array([[5.0, 5, 5], [15.0, 15, 5]]))
+    f = F.pair_force_magnitude(10.0 * np.sqrt(2.0), 8.0, "12:6", 5.0, "OFF") / np.sqrt(2.0)
+    assert near[1, :2] == pytest.approx([f, f]) and f != 0.0
+
+
+def test_pair_forces_count_each_pair_once_in_a_small_box():
+    """Each pair once at its minimum image, whatever cells the particles fall in: the
+    sample's forces equal the sum over pairs and do not change when the whole configuration
+    is translated (the original's link cells of 16 DX count a pair 2^m times in boxes under
+    48 DX, m the axes along which the pair's cells differ, so its forces change under a
+    translation; docs/physics-spm.md "Pair forces")."""
+    R = _SAMPLE_R
+    F0 = _sample_forces(R)
+    ref = np.zeros_like(R)
+    for i in range(len(R)):
+        for j in range(len(R)):
+            d = minimum_image(R[j] - R[i], np.array([32.0] * 3))
+            r = np.linalg.norm(d)
+            if i != j and r < 16.0:
+                ref[j] += F.pair_force_magnitude(r, 8.0, "12:6", 5.0, "OFF") * d / r
+    assert np.abs(F0 - ref).max() <= 1e-12 * np.abs(ref).max()
+    for shift in ([8.0, 0, 0], [8.0, 8.0, 8.0], [3.3, 11.7, 5.1]):
+        Fs = _sample_forces(np.mod(R + np.array(shift), 32.0))
+        assert np.abs(Fs - F0).max() <= 1e-12 * np.abs(F0).max()

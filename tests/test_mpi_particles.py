@@ -37,7 +37,8 @@ PROBE = os.path.join(os.path.dirname(__file__), "mpi_particles_probe.py")
 
 def test_owned_particles_agree_with_the_serial_run(tmp_path):
     """32^3, 12 particles (A = 4) with thermal noise and the full LJ attraction (LJ_truncate
-    OFF: range 2.5 sigma = 20, so pairs interact across the block boundaries), 50 + 1 steps
+    OFF: range min(2.5 sigma, half the box) = 16, so pairs interact across the block
+    boundaries), 50 + 1 steps
     on 1, 2 (slabs) and 4 (2 x 2 pencils) ranks against the serial run; the 2-rank run
     repeated gives the same bits."""
     kw = dict(particles=12, gts=10, nsnap=5, npx=5)

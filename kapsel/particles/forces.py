@@ -88,12 +88,17 @@ def _check_powers(powers) -> str:
     return p
 
 
-def interaction_range(kind, truncate) -> float:
-    """Cutoff r_c / sigma (0 for 'NONE')."""
+def interaction_range(kind, truncate, box_min=None, sigma=None) -> float:
+    """Cutoff r_c / sigma (0 for 'NONE').  'OFF' with ``box_min`` (the smallest box side
+    N_min DX) and ``sigma`` (the particle diameter 2A): min(N_min DX / (2 sigma), 2.5), the
+    original's A_R_cutoff (input.cxx, PHYSICS-EXTRA.md §5), so that the cutoff sphere lies
+    within half the box, where the minimum image is every pair's only image."""
     p, t = _check_powers(kind), _truncate_key(truncate)
     if t == "NONE":
         return 0.0
     if t == "OFF":
+        if box_min is not None and sigma is not None:
+            return min(0.5 * float(box_min) / float(sigma), LJ_CUTOFF_OFF)
         return LJ_CUTOFF_OFF
     if p in ("macro_vdw", EOF):
         return 1.0
@@ -193,7 +198,7 @@ def pair_dVdr(r, sigma, kind="12:6", epsilon=1.0, truncate="ON"):
 
 
 def pair_forces(R, box, radius, kind="12:6", epsilon=1.0, truncate="ON", group=None,
-                strain=0.0, virial=None, sigma=None, weight=None):
+                strain=0.0, virial=None, sigma=None, weight=None, cutoff=None):
     """Pair forces F_i^other (eq 9) -> (F (N, 3), U_total, min_ratio).
 
     kind is LJ_powers ('12:6', '24:12', '36:18', 'macro_vdw'), epsilon is EPSILON
@@ -214,6 +219,11 @@ def pair_forces(R, box, radius, kind="12:6", epsilon=1.0, truncate="ON", group=N
     ``weight`` (N,): the virial counts a pair with (weight_i + weight_j) / 2 (a distributed
     run: 1 for the particles a rank owns, 0 for its ghosts, so that the ranks' virials add
     up to every pair once).
+    ``cutoff``: r_c / sigma instead of ``interaction_range(kind, truncate)`` (a run passes
+    the box-limited one, ``interaction_range(kind, truncate, box_min, 2A)``).
+    Each pair is counted once, at its minimum image (the original counts a pair 2^m times
+    in boxes under 48 DX, m the axes along which its 16-DX link cells differ: docs/
+    physics-spm.md, "Pair forces").
     """
     if virial is not None:
         virial[...] = 0.0
@@ -224,7 +234,7 @@ def pair_forces(R, box, radius, kind="12:6", epsilon=1.0, truncate="ON", group=N
     if t == "NONE" or n < 2:
         return F, 0.0, np.inf
     radius = np.broadcast_to(np.asarray(radius, dtype=float), (n,))
-    rc = interaction_range(p, t)
+    rc = interaction_range(p, t) if cutoff is None else float(cutoff)
     rcut = rc * (2.0 * float(radius.max()) if sigma is None else float(sigma))
     if strain:
         L = np.asarray(box, dtype=float)

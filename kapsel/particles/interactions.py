@@ -33,8 +33,11 @@ class PairForce:
     def __init__(self, inter, box, radius, group, strain, virial, sigma):
         self.inter, self.box, self.group = inter, box, group
         self.strain, self.virial, self.sigma = strain, virial, sigma
-        self.cutoff = pf.interaction_range(inter.LJ_powers, inter.LJ_truncate) * (
-            2.0 * float(np.max(radius)) if sigma is None else sigma)
+        # r_c / sigma: LJ_truncate OFF within half the box (the original's A_R_cutoff,
+        # sigma 2A; kapsel.particles.forces.interaction_range)
+        self.rc = pf.interaction_range(inter.LJ_powers, inter.LJ_truncate, min(box),
+                                       2.0 * float(np.max(radius)))
+        self.cutoff = self.rc * (2.0 * float(np.max(radius)) if sigma is None else sigma)
 
     def compute(self, p, gid=None, weight=None, reduce=None):
         inter, group = self.inter, self.group
@@ -44,7 +47,8 @@ class PairForce:
         F, _, ratio = pf.pair_forces(p.R, self.box, p.radius, inter.LJ_powers, inter.EPSILON,
                                      inter.LJ_truncate, group=group,
                                      strain=self.strain() if self.strain is not None else 0.0,
-                                     virial=self.virial, sigma=self.sigma, **kw)
+                                     virial=self.virial, sigma=self.sigma, cutoff=self.rc,
+                                     **kw)
         return F, None, ratio, 0.0
 
 
