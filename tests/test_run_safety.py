@@ -350,6 +350,10 @@ def test_huge_epsilon_or_g_is_named(tmp_path, item, capsys, monkeypatch):
     u = UDFManager(str(d / "input.udf"))
     u.put(1e12, item)
     u.put(2.0, "object_type.spherical_particle.Particle_spec[0].MASS_RATIO")
+    # A 2 in the 16^3 box: LJ_truncate OFF reaches min(16 DX / 2, 2.5 x 2A) = 2 x 2A, as the
+    # original's A_R_cutoff (input.cxx); with the sample's A 4 it reaches contact only
+    u.put(2.0, "A")
+    u.put(1.0, "A_XI")
     u.write(str(d / "input.udf"))
     monkeypatch.chdir(d)
     assert main(["-Iinput.udf", "-Ooutput.udf", "-Ddefine.udf", "-Rrestart.udf", "--seed", "1",
