@@ -57,7 +57,7 @@ import numpy as np
 
 from ..grid import Grid
 from ..phase.cahn_hilliard import DistributedCahnHilliard
-from .mac import DistributedMAC, MACSolver
+from .mac import MACSolver
 from .spectral import SpectralNS, cross_in_place, phi1
 from .. import compiled as _compiled
 
@@ -589,10 +589,10 @@ class ObliqueMAC(_ObliqueFrame, MACSolver):
 
     def __init__(self, shape, dx, rho, eta, dt, shear: ShearFlow, scheme="explicit_scheme",
                  tolerance=1e-9, maximum_iteration=1000, threads=1, interpolation="linear",
-                 t0=0.0, frame_strain0=None):
+                 t0=0.0, frame_strain0=None, layout=None):
         MACSolver.__init__(self, shape, dx, rho, eta, dt, scheme=scheme, tolerance=tolerance,
                            maximum_iteration=maximum_iteration, threads=threads,
-                           linear="matfree")
+                           linear="matfree", layout=layout)
         if interpolation not in INTERPOLATIONS:
             raise ValueError(f"OBL_INT must be one of {INTERPOLATIONS}")
         self.interpolation = interpolation
@@ -621,8 +621,8 @@ class ObliqueMAC(_ObliqueFrame, MACSolver):
         self._g_inv = g
 
     def _scaled_inverse(self, inv):
-        """The Poisson symbol's inverse as the transform pair wants it."""
-        return inv
+        """The Poisson symbol's inverse as the layout's transform pair wants it."""
+        return self._poisson.symbol(inv)
 
     def _lap_inverse(self):
         """-1/|K|^2 of the oblique frame at the step's metric (fdm.h Update_K2_OBL /
@@ -630,9 +630,7 @@ class ObliqueMAC(_ObliqueFrame, MACSolver):
         g = self._g_op
         if getattr(self, "_g_lap", None) != g:
             from . import operators as op
-            block = self.grid.spec_range if hasattr(self, "grid") and hasattr(
-                self.grid, "spec_range") else None
-            kx, ky, kz = op.wavenumbers(self.shape, self.dx, block)
+            kx, ky, kz = op.wavenumbers(self.shape, self.dx, self.grid.spec_range)
             K2 = kx * kx + (ky - g * kx) ** 2 + kz * kz
             inv = np.zeros(np.broadcast_shapes(kx.shape, ky.shape, kz.shape))
             np.divide(-1.0, K2, out=inv, where=K2 > 0)
@@ -840,9 +838,9 @@ class MetricProjector:
         return u
 
 
-class DistributedObliqueMAC(ObliqueMAC, DistributedMAC):
+class DistributedObliqueMAC(ObliqueMAC):
     """ObliqueMAC on this rank's block of a distributed grid (docs/distributed.md):
-    DistributedMAC's halo stencils, pencil Poisson solve and reductions, with the metric
+    MACSolver's halo stencils, pencil Poisson solve and reductions, with the metric
     pieces of the oblique frame on the widened block (the second and mixed differences of
     the viscous term, the raised pressure gradient), the metric Poisson symbol on the local
     Fourier block, and the re-mapping's row shift along x on the rows gathered over the
@@ -853,15 +851,11 @@ class DistributedObliqueMAC(ObliqueMAC, DistributedMAC):
 
     def __init__(self, grid, dx, rho, eta, dt, shear, **kw):
         from ..parallel.halo import Halo
-        self.grid = grid
-        self.fshape = tuple(grid.local_shape)
-        self.halo = Halo(grid, 1)
         try:                          # the variable-viscosity term (reach 2)
             self.halo2 = Halo(grid, 2)
         except ValueError:            # blocks of one point: refused by the model
             self.halo2 = None
-        self._eta_pad = None
-        ObliqueMAC.__init__(self, grid.shape, dx, rho, eta, dt, shear, **kw)
+        ObliqueMAC.__init__(self, grid.shape, dx, rho, eta, dt, shear, layout=grid, **kw)
         from . import operators as op
         S = op.symbol_div_b(self.shape, self.dx, grid.spec_range)
         self._SS = {(a, b): np.real(S[a] * np.conj(S[b])) for a in range(3)
@@ -870,11 +864,8 @@ class DistributedObliqueMAC(ObliqueMAC, DistributedMAC):
         self._w = np.empty((3,) + self.fshape)
         self._t1 = np.empty(self.fshape)
 
-    def _scaled_inverse(self, inv):
-        return inv / self.grid.size        # the pencil c2r's 1/N folded in
-
     def _grad_p(self, phi):
-        gp = DistributedMAC._grad_p(self, phi)
+        gp = MACSolver._grad_p(self, phi)
         g = self._g_op
         t = self._t1
         np.multiply(gp[1], -g, out=t)
@@ -897,7 +888,7 @@ class DistributedObliqueMAC(ObliqueMAC, DistributedMAC):
             contravariant(np.array(h.interior(v)), g, out=out)
             out *= 1.0 / self.rho
             return out
-        DistributedMAC._viscous(self, u, None, out)
+        MACSolver._viscous(self, u, None, out)
         g = self._g_op
         if g:
             h = self.halo

@@ -116,15 +116,13 @@ class FDMModel(Model):
         return grid
 
     def _make_fluid(self, cfg):
-        """The MAC solver of the type (the sheared types: kapsel.fluid.oblique.ObliqueMAC;
-        a distributed run: kapsel.fluid.mac.DistributedMAC on this rank's block)."""
-        from ..fluid.mac import DistributedMAC, MACSolver
+        """The MAC solver of the type (the sheared types: kapsel.fluid.oblique.ObliqueMAC)
+        on the layout (a distributed run: this rank's block)."""
+        from ..fluid.mac import MACSolver
         f = cfg.fluid
-        kw = dict(scheme=f.ns_solver, tolerance=f.tolerance,
-                  maximum_iteration=f.maximum_iteration, threads=self.threads)
-        if self.grid is not None:
-            return DistributedMAC(self.grid, cfg.mesh.DX, f.RHO, f.ETA, self.dt, **kw)
-        return MACSolver(cfg.mesh.shape, cfg.mesh.DX, f.RHO, f.ETA, self.dt, **kw)
+        return MACSolver(cfg.mesh.shape, cfg.mesh.DX, f.RHO, f.ETA, self.dt, scheme=f.ns_solver,
+                         tolerance=f.tolerance, maximum_iteration=f.maximum_iteration,
+                         threads=self.threads, layout=self.grid)
 
     def _make_ch(self, dt):
         """The Cahn-Hilliard solver of the type with time step dt."""

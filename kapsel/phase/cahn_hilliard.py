@@ -724,8 +724,7 @@ class DistributedCahnHilliard(CahnHilliard):
         return self.grid.sums([float(np.dot(a, b)) for a, b in pairs])
 
     def _fourier_diagonal(self, half):
-        from ..fluid.mac import PencilDiagonal
-        return PencilDiagonal(self.grid, half, local=True)
+        return self.grid.fourier_diagonal(half)
 
     # the implicit operator: one exchange of width 2 per product
     def _step_implicit(self, psi, u, phi, euler=False):
