@@ -495,6 +495,10 @@ class Grid:
     def max(self, x) -> float:
         return float(x)
 
+    def reduce(self, *arrays):
+        """Sums over the ranks of per-particle arrays: ``arrays``."""
+        return arrays
+
     def k0(self, a_hat):
         """a_hat[:, 0, 0, 0] (the k = 0 mode) of a (c, ...) Fourier array."""
         return a_hat[:, 0, 0, 0].copy()

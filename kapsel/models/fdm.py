@@ -109,7 +109,9 @@ class FDMModel(Model):
         blocks) and the collective rank 0's writers call (the whole fields of the restart)."""
         from ..parallel import make_layout
         try:
-            grid = make_layout(cfg.mesh.shape, cfg.mesh.DX, self.dist, self.threads)
+            # one FFT thread: the SPM's projection, as before (the MAC solver's FFTs take
+            # the run's threads themselves)
+            grid = make_layout(cfg.mesh.shape, cfg.mesh.DX, self.dist, 1)
         except ValueError as e:
             raise ConfigError(str(e), path="mesh", value="process grid") from None
         self.collectives.register("whole",

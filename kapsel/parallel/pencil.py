@@ -400,6 +400,21 @@ class PencilGrid(Grid):
         self.comm.Allgather(v, buf)
         return [float(sum(col)) for col in buf.T.tolist()]
 
+    def reduce(self, *arrays):
+        """Sums over the ranks of per-particle arrays, the same bits on every rank (MPI
+        Reduce to rank 0 in MPI's fixed order for this number of ranks, then Bcast)."""
+        from mpi4py import MPI
+        buf = np.concatenate([np.asarray(a, dtype=float).reshape(-1) for a in arrays])
+        out = np.empty_like(buf)
+        self.comm.Reduce(buf, out, op=MPI.SUM, root=0)
+        self.comm.Bcast(out, root=0)
+        res, i = [], 0
+        for a in arrays:
+            a = np.asarray(a)
+            res.append(out[i:i + a.size].reshape(a.shape))
+            i += a.size
+        return tuple(res)
+
     def dots(self, *pairs) -> list:
         """The dot products a.b of pairs of local blocks, summed over the ranks (``sums``):
         the Krylov solver's (kapsel.linalg.bicgstab_dot)."""
