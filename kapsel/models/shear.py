@@ -350,7 +350,7 @@ class ShearFDMModel(FDMModel):
     def __init__(self, cfg: RunConfig, args):
         self.interpolation = check_interpolation(cfg)
         super().__init__(cfg, args)
-        if self.dist is not None and cfg.fluid.viscosity_change and self.mac.halo2 is None:
+        if cfg.fluid.viscosity_change and self.mac.halo2 is None:
             raise ConfigError("viscosity_change in the oblique frame needs blocks of at "
                               "least 2 mesh points along the split directions (its viscous "
                               "term reaches 2 points): use fewer ranks along x or y (-X, -Y)",
@@ -360,16 +360,12 @@ class ShearFDMModel(FDMModel):
         self.field_stress_sum = 0.0
 
     def _make_fluid(self, cfg):
-        from ..fluid.oblique import DistributedObliqueMAC, ObliqueMAC
+        from ..fluid.oblique import ObliqueMAC
         f = cfg.fluid
-        kw = dict(scheme=f.ns_solver, tolerance=f.tolerance,
-                  maximum_iteration=f.maximum_iteration, threads=self.threads,
-                  interpolation=self.interpolation)
-        if self.dist is not None:     # a distributed run: this rank's block
-            return DistributedObliqueMAC(self.grid, cfg.mesh.DX, f.RHO, f.ETA, self.dt,
-                                         shear_flow(cfg), **kw)
         return ObliqueMAC(cfg.mesh.shape, cfg.mesh.DX, f.RHO, f.ETA, self.dt, shear_flow(cfg),
-                          **kw)
+                          scheme=f.ns_solver, tolerance=f.tolerance,
+                          maximum_iteration=f.maximum_iteration, threads=self.threads,
+                          interpolation=self.interpolation, layout=self.grid)
 
     def _fix_cell(self, cfg):
         """The original forces FIX_CELL.y ON for the sheared types (PHYSICS-EXTRA §1.2)."""

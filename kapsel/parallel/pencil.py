@@ -452,6 +452,12 @@ class PencilGrid(Grid):
             out[..., :, yr[0]:yr[1], zr[0]:zr[1]] = blk
         return out
 
+    def gather_rows(self, f):
+        """The whole x rows of this rank's y range: the blocks of ``f`` (..., nx, ny, nz)
+        of the ranks of this column (comm_x), joined along x."""
+        parts = self.comm_x.allgather(np.ascontiguousarray(f))
+        return np.concatenate(parts, axis=f.ndim - 3)
+
     def local_complex(self, a):
         """This rank's block of a global Fourier field (every rank holds ``a``)."""
         (_, _), (y0, y1), (z0, z1) = self.spec_range
