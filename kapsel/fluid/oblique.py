@@ -56,7 +56,7 @@ import math
 import numpy as np
 
 from ..grid import Grid
-from ..phase.cahn_hilliard import DistributedCahnHilliard
+from ..parallel.halo import Halo, WholeFields
 from .mac import MACSolver
 from .spectral import SpectralNS, cross_in_place, phi1
 from .. import compiled as _compiled
@@ -600,7 +600,6 @@ class ObliqueMAC(_ObliqueFrame, MACSolver):
         MACSolver.__init__(self, shape, dx, rho, eta, dt, scheme=scheme, tolerance=tolerance,
                            maximum_iteration=maximum_iteration, threads=threads,
                            linear="matfree", layout=layout)
-        from ..parallel.halo import Halo
         try:                          # the variable-viscosity term (reach 2)
             self.halo2 = Halo(self.grid, 2)
         except ValueError:            # blocks of one point: refused by the model
@@ -869,13 +868,24 @@ class ObliqueCahnHilliard:
     d_t psi + d^_i (xi^i psi) = kappa G^ij d^_i d^_j mu, xi^i the contravariant deviation
     velocity, mu with the metric Laplacian and the physical |grad phi|^2; the capillary force
     uses the physical gradient (Cartesian components, converted by the MAC solver).
-    ``frame()`` returns the current frame strain g."""
+    ``frame()`` returns the current frame strain g.  The operators run on the block widened
+    by the solver's halo (identities on one process); the implicit operator through them
+    (no width-2 shortcut: ``halo2`` None)."""
+
+    halo = WholeFields()      # used alone, on whole fields; a solver sets its own
 
     def _lap(self, f, out):
-        return oblique_laplacian(f, self.dx, self.frame(), out)
+        h = self.halo
+        lead = f.shape[:-3]
+        L = oblique_laplacian(h.pad(f, key="ch"), self.dx, self.frame(),
+                              h.target(out, lead, "chlap"), work=h.work(lead, "chlapw"))
+        return h.keep(L, out)
 
     def _grad(self, f, out):
-        return oblique_gradient(f, self.dx, self.frame(), out)
+        h = self.halo
+        G = oblique_gradient(h.pad(f, key="ch"), self.dx, self.frame(),
+                             h.target(out, (3,), "chgrad"))
+        return h.keep(G, out)
 
     def _grad_sq(self, f):
         gr = self._grad(f, np.empty((3,) + f.shape))
@@ -896,57 +906,19 @@ class ObliqueCahnHilliard:
         return self.z * s * self._grad_sq(psi)
 
     def _div_flux(self, psi, u, out, work):
-        from ..phase.cahn_hilliard import _div_flux
-        return _div_flux(psi, contravariant(u, self.frame()), self.dx, out, work)
+        from ..phase.cahn_hilliard import CahnHilliard
+        return CahnHilliard._div_flux(self, psi, contravariant(u, self.frame()), out, work)
 
 
-def make_oblique_cahn_hilliard(frame, *args, grid=None, **kwargs):
-    """A CahnHilliard (kapsel.phase.cahn_hilliard) with the oblique operators; its stability
-    estimate uses the largest metric Laplacian of the frame (|g| <= s/2).  ``grid``: a
-    distributed run's PencilGrid (args then start with the mesh spacing, not the shape):
-    the DistributedCahnHilliard with the oblique operators on the halo-widened block."""
+def make_oblique_cahn_hilliard(frame, *args, **kwargs):
+    """A CahnHilliard (kapsel.phase.cahn_hilliard; its arguments, ``layout`` too) with the
+    oblique operators; its stability estimate uses the largest metric Laplacian of the
+    frame (|g| <= s/2)."""
     from ..phase.cahn_hilliard import CahnHilliard
-    if grid is not None:
-        ch = _DistributedObliqueCH(grid, *args, **kwargs)
-        ch.frame = frame
-        return ch
 
     class _OCH(ObliqueCahnHilliard, CahnHilliard):
         pass
     ch = _OCH(*args, **kwargs)
+    ch.halo2 = None
     ch.frame = frame
     return ch
-
-
-class _DistributedObliqueCH(DistributedCahnHilliard):
-    """ObliqueCahnHilliard's operators (metric Laplacian, physical gradient, flux of the
-    contravariant velocity) on this rank's block widened by one ghost layer; the implicit
-    operator through them (no width-2 shortcut)."""
-
-    def __init__(self, *args, **kwargs):
-        super().__init__(*args, **kwargs)
-        self.halo2 = None
-
-    def _lap(self, f, out):
-        h = self.halo
-        lead = f.shape[:-3]
-        L = oblique_laplacian(h.pad(f, key="ch"), self.dx, self.frame(),
-                              h.work(lead, "chlap"), work=h.work(lead, "chlapw"))
-        out[...] = h.interior(L)
-        return out
-
-    def _grad(self, f, out):
-        h = self.halo
-        G = oblique_gradient(h.pad(f, key="ch"), self.dx, self.frame(), h.work((3,), "chgrad"))
-        out[...] = h.interior(G)
-        return out
-
-    def _div_coef_grad(self, c, f):
-        return ObliqueCahnHilliard._div_coef_grad(self, c, f)
-
-    def _z_density(self, s, psi):
-        return ObliqueCahnHilliard._z_density(self, s, psi)
-
-    def _div_flux(self, psi, u, out, work):
-        return DistributedCahnHilliard._div_flux(self, psi, contravariant(u, self.frame()),
-                                                 out, work)

@@ -128,15 +128,11 @@ class FDMModel(Model):
                          threads=self.threads, layout=self.grid)
 
     def _make_ch(self, dt):
-        """The Cahn-Hilliard solver of the type with time step dt."""
+        """The Cahn-Hilliard solver of the type with time step dt, on the layout."""
         from ..phase import CahnHilliard
-        from ..phase.cahn_hilliard import DistributedCahnHilliard
         try:
-            if self.dist is not None:
-                return DistributedCahnHilliard(self.grid, self.dx, self.cfg.phase, dt,
-                                               wall=self.wall, **self.ch_kwargs)
             return CahnHilliard(self.shape, self.dx, self.cfg.phase, dt, wall=self.wall,
-                                **self.ch_kwargs)
+                                layout=self.grid, **self.ch_kwargs)
         except ValueError as e:
             raise ConfigError(str(e), path=f"constitutive_eq.{self.cfg.type}.Potential."
                               f"Landau.psi_0_wall.user_specify.psi_0_wall[]") from None

@@ -375,12 +375,8 @@ class ShearFDMModel(FDMModel):
     def _make_ch(self, dt):
         from ..fluid.oblique import make_oblique_cahn_hilliard
         mac = self.mac
-        if self.dist is not None:
-            ch = make_oblique_cahn_hilliard(lambda: mac.frame_strain, self.dx, self.cfg.phase,
-                                            dt, grid=self.grid, **self.ch_kwargs)
-        else:
-            ch = make_oblique_cahn_hilliard(lambda: mac.frame_strain, self.shape, self.dx,
-                                            self.cfg.phase, dt, **self.ch_kwargs)
+        ch = make_oblique_cahn_hilliard(lambda: mac.frame_strain, self.shape, self.dx,
+                                        self.cfg.phase, dt, layout=self.grid, **self.ch_kwargs)
         g = mac.max_frame_strain
         ch._k2 = ch._k2 * (1.0 + (4 * g * g + 2 * g) / 12.0)   # metric Laplacian bound
         return ch

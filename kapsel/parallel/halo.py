@@ -25,7 +25,30 @@ import time
 
 import numpy as np
 
-__all__ = ["Halo"]
+__all__ = ["Halo", "WholeFields"]
+
+
+class WholeFields:
+    """The halo of fields that are the whole periodic mesh, without a layout (an operator
+    mixin used alone): ``pad`` and ``keep`` return the field, ``target`` the caller's
+    array, ``work`` None (the kernels make their own scratch)."""
+
+    trivial = True
+
+    def pad(self, a, key="pad"):
+        return a
+
+    def target(self, out, lead=(), key="out"):
+        return out
+
+    def keep(self, a, out=None):
+        return a
+
+    def work(self, lead=(), key="work"):
+        return None
+
+    def interior(self, a):
+        return a
 
 
 class Halo:
