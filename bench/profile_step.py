@@ -2,7 +2,7 @@
 
     .venv/bin/python bench/profile_step.py SCENE [--steps N] [--top K] [--np NP] [--memory]
 
-Builds the scene's input (bench_vs_original.make_input), the model as the CLI does, runs 3
+Builds the scene's input (samples/input.udf with the scene's edits), the model as the CLI does, runs 3
 warm-up steps, then N steps (default 20) under cProfile and prints the functions by their own
 (tottime) and cumulative time per step, plus the CPU ms/step without the profiler.
 The compiled kernels (kapsel.compiled) are on, as in a long CLI run; KAPSEL_PY_COMPILED=0
@@ -30,7 +30,20 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "bench"))
 
-from bench_vs_original import SCENES, make_input  # noqa: E402
+from bench_vs_original import SAMPLE, SCENES  # noqa: E402
+
+
+def make_input(d: Path, edits: dict) -> Path:
+    """input.udf of a scene in ``d``: samples/input.udf with ``edits`` (UDF path -> value)."""
+    import shutil
+    from udf import UDFManager
+    for f in ("define.udf", "kapsel_unit.udf"):
+        shutil.copy(SAMPLE.parent / f, d / f)
+    u = UDFManager(str(SAMPLE))
+    for k, v in edits.items():
+        u.put(v, k)
+    u.write(str(d / "input.udf"))
+    return d / "input.udf"
 
 
 # stage of a profiled function (own time), by file and name; first match wins
@@ -65,11 +78,11 @@ def build(name, np_override=None, threads=1):
     from kapsel import config, models  # noqa: F401
     from kapsel.cli import build_parser
     from kapsel.simulation import SOLVERS
-    edits = dict(SCENES[name][2])
+    edits = dict(SCENES[name][1])
     if np_override:
-        edits["np"] = np_override
+        edits.update({f"mesh.NP{ax}": np_override for ax in "XYZ"})
     d = Path(tempfile.mkdtemp(prefix=f"prof-{name}-"))
-    path = make_input(d, edits, 2)
+    path = make_input(d, edits)
     doc = udf.UDFManager(str(path))
     cfg = config.from_document(doc, str(path))
     args = build_parser().parse_args([f"-I{path}", "--seed", "1", "--quiet",

@@ -44,7 +44,7 @@ try:  # pragma: no cover - import guard
 except ImportError:  # pragma: no cover
     pyfftw = None
 
-__all__ = ["Grid", "LazyPlan"]
+__all__ = ["FourierDiagonal", "Grid", "LazyPlan", "ScalarSolve"]
 
 
 class LazyPlan:
@@ -85,6 +85,79 @@ def auto_planner(size: int, threads: int = 1) -> str:
     0.79 ms, 2 threads 1.76 ms ESTIMATE / 0.54 ms MEASURE; 128^3: 12.6 / 6.3 / 5.3 ms)."""
     return "FFTW_MEASURE" if size > Grid.MEASURE_ABOVE or threads > 1 else "FFTW_ESTIMATE"
 
+class ScalarSolve:
+    """f -> FFT^-1[m(k) FFT(f)] of one scalar field of the whole mesh: write f into ``rhs``,
+    call ``solve(m)`` with ``m = symbol(...)`` on the half spectrum (NX, NY, NZ//2 + 1);
+    returns an internal buffer.  pyfftw plans made on first use (pyfftw normalises the
+    inverse, so the symbol is taken as is), or scipy.fft (``backend='scipy'``)."""
+
+    def __init__(self, shape, threads=1, backend="pyfftw"):
+        self.shape = tuple(shape)
+        self.threads = int(threads)
+        self.backend = backend if (backend != "pyfftw" or pyfftw is not None) else "scipy"
+        if self.backend == "pyfftw":
+            cshape = self.shape[:2] + (self.shape[2] // 2 + 1,)
+            self._r = pyfftw.empty_aligned(self.shape, dtype="float64")
+            self._c = pyfftw.empty_aligned(cshape, dtype="complex128")
+            self._o = pyfftw.empty_aligned(self.shape, dtype="float64")
+            flags = (auto_planner(int(np.prod(self.shape)), self.threads),)
+            self._fwd = LazyPlan(self._r, self._c, axes=(0, 1, 2), direction="FFTW_FORWARD",
+                                 flags=flags, threads=self.threads)
+            self._bwd = LazyPlan(self._c, self._o, axes=(0, 1, 2), direction="FFTW_BACKWARD",
+                                 flags=flags + ("FFTW_DESTROY_INPUT",), threads=self.threads)
+            self.rhs = self._r
+        else:
+            self.rhs = np.empty(self.shape)
+
+    @staticmethod
+    def symbol(m):
+        """``m`` as ``solve`` takes it (the transform pair normalises itself)."""
+        return m
+
+    def solve(self, m):
+        if self.backend == "pyfftw":
+            self._fwd()
+            np.multiply(self._c, m, out=self._c)
+            self._bwd()             # normalised by pyfftw
+            return self._o
+        import scipy.fft
+        c = scipy.fft.rfftn(self.rhs, workers=self.threads)
+        c *= m
+        return scipy.fft.irfftn(c, s=self.shape, workers=self.threads)
+
+
+class FourierDiagonal:
+    """v -> FFT^-1[m(k) FFT(v)] for v holding one or more periodic scalar fields of ``shape``
+    (flattened), with pyfftw plans made once (FFTW_ESTIMATE up to 64^3 points, MEASURE
+    above, as Grid): the FFT preconditioners of the implicit solves.  ``m`` is given
+    on the rfftn half spectrum (NX, NY, NZ//2 + 1).  4-5x faster than scipy.fft's rfftn /
+    irfftn pair at 64^3 (measured in the Cahn-Hilliard preconditioner: 9.4 -> ~2 ms)."""
+
+    def __init__(self, shape, m, threads=1):
+        self.shape = tuple(int(n) for n in shape)
+        size = int(np.prod(self.shape))
+        cshape = self.shape[:2] + (self.shape[2] // 2 + 1,)
+        self.m = np.ascontiguousarray(np.broadcast_to(m, cshape) / size)   # c2r's 1/N folded in
+        self._r = pyfftw.empty_aligned(self.shape, dtype="float64")
+        self._c = pyfftw.empty_aligned(cshape, dtype="complex128")
+        flags = (auto_planner(size, threads),)
+        self._fwd = LazyPlan(self._r, self._c, axes=(0, 1, 2), direction="FFTW_FORWARD",
+                                flags=flags, threads=threads)
+        self._bwd = LazyPlan(self._c, self._r, axes=(0, 1, 2), direction="FFTW_BACKWARD",
+                                flags=flags + ("FFTW_DESTROY_INPUT",), threads=threads)
+
+    def solve(self, v):
+        v = np.asarray(v).reshape((-1,) + self.shape)
+        out = np.empty(v.shape)
+        for c in range(v.shape[0]):
+            self._r[...] = v[c]
+            self._fwd.execute()
+            self._c *= self.m
+            self._bwd.execute()
+            out[c] = self._r
+        return out.reshape(-1)
+
+
 def _aligned_zeros(shape, dtype, align: int) -> np.ndarray:
     """A zeroed array aligned to ``align`` bytes, from np.zeros (calloc: large blocks come
     as untouched zero pages, so memory is taken only where the array is written)."""
@@ -96,7 +169,9 @@ def _aligned_zeros(shape, dtype, align: int) -> np.ndarray:
 
 
 class Grid:
-    """Mesh of shape (NX, NY, NZ) with spacing ``dx``, its wavenumbers and FFT plans.
+    """Mesh of shape (NX, NY, NZ) with spacing ``dx``, its wavenumbers and FFT plans; the
+    layout of a run on one process (kapsel.parallel.pencil.PencilGrid: over MPI ranks),
+    whose sums, maxima, gathers and local blocks are identities.
 
     Attributes
     ----------
@@ -113,6 +188,14 @@ class Grid:
 
     MEASURE_ABOVE = 64 ** 3
 
+    # the layout of one process (PencilGrid: this rank's place in the process grid)
+    rank, ranks, is_root = 0, 1, True
+    px = py = 1
+    cx = cy = 0
+    has_k0 = True
+    whole_mesh = True   # the arrays are the whole periodic mesh (not a pipeline's blocks)
+    dots = None         # Krylov dot products over the ranks; None: of the whole vectors
+
     def __init__(self, shape, dx=1.0, threads=1, planner="auto"):
         """``planner``: an FFTW planner flag, or 'auto' (module docstring): ESTIMATE up to
         64^3 points, MEASURE above."""
@@ -127,6 +210,8 @@ class Grid:
         self.cshape = (nx, ny, nz // 2 + 1)
         # this process's part of the fields: all of them (kapsel.parallel.pencil: a block)
         self.local_shape, self.local_cshape = self.shape, self.cshape
+        self.real_range = tuple((0, n) for n in self.shape)
+        self.spec_range = tuple((0, n) for n in self.cshape)
         self.size = nx * ny * nz
         self.box = np.array(self.shape, dtype=float) * self.dx
 
@@ -398,6 +483,51 @@ class Grid:
         if pyfftw is None:  # pragma: no cover
             return np.empty(shape, dtype=complex)
         return pyfftw.empty_aligned(shape, dtype="complex128")
+
+    # ------------------------------------------------------------------ layout
+    def sum(self, x) -> float:
+        """The sum over the ranks of a local float: itself."""
+        return float(x)
+
+    def sums(self, values) -> list:
+        return [float(v) for v in np.asarray(values, dtype=float).reshape(-1)]
+
+    def max(self, x) -> float:
+        return float(x)
+
+    def reduce(self, *arrays):
+        """Sums over the ranks of per-particle arrays: ``arrays``."""
+        return arrays
+
+    def k0(self, a_hat):
+        """a_hat[:, 0, 0, 0] (the k = 0 mode) of a (c, ...) Fourier array."""
+        return a_hat[:, 0, 0, 0].copy()
+
+    def gather_real(self, a, root=0):
+        """The whole field of the local blocks ``a``: ``a``."""
+        return a
+
+    def gather_complex(self, a, root=0):
+        return a
+
+    def gather_rows(self, f):
+        """The whole x rows of the blocks of ``f`` (..., nx, ny, nz) along the x split: ``f``."""
+        return f
+
+    def local_real(self, a):
+        """This process's block of a whole field: ``a``."""
+        return a
+
+    def local_complex(self, a):
+        return a
+
+    def scalar_solver(self, threads=1, backend="pyfftw"):
+        """A ``ScalarSolve`` (FFT-diagonal solve of one scalar field) on this mesh."""
+        return ScalarSolve(self.shape, threads, backend)
+
+    def fourier_diagonal(self, m, threads=1):
+        """``FourierDiagonal`` of the symbol ``m`` (half spectrum) on this mesh."""
+        return FourierDiagonal(self.shape, m, threads)
 
     # ------------------------------------------------------------------ operators
     def k_dot(self, v_hat, out, tmp):

@@ -5,39 +5,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.sparse.linalg import LinearOperator, bicgstab
 
-
-class FourierDiagonal:
-    """v -> FFT^-1[m(k) FFT(v)] for v holding one or more periodic scalar fields of ``shape``
-    (flattened), with pyfftw plans made once (FFTW_ESTIMATE up to 64^3 points, MEASURE
-    above, as kapsel.grid): the FFT preconditioners of the implicit solves.  ``m`` is given
-    on the rfftn half spectrum (NX, NY, NZ//2 + 1).  4-5x faster than scipy.fft's rfftn /
-    irfftn pair at 64^3 (measured in the Cahn-Hilliard preconditioner: 9.4 -> ~2 ms)."""
-
-    def __init__(self, shape, m, threads=1):
-        import pyfftw
-        from .grid import LazyPlan, auto_planner
-        self.shape = tuple(int(n) for n in shape)
-        size = int(np.prod(self.shape))
-        cshape = self.shape[:2] + (self.shape[2] // 2 + 1,)
-        self.m = np.ascontiguousarray(np.broadcast_to(m, cshape) / size)   # c2r's 1/N folded in
-        self._r = pyfftw.empty_aligned(self.shape, dtype="float64")
-        self._c = pyfftw.empty_aligned(cshape, dtype="complex128")
-        flags = (auto_planner(size, threads),)
-        self._fwd = LazyPlan(self._r, self._c, axes=(0, 1, 2), direction="FFTW_FORWARD",
-                                flags=flags, threads=threads)
-        self._bwd = LazyPlan(self._c, self._r, axes=(0, 1, 2), direction="FFTW_BACKWARD",
-                                flags=flags + ("FFTW_DESTROY_INPUT",), threads=threads)
-
-    def solve(self, v):
-        v = np.asarray(v).reshape((-1,) + self.shape)
-        out = np.empty(v.shape)
-        for c in range(v.shape[0]):
-            self._r[...] = v[c]
-            self._fwd.execute()
-            self._c *= self.m
-            self._bwd.execute()
-            out[c] = self._r
-        return out.reshape(-1)
+from .grid import FourierDiagonal  # noqa: F401  (the FFT preconditioners, by their old name)
 
 
 class SolverDidNotConverge(RuntimeError):

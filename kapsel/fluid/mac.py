@@ -46,12 +46,12 @@ with central differences at the nodes, and so is the variable-viscosity term: to
 changes by their grid sums only (tests/test_mac.py), the other terms sum to zero.
 """
 import numpy as np
-import scipy.fft
 import scipy.sparse as sp
 from scipy.sparse.linalg import LinearOperator
 
-from ..grid import LazyPlan
-from ..linalg import FourierDiagonal, SolverDidNotConverge, UnstableTimeStep, solve_correction
+from ..grid import Grid
+from ..linalg import SolverDidNotConverge, UnstableTimeStep, solve_correction
+from ..parallel.halo import Halo
 from . import operators as op
 
 try:  # pragma: no cover - import guard
@@ -63,48 +63,25 @@ from .. import compiled as _compiled
 __all__ = ["MACSolver", "SolverDidNotConverge", "UnstableTimeStep"]
 
 
-def _planner(shape, threads=1):
-    """kapsel.grid.auto_planner: FFTW_ESTIMATE for one thread up to 64^3 points, else
-    FFTW_MEASURE."""
-    from ..grid import auto_planner
-    return auto_planner(int(np.prod(shape)), threads)
+class _Poisson:
+    """Solves D G phi = r (B grid, cell arrays) by FFT on the layout (``ScalarSolve`` of
+    kapsel.grid, or of a rank's block: kapsel.parallel.pencil); null modes -> 0."""
 
+    def __init__(self, layout, dx, threads=1, backend="pyfftw"):
+        self.fft = layout.scalar_solver(threads, backend)
+        shape, block = layout.shape, layout.spec_range
+        self.inv = self.fft.symbol(op.inverse_div_grad_b(shape, dx, block))   # D G phi = r
+        self.inv_lap = self.fft.symbol(op.symbol_inverse_laplacian(shape, dx, block))  # lap p = r
+        self.rhs = self.fft.rhs     # write the right-hand side here, then call solve()
 
-class _PoissonFFT:
-    """Solves D G phi = r (B grid, cell arrays) by a real FFT; null modes -> 0."""
-
-    def __init__(self, shape, dx, threads=1, backend="pyfftw"):
-        self.shape = tuple(shape)
-        self.inv = op.inverse_div_grad_b(shape, dx)          # D G phi = r (project)
-        self.inv_lap = op.symbol_inverse_laplacian(shape, dx)  # lap p = r (the step)
-        self.threads = int(threads)
-        self.backend = backend if (backend != "pyfftw" or pyfftw is not None) else "scipy"
-        if self.backend == "pyfftw":
-            cshape = shape[:2] + (shape[2] // 2 + 1,)
-            self._r = pyfftw.empty_aligned(shape, dtype="float64")
-            self._c = pyfftw.empty_aligned(cshape, dtype="complex128")
-            self._o = pyfftw.empty_aligned(shape, dtype="float64")
-            flags = (_planner(shape, self.threads),)
-            self._fwd = LazyPlan(self._r, self._c, axes=(0, 1, 2), direction="FFTW_FORWARD",
-                                    flags=flags, threads=self.threads)
-            self._bwd = LazyPlan(self._c, self._o, axes=(0, 1, 2), direction="FFTW_BACKWARD",
-                                    flags=flags + ("FFTW_DESTROY_INPUT",), threads=self.threads)
-            self.rhs = self._r      # write the right-hand side here, then call solve()
-        else:
-            self.rhs = np.empty(shape)
+    def symbol(self, m):
+        """A symbol on the layout's Fourier block as ``solve`` takes it."""
+        return self.fft.symbol(m)
 
     def solve(self, inv=None):
         """phi for the right-hand side stored in ``self.rhs`` (the symbol ``inv``, default
         the B-grid D G inverse); returns an internal buffer."""
-        inv = self.inv if inv is None else inv
-        if self.backend == "pyfftw":
-            self._fwd()
-            np.multiply(self._c, inv, out=self._c)
-            self._bwd()             # normalised by pyfftw
-            return self._o
-        c = scipy.fft.rfftn(self.rhs, workers=self.threads)
-        c *= inv
-        return scipy.fft.irfftn(c, s=self.shape, workers=self.threads)
+        return self.fft.solve(self.inv if inv is None else inv)
 
 
 class MACSolver:
@@ -114,14 +91,19 @@ class MACSolver:
     'implicit_scheme'); ``tolerance`` (relative residual) and ``maximum_iteration`` are the
     BiCGSTAB settings of implicit_scheme (table 2).  ``threads`` is passed to the FFTs.
     ``linear``: 'sparse' (assembled CSR, default, faster) or 'matfree' (LinearOperator);
-    ``fft``: 'pyfftw' (default, faster) or 'scipy'.
+    ``fft``: 'pyfftw' (default, faster) or 'scipy'.  ``layout``: the mesh's layout
+    (kapsel.grid.Grid, default; a rank's block: kapsel.parallel.pencil.PencilGrid), whose
+    halos, sums and transforms the solver uses (docs/distributed.md): on one process they
+    are identities, on a block the stencils run on it widened by one ghost layer from the
+    neighbour ranks (kapsel.parallel.halo), the same operations point by point as on one
+    process; sums, dot products and maxima are over the ranks in a fixed order.
     Attributes: ``pressure`` (last p^{n+1}), ``u_old`` (u^{n-1}, settable for restarts),
     ``iterations`` / ``residual`` of the last BiCGSTAB solve (residual is NaN when converged).
     """
 
     def __init__(self, shape, dx, rho, eta, dt, scheme="explicit_scheme", tolerance=1e-9,
                  maximum_iteration=1000, threads=1, fft="pyfftw", linear="sparse",
-                 preconditioner="fft"):
+                 preconditioner="fft", layout=None):
         if scheme not in ("explicit_scheme", "implicit_scheme"):
             raise ValueError("scheme must be 'explicit_scheme' or 'implicit_scheme', not %r"
                              % (scheme,))
@@ -131,6 +113,10 @@ class MACSolver:
         if len(self.shape) != 3 or min(self.shape) < 1:
             raise ValueError("shape must be (NX, NY, NZ)")
         self.dx, self.rho, self.eta, self.dt = float(dx), float(rho), float(eta), float(dt)
+        self.grid = layout if layout is not None else Grid(self.shape, self.dx)
+        self.fshape = tuple(self.grid.local_shape)   # the fields: the mesh or a rank's block
+        self.halo = Halo(self.grid, 1)
+        self._eta_pad = None        # (eta_field, eta_field widened) of this step
         self.nu = self.eta / self.rho
         self.scheme = scheme
         self.tolerance = float(tolerance)
@@ -146,8 +132,6 @@ class MACSolver:
         # FFT threads only from 64^3 on: below, the plan gains little (32^3 0.10 -> 0.08 ms)
         # and a second thread stalls whenever the other core is busy (seen: 30 ms spikes)
         fft_threads = self.threads if np.prod(self.shape) >= 64 ** 3 else 1
-        # the fields' shape: the whole mesh, or this rank's block (DistributedMAC)
-        self.fshape = getattr(self, "fshape", self.shape)
         self._poisson = self._make_poisson(fft_threads, fft)
         vshape = (3,) + self.fshape
         self.pressure = np.zeros(self.fshape)    # p^{n+1} at the cell centres
@@ -155,26 +139,24 @@ class MACSolver:
         self._have_old = False
         self._v1 = np.empty(vshape)
         self._v2 = np.empty(vshape)
-        self._w2 = np.empty((2,) + self.fshape)
         self._s = np.empty(self.fshape)
         self._n_old = None          # explicit: (u.grad)u - f of the last step (AB2)
         self.step_count = 0         # steps done (a restart sets it): the original's jikan.ts
         self._pattern = None
         self._eta_grad = None       # D eta of the step's viscosity field (viscosity_change)
-        self._visc_work = None
         self._thread_min_rows = 500_000        # threaded CSR matvec only above this size
 
     def _make_poisson(self, threads, fft):
-        return _PoissonFFT(self.shape, self.dx, threads, fft)
+        return _Poisson(self.grid, self.dx, threads, fft)
 
     # ------------------------------------------------------------------ reductions
-    # (over the whole mesh; DistributedMAC sums and maximises over the ranks)
+    # (over the ranks of the layout: identities on one process)
     def _max(self, x):
-        return x
+        return self.grid.max(x)
 
     def mean(self, a):
         """The mean of a field over the mesh (switch.FIX_CELL)."""
-        return a.mean()
+        return self.grid.sum(float(np.sum(a))) / self.grid.size
 
     # ------------------------------------------------------------------ state
     @property
@@ -212,11 +194,12 @@ class MACSolver:
 
     def kinetic_energy(self, u):
         """(rho/2) sum |u|^2 DX^3."""
-        return 0.5 * self.rho * float(np.vdot(u, u)) * self.dx ** 3
+        return 0.5 * self.rho * self.grid.sum(float(np.vdot(u, u))) * self.dx ** 3
 
     def momentum(self, u):
         """rho sum u DX^3 (3-vector)."""
-        return self.rho * u.sum(axis=(1, 2, 3)) * self.dx ** 3
+        s = u.sum(axis=(1, 2, 3))
+        return self.rho * np.array([self.grid.sum(x) for x in s]) * self.dx ** 3
 
     # ------------------------------------------------------------------ projection
     def _solve_phi(self, u):
@@ -244,7 +227,10 @@ class MACSolver:
     def _grad_p(self, phi):
         """The pressure-gradient term G phi (B grid) into an internal buffer (the oblique
         solver raises its index with the metric)."""
-        return op.grad_b(phi, self.dx, out=self._v1, work=self._w2)
+        h = self.halo
+        G = op.grad_b(h.pad(phi, key="phi"), self.dx, out=h.target(self._v1, (3,), "grad"),
+                      work=h.work((2,), "w2"))
+        return h.keep(G, self._v1)
 
     def project(self, u):
         """Make u discretely divergence-free on the B grid in place (eq 22); keeps the mean."""
@@ -263,7 +249,9 @@ class MACSolver:
         return self._div(u, out)
 
     def _div(self, u, out=None):
-        return op.div_b(u, self.dx, out=out, work=self._w2)
+        h = self.halo
+        D = op.div_b(h.pad(u), self.dx, out=h.target(out, (), "div"), work=h.work((2,), "w2"))
+        return h.keep(D, out)
 
     # ------------------------------------------------------------------ step
     def step(self, u, force=None, eta_field=None):
@@ -280,6 +268,7 @@ class MACSolver:
         if not self._have_old:
             self._u_old[...] = u
             self._have_old = True
+        self._eta_pad = None                  # eta_field is widened once per step
         self._eta_grad = None if eta_field is None else self._viscosity_gradient(eta_field)
         if self.scheme == "explicit_scheme":
             self._step_explicit(u, force, eta_field)
@@ -288,30 +277,56 @@ class MACSolver:
         self.step_count += 1
         return u
 
+    # the stencils, on the block widened by the halo (identities on one process)
+    _u_pad = None           # (u, padded u) while a step or a product reads the same u twice
+    _a_pad = None           # (u*, padded u*) during an implicit solve
+
+    def _padded(self, u, key):
+        if self._u_pad is not None and self._u_pad[0] is u:
+            return self._u_pad[1]
+        return self.halo.pad(u, key=key)
+
     def _viscous(self, u, eta_field, out):
         """(1/rho) div(eta (grad u + grad u^T)) in the original's node form
         (operators.viscous_variable_nc, with the step's D eta), or nu lap u when eta_field
         is None."""
+        h = self.halo
+        U = self._padded(u, "visc")
+        V = h.target(out, (3,), "visc")
         if eta_field is None:
-            op.laplacian(u, self.dx, out=out)
-            out *= self.nu
+            op.laplacian(U, self.dx, out=V)
+            V *= self.nu
         else:
-            if self._visc_work is None:
-                self._visc_work = np.empty((11,) + self.fshape)
-            op.viscous_variable_nc(u, eta_field, self.dx, out=out, grad_eta=self._eta_grad,
-                                   work=self._visc_work)
-            out *= 1.0 / self.rho
-        return out
+            op.viscous_variable_nc(U, self._eta(eta_field), self.dx, out=V,
+                                   grad_eta=self._eta_grad, work=h.work((11,), "visc_nc"))
+            V *= 1.0 / self.rho
+        return h.keep(V, out)
 
     def _advection(self, u, out):
-        return op.advection_nc(u, self.dx, out=out)
+        h = self.halo
+        A = op.advection_nc(self._padded(u, "pad"), self.dx, out=h.target(out, (3,), "adv"))
+        return h.keep(A, out)
 
     def _advection_linear(self, a, w, out):
-        return op.advection_nc_linear(a, w, self.dx, out=out)
+        h = self.halo
+        if self._a_pad is not None and self._a_pad[0] is a:
+            Aa = self._a_pad[1]
+        else:
+            Aa = h.pad(a, key="lin_a")
+        A = op.advection_nc_linear(Aa, self._padded(w, "lin_w"), self.dx,
+                                   out=h.target(out, (3,), "adv_lin"))
+        return h.keep(A, out)
+
+    def _eta(self, eta_field):
+        """eta_field widened by the halo, once per step."""
+        if self._eta_pad is None or self._eta_pad[0] is not eta_field:
+            self._eta_pad = (eta_field, self.halo.pad(eta_field, key="eta"))
+        return self._eta_pad[1]
 
     def _viscosity_gradient(self, eta_field):
-        """D eta (central, at the nodes) of the step's viscosity field."""
-        return op.grad_central(eta_field, self.dx)
+        """D eta (central, at the nodes) of the step's viscosity field, on the widened
+        block."""
+        return op.grad_central(self._eta(eta_field), self.dx)
 
     def _step_explicit(self, u, force, eta_field):
         """The original's explicit scheme (fdm.cxx NS_solver_slavedEuler_explicit, eqs
@@ -321,6 +336,13 @@ class MACSolver:
         D u^n where the original takes D u~, which counts D (n - nu lap) twice; the
         original's is kept: the final spectral projection of the SPM step removes nearly all
         of the difference, 3e-7 of max|u| per step on one settling sphere.)"""
+        self._u_pad = (u, self.halo.pad(u, key="u"))     # advection and viscous term
+        try:
+            self._explicit(u, force, eta_field)
+        finally:
+            self._u_pad = None
+
+    def _explicit(self, u, force, eta_field):
         dt = self.dt
         n = self._advection(u, out=self._v1)
         if force is not None:
@@ -371,16 +393,15 @@ class MACSolver:
         if force is not None:
             b += dt * force
         x = self._bicgstab(A, b.ravel(), u.ravel().copy())
+        self._a_pad = None
         self._u_old[...] = u
         u[...] = x.reshape(u.shape)
 
     def _bicgstab(self, A, b, x0):
         x, self.iterations, self.residual = solve_correction(
             A, b, x0, self.tolerance, self.maximum_iteration, M=self._precond(b.size),
-            what="implicit Navier-Stokes solver (BiCGSTAB)", dot=self._dot)
+            what="implicit Navier-Stokes solver (BiCGSTAB)", dot=self.grid.dots)
         return x
-
-    _dot = None         # global dot product of a distributed solve (None: BiCGSTAB's own)
 
     def _precond(self, n):
         """The FFT preconditioner, or None: M^-1 v = FFT^-1[FFT(v) / (1 + dt/2 nu 4/DX^2
@@ -391,17 +412,21 @@ class MACSolver:
             return None
         if self._helmholtz is None:
             fft_threads = self.threads if np.prod(self.shape) >= 64 ** 3 else 1
-            lap = op.symbol_laplacian(self.shape, self.dx)        # -(4/DX^2) sum sin^2
-            self._helmholtz = FourierDiagonal(self.shape, 1.0 / (1.0 - 0.5 * self.dt * self.nu
-                                                                 * lap), fft_threads)
+            lap = op.symbol_laplacian(self.shape, self.dx, self.grid.spec_range)  # -(4/DX^2) sum sin^2
+            self._helmholtz = self.grid.fourier_diagonal(
+                1.0 / (1.0 - 0.5 * self.dt * self.nu * lap), fft_threads)
         return LinearOperator((n, n), matvec=self._helmholtz.solve, dtype=np.float64)
 
     # ------------------------------------------------------------------ linear operator
     def _operator(self, ustar, eta_field):
+        """A: the compiled stencil sweep (constant viscosity), the assembled CSR matrix
+        (its rows wrap the whole periodic mesh: a layout of the whole mesh only), or the
+        matrix-free stencils."""
         if self.linear == "sparse":
             if eta_field is None and _compiled.stencils is not None:
                 return self._stencil_operator(ustar)
-            return self._assemble(ustar, eta_field)
+            if self.grid.whole_mesh:
+                return self._assemble(ustar, eta_field)
         return self._matfree(ustar, eta_field)
 
     def _stencil_operator(self, ustar):
@@ -409,32 +434,40 @@ class MACSolver:
         (kapsel.fluid.stencils.implicit_matvec_nc): the same products summed in the same order
         as the CSR rows, so bit-identical, without assembling the matrix (64^3: 24 ms per
         step and 70 MB saved, matvec 15 -> 4 ms)."""
-        n3 = 3 * int(np.prod(self.shape))
-        shape = (3,) + self.shape
+        hl = self.halo
+        n3 = 3 * int(np.prod(self.fshape))
+        shape = (3,) + self.fshape
         h = 0.5 * self.dt
         a = h / (2 * self.dx)
         c = h * self.nu / self.dx ** 2
-        us = np.ascontiguousarray(ustar)
+        us = hl.pad(ustar, key="ustar")
         kernel = _compiled.stencils.implicit_matvec_nc
 
         def mv(x):
-            out = np.empty(shape)
-            kernel(np.ascontiguousarray(x).reshape(shape), us, a, c, out)
-            return out.reshape(-1)
+            out = hl.target(None, (3,), "mv")
+            kernel(hl.pad(np.asarray(x).reshape(shape), key="mv"), us, a, c, out)
+            return hl.keep(out).reshape(-1)
         return LinearOperator((n3, n3), matvec=mv, dtype=np.float64)
 
     def _matfree(self, ustar, eta_field):
-        n3 = 3 * int(np.prod(self.shape))
-        shape = (3,) + self.shape
+        """A applied by the stencils (``_advection_linear``, ``_viscous``), each product's
+        x and u* widened once."""
+        n3 = 3 * int(np.prod(self.fshape))
+        shape = (3,) + self.fshape
         h = 0.5 * self.dt
         tmp = np.empty(shape)
+        self._a_pad = (ustar, self.halo.pad(ustar, key="ustar"))
 
         def mv(x):
-            w = x.reshape(shape)
-            out = self._advection_linear(ustar, w, np.empty(shape))
-            out *= h
-            out += w
-            out -= h * self._viscous(w, eta_field, tmp)
+            w = np.asarray(x).reshape(shape)
+            self._u_pad = (w, self.halo.pad(w, key="mv"))
+            try:
+                out = self._advection_linear(ustar, w, np.empty(shape))
+                out *= h
+                out += w
+                out -= h * self._viscous(w, eta_field, tmp)
+            finally:
+                self._u_pad = None
             return out.ravel()
         return LinearOperator((n3, n3), matvec=mv, dtype=np.float64)
 
@@ -554,211 +587,3 @@ class MACSolver:
             from concurrent.futures import ThreadPoolExecutor
             self._pool = ThreadPoolExecutor(self.threads)
         return self._pool
-
-
-# ---------------------------------------------------------------------- distributed
-class _PoissonPencil:
-    """``_PoissonFFT`` on a distributed grid (kapsel.parallel.pencil.PencilGrid): the same
-    B-grid inverse symbol cut to this rank's Fourier block, the pencil FFTs."""
-
-    def __init__(self, grid, dx):
-        self.grid = grid
-        inv = op.inverse_div_grad_b(grid.shape, dx, grid.spec_range)  # this rank's modes
-        self.inv = inv / grid.size                                      # c2r's 1/N folded in
-        self.inv_lap = op.symbol_inverse_laplacian(grid.shape, dx, grid.spec_range) / grid.size
-        self.rhs = grid.empty_real(1)
-        self._c = grid.empty_complex(1)
-        self._o = grid.empty_real(1)
-        self.rhs = self.rhs[0]
-
-    def solve(self, inv=None):
-        g = self.grid
-        g.forward(self.rhs[None], self._c)
-        np.multiply(self._c[0], self.inv if inv is None else inv, out=self._c[0])
-        g.backward_raw(self._c, self._o)
-        return self._o[0]
-
-
-class PencilDiagonal:
-    """``kapsel.linalg.FourierDiagonal`` on a distributed grid: v -> FFT^-1[m(k) FFT(v)] for
-    v holding one or more fields of this rank's block (flattened), ``m`` on this rank's
-    Fourier block (``local=True``) or on the whole half spectrum (NX, NY, NZ//2 + 1)."""
-
-    def __init__(self, grid, m, local=False):
-        self.grid = grid
-        self.lshape = tuple(grid.local_shape)
-        if not local:
-            m = grid.local_complex(np.broadcast_to(m, grid.cshape))
-        self.m = np.ascontiguousarray(np.broadcast_to(m, grid.local_cshape)) / grid.size
-        self._c = {}
-
-    def solve(self, v):
-        g = self.grid
-        v = np.asarray(v).reshape((-1,) + self.lshape)
-        n = v.shape[0]
-        c = self._c.get(n)
-        if c is None:
-            c = self._c[n] = (g.empty_complex(n), g.empty_real(n))
-        ch, out = c
-        g.forward(np.ascontiguousarray(v), ch)
-        ch *= self.m
-        g.backward_raw(ch, out)
-        return out.reshape(-1).copy()
-
-
-class DistributedMAC(MACSolver):
-    """The MAC solver on this rank's block of a distributed grid (kapsel.parallel.pencil.
-    PencilGrid; docs/distributed.md).  ``shape`` is the whole mesh, ``fshape`` the
-    block; u, pressure, u_old are blocks.  The step is MACSolver's, with
-
-    * every stencil operator (advection, viscous term, B-grid divergence and gradient, the
-      implicit operator) applied to the block widened by one ghost layer from the
-      neighbour ranks (kapsel.parallel.halo), its interior kept: the same operations as the
-      serial run point by point;
-    * the Poisson equation and the FFT preconditioner by the pencil FFTs with the serial
-      symbols cut to the local Fourier block;
-    * sums, dot products and maxima over the ranks in a fixed order (``PencilGrid.sum`` /
-      ``sums`` / ``max``: the same bits on every rank, run after run); BiCGSTAB with those
-      dot products (kapsel.linalg.bicgstab_dot: scipy's iteration)."""
-
-    def __init__(self, grid, dx, rho, eta, dt, **kw):
-        from ..parallel.halo import Halo
-        self.grid = grid
-        self.fshape = tuple(grid.local_shape)
-        self.halo = Halo(grid, 1)
-        super().__init__(grid.shape, dx, rho, eta, dt, **kw)
-        self._eta_pad = None        # eta_field widened (with _eta_grad of it)
-
-    def _make_poisson(self, threads, fft):
-        return _PoissonPencil(self.grid, self.dx)
-
-    # reductions over the ranks
-    def _max(self, x):
-        return self.grid.max(x)
-
-    def mean(self, a):
-        return self.grid.sum(float(np.sum(a))) / self.grid.size
-
-    def _dot(self, *pairs):
-        return self.grid.sums([float(np.dot(a, b)) for a, b in pairs])
-
-    def kinetic_energy(self, u):
-        return 0.5 * self.rho * self.grid.sum(float(np.vdot(u, u))) * self.dx ** 3
-
-    def momentum(self, u):
-        s = u.sum(axis=(1, 2, 3))
-        return self.rho * np.array([self.grid.sum(x) for x in s]) * self.dx ** 3
-
-    # stencils through the halo
-    _u_pad = None           # (u, padded u) while the explicit step reads the same u twice
-
-    def _step_explicit(self, u, force, eta_field):
-        self._u_pad = (u, self.halo.pad(u, key="u"))     # advection and viscous term
-        try:
-            return super()._step_explicit(u, force, eta_field)
-        finally:
-            self._u_pad = None
-
-    def _padded(self, u, key):
-        if self._u_pad is not None and self._u_pad[0] is u:
-            return self._u_pad[1]
-        return self.halo.pad(u, key=key)
-
-    def _advection(self, u, out):
-        h = self.halo
-        U = self._padded(u, "pad")
-        A = op.advection_nc(np.ascontiguousarray(U), self.dx, out=h.work((3,), "adv"))
-        out[...] = h.interior(A)
-        return out
-
-    def _advection_linear(self, a, w, out):
-        h = self.halo
-        Aa = np.array(h.pad(a, key="lin_a"))
-        W = h.pad(w, key="lin_w")
-        A = op.advection_nc_linear(Aa, W, self.dx, out=h.work((3,), "adv_lin"))
-        out[...] = h.interior(A)
-        return out
-
-    def _viscosity_gradient(self, eta_field):
-        """D eta on the widened block (kept with the widened eta, ``_eta_pad``)."""
-        h = self.halo
-        self._eta_pad = np.array(h.pad(eta_field, key="eta"))
-        return op.grad_central(self._eta_pad, self.dx)
-
-    def _viscous(self, u, eta_field, out):
-        h = self.halo
-        U = self._padded(u, "visc")
-        V = h.work((3,), "visc")
-        if eta_field is None:
-            op.laplacian(U, self.dx, out=V)
-            V *= self.nu
-        else:                       # _eta_grad, _eta_pad: set by the step
-            op.viscous_variable_nc(U, self._eta_pad, self.dx, out=V, grad_eta=self._eta_grad,
-                                   work=h.work((11,), "visc_nc"))
-            V *= 1.0 / self.rho
-        out[...] = h.interior(V)
-        return out
-
-    def _div(self, u, out=None):
-        h = self.halo
-        U = h.pad(u)
-        D = op.div_b(U, self.dx, out=h.work((), "div"), work=h.work((2,), "w2"))
-        if out is None:
-            out = np.empty(self.fshape)
-        out[...] = h.interior(D)
-        return out
-
-    def _grad_p(self, phi):
-        h = self.halo
-        P = h.pad(phi, key="phi")
-        G = op.grad_b(P, self.dx, out=h.work((3,), "grad"), work=h.work((2,), "w2"))
-        self._v1[...] = h.interior(G)
-        return self._v1
-
-    # the implicit scheme
-    def _precond(self, n):
-        if self.preconditioner is None:
-            return None
-        if self._helmholtz is None:
-            lap = op.symbol_laplacian(self.shape, self.dx, self.grid.spec_range)
-            self._helmholtz = PencilDiagonal(self.grid, 1.0 / (1.0 - 0.5 * self.dt * self.nu
-                                                               * lap), local=True)
-        return LinearOperator((n, n), matvec=self._helmholtz.solve, dtype=np.float64)
-
-    def _operator(self, ustar, eta_field):
-        """A (I + dt/2 N(u*, .) - dt/2 V) on the block: the compiled stencil sweep for
-        constant viscosity, else the matrix-free stencils, on the padded block."""
-        h = self.halo
-        n3 = 3 * int(np.prod(self.fshape))
-        shape = (3,) + self.fshape
-        hdt = 0.5 * self.dt
-        US = np.array(h.pad(ustar, key="ustar"))
-        if eta_field is None and _compiled.stencils is not None and self.linear == "sparse":
-            a = hdt / (2 * self.dx)
-            c = hdt * self.nu / self.dx ** 2
-            kernel = _compiled.stencils.implicit_matvec_nc
-            OUT = h.work((3,), "mv")
-
-            def mv(x):
-                X = h.pad(np.asarray(x).reshape(shape), key="mv")
-                kernel(X, US, a, c, OUT)
-                return np.array(h.interior(OUT)).reshape(-1)
-            return LinearOperator((n3, n3), matvec=mv, dtype=np.float64)
-        T = h.work((3,), "mvt")
-        O = h.work((3,), "mvo")
-
-        def mv(x):
-            X = h.pad(np.asarray(x).reshape(shape), key="mv")
-            op.advection_nc_linear(US, X, self.dx, out=O)
-            np.multiply(O, hdt, out=O)
-            np.add(O, X, out=O)
-            if eta_field is None:
-                op.laplacian(X, self.dx, out=T)
-                np.multiply(T, self.nu, out=T)
-            else:
-                op.viscous_variable_nc(X, self._eta_pad, self.dx, out=T,
-                                       grad_eta=self._eta_grad, work=h.work((11,), "mv_nc"))
-                np.multiply(T, 1.0 / self.rho, out=T)
-            np.subtract(O, hdt * T, out=O)
-            return np.array(h.interior(O)).reshape(-1)
-        return LinearOperator((n3, n3), matvec=mv, dtype=np.float64)

@@ -56,8 +56,8 @@ import math
 import numpy as np
 
 from ..grid import Grid
-from ..phase.cahn_hilliard import DistributedCahnHilliard
-from .mac import DistributedMAC, MACSolver
+from ..parallel.halo import Halo, WholeFields
+from .mac import MACSolver
 from .spectral import SpectralNS, cross_in_place, phi1
 from .. import compiled as _compiled
 
@@ -585,27 +585,39 @@ class ObliqueMAC(_ObliqueFrame, MACSolver):
     grid (exact for Nx a multiple of Ny, else ``interpolation`` = OBL_INT along x) of u,
     u^{n-1} and the pressure; ``remap_fields`` tells the caller which scalar fields (psi,
     psi_old) to shift alike (``shift_scalar``).
+
+    On a rank's block (``layout`` a PencilGrid; docs/distributed.md) the metric pieces run
+    on the block widened by the halo (the variable-viscosity term, reach 2, by two layers:
+    ``halo2``), the metric Poisson symbol on the local Fourier block, and the re-mapping's
+    row shift along x on the rows gathered over the ranks of the x split (``shift_rows``
+    of the whole row, this block kept); on the oblique grid the Lees-Edwards fields are
+    plainly periodic, so the halo is the periodic one.
     """
 
     def __init__(self, shape, dx, rho, eta, dt, shear: ShearFlow, scheme="explicit_scheme",
                  tolerance=1e-9, maximum_iteration=1000, threads=1, interpolation="linear",
-                 t0=0.0, frame_strain0=None):
+                 t0=0.0, frame_strain0=None, layout=None):
         MACSolver.__init__(self, shape, dx, rho, eta, dt, scheme=scheme, tolerance=tolerance,
                            maximum_iteration=maximum_iteration, threads=threads,
-                           linear="matfree")
+                           linear="matfree", layout=layout)
+        try:                          # the variable-viscosity term (reach 2)
+            self.halo2 = Halo(self.grid, 2)
+        except ValueError:            # blocks of one point: refused by the model
+            self.halo2 = None
         if interpolation not in INTERPOLATIONS:
             raise ValueError(f"OBL_INT must be one of {INTERPOLATIONS}")
         self.interpolation = interpolation
         box = np.array(self.shape, dtype=float) * self.dx
         self._init_frame(shear, box, dt, t0, frame_strain0)
         from . import operators as op
-        S = op.symbol_div_b(self.shape, self.dx)
+        block = self.grid.spec_range
+        S = op.symbol_div_b(self.shape, self.dx, block)
         self._SS = {(a, b): np.real(S[a] * np.conj(S[b])) for a in range(3) for b in range(a, 3)}
-        self._null = op.b_grid_null_modes(self.shape)
+        self._null = op.b_grid_null_modes(self.shape, block)
         self._g_op = self.frame_strain
         self._g_inv = None
-        self._w = np.empty((3,) + self.shape)
-        self._t1 = np.empty(self.shape)
+        self._w = np.empty((3,) + self.fshape)
+        self._t1 = np.empty(self.fshape)
         self.remap_fields = 0
 
     # ------------------------------------------------------------------ metric pieces
@@ -621,8 +633,8 @@ class ObliqueMAC(_ObliqueFrame, MACSolver):
         self._g_inv = g
 
     def _scaled_inverse(self, inv):
-        """The Poisson symbol's inverse as the transform pair wants it."""
-        return inv
+        """The Poisson symbol's inverse as the layout's transform pair wants it."""
+        return self._poisson.symbol(inv)
 
     def _lap_inverse(self):
         """-1/|K|^2 of the oblique frame at the step's metric (fdm.h Update_K2_OBL /
@@ -630,9 +642,7 @@ class ObliqueMAC(_ObliqueFrame, MACSolver):
         g = self._g_op
         if getattr(self, "_g_lap", None) != g:
             from . import operators as op
-            block = self.grid.spec_range if hasattr(self, "grid") and hasattr(
-                self.grid, "spec_range") else None
-            kx, ky, kz = op.wavenumbers(self.shape, self.dx, block)
+            kx, ky, kz = op.wavenumbers(self.shape, self.dx, self.grid.spec_range)
             K2 = kx * kx + (ky - g * kx) ** 2 + kz * kz
             inv = np.zeros(np.broadcast_shapes(kx.shape, ky.shape, kz.shape))
             np.divide(-1.0, K2, out=inv, where=K2 > 0)
@@ -657,17 +667,21 @@ class ObliqueMAC(_ObliqueFrame, MACSolver):
     def _viscous(self, u, eta_field, out):
         g = self._g_op
         if eta_field is not None:     # contravariant u -> Cartesian, div(eta (...)), back
-            v = oblique_viscous_variable(cartesian(u, g), eta_field, self.dx, g)
-            contravariant(v, g, out=out)
+            h = self.halo2
+            v = oblique_viscous_variable(h.pad(cartesian(u, g), key="u"),
+                                         h.pad(eta_field, key="eta"), self.dx, g)
+            contravariant(h.keep(v), g, out=out)
             out *= 1.0 / self.rho
             return out
         MACSolver._viscous(self, u, None, out)   # nu lap u
         if g:
-            t = self._v2 if out is not self._v2 else np.empty_like(out)
-            _d11(u, self.dx, t)
-            out += (self.nu * g * g) * t
-            _d12(u, self.dx, t)
-            out -= (2.0 * self.nu * g) * t
+            h = self.halo
+            U = self._padded(u, "visc")
+            T = h.target(self._v2 if out is not self._v2 else None, (3,), "obl")
+            _d11(U, self.dx, T)
+            out += (self.nu * g * g) * h.interior(T)
+            _d12(U, self.dx, T, work=h.work((3,), "obl2"))
+            out -= (2.0 * self.nu * g) * h.interior(T)
         return out
 
     # ------------------------------------------------------------------ driver interface
@@ -727,7 +741,9 @@ class ObliqueMAC(_ObliqueFrame, MACSolver):
 
     def _gradient(self, f, g):
         """The physical central gradient of a node field (``oblique_gradient``)."""
-        return oblique_gradient(f, self.dx, g, np.empty((3,) + f.shape))
+        h = self.halo
+        G = oblique_gradient(h.pad(f, key="ograd"), self.dx, g, h.target(None, (3,), "ograd"))
+        return h.keep(G)
 
     # ------------------------------------------------------------------ re-mapping
     def row_shift(self, n):
@@ -735,21 +751,28 @@ class ObliqueMAC(_ObliqueFrame, MACSolver):
         ny = self.shape[1]
         return n * self.s * (np.arange(ny) - self.y0 / self.dx)
 
+    def _shift(self, f, shift):
+        """shift_rows of a block: the rows gathered along x over the layout's x split,
+        shifted whole, this block cut out; ``shift`` over the whole mesh's y."""
+        g = self.grid
+        (x0, x1), (y0, y1), _ = g.real_range
+        out = shift_rows(g.gather_rows(f), np.asarray(shift)[y0:y1], self.interpolation)
+        return np.ascontiguousarray(out[..., x0:x1, :, :])
+
     def shift_scalar(self, f, n):
-        return shift_rows(f, self.row_shift(n), self.interpolation)
+        return self._shift(f, self.row_shift(n))
 
     def _remap(self, u, n):
         g_old = self.frame_strain + n * self.s
         g_new = self.frame_strain
         sh = self.row_shift(n)
-        u[...] = shift_rows(u, sh, self.interpolation)
+        u[...] = self._shift(u, sh)
         uo = cartesian(self._u_old, g_old)
-        self._u_old[...] = contravariant(shift_rows(uo, sh, self.interpolation), g_new)
+        self._u_old[...] = contravariant(self._shift(uo, sh), g_new)
         if self._have_n_old:          # the explicit scheme's advection history alike
             no = cartesian(self._n_old, g_old)
-            self._n_old[...] = contravariant(shift_rows(no, sh, self.interpolation), g_new)
-        self.pressure[...] = shift_rows(self.pressure, sh + 0.5 * n * self.s,
-                                        self.interpolation)      # cell centres
+            self._n_old[...] = contravariant(self._shift(no, sh), g_new)
+        self.pressure[...] = self._shift(self.pressure, sh + 0.5 * n * self.s)  # cell centres
         self.remaps += n
         self.remap_count += 1
         self.remap_fields = n
@@ -840,140 +863,29 @@ class MetricProjector:
         return u
 
 
-class DistributedObliqueMAC(ObliqueMAC, DistributedMAC):
-    """ObliqueMAC on this rank's block of a distributed grid (docs/distributed.md):
-    DistributedMAC's halo stencils, pencil Poisson solve and reductions, with the metric
-    pieces of the oblique frame on the widened block (the second and mixed differences of
-    the viscous term, the raised pressure gradient), the metric Poisson symbol on the local
-    Fourier block, and the re-mapping's row shift along x on the rows gathered over the
-    ranks of the x split (``shift_rows`` of the whole row, this block kept).  On the
-    oblique grid the Lees-Edwards fields are plainly periodic, so the halo is the periodic
-    one.  With viscosity_change the full viscous term (reach 2) runs on a block widened
-    by two layers."""
-
-    def __init__(self, grid, dx, rho, eta, dt, shear, **kw):
-        from ..parallel.halo import Halo
-        self.grid = grid
-        self.fshape = tuple(grid.local_shape)
-        self.halo = Halo(grid, 1)
-        try:                          # the variable-viscosity term (reach 2)
-            self.halo2 = Halo(grid, 2)
-        except ValueError:            # blocks of one point: refused by the model
-            self.halo2 = None
-        self._eta_pad = None
-        ObliqueMAC.__init__(self, grid.shape, dx, rho, eta, dt, shear, **kw)
-        from . import operators as op
-        S = op.symbol_div_b(self.shape, self.dx, grid.spec_range)
-        self._SS = {(a, b): np.real(S[a] * np.conj(S[b])) for a in range(3)
-                    for b in range(a, 3)}
-        self._null = op.b_grid_null_modes(self.shape, grid.spec_range)
-        self._w = np.empty((3,) + self.fshape)
-        self._t1 = np.empty(self.fshape)
-
-    def _scaled_inverse(self, inv):
-        return inv / self.grid.size        # the pencil c2r's 1/N folded in
-
-    def _grad_p(self, phi):
-        gp = DistributedMAC._grad_p(self, phi)
-        g = self._g_op
-        t = self._t1
-        np.multiply(gp[1], -g, out=t)
-        gp[1] -= g * gp[0]
-        gp[0] *= 1 + g * g
-        gp[0] += t
-        return gp
-
-    def _gradient(self, f, g):
-        h = self.halo
-        G = oblique_gradient(h.pad(f, key="ograd"), self.dx, g, h.work((3,), "ograd"))
-        return np.array(h.interior(G))
-
-    def _viscous(self, u, eta_field, out):
-        if eta_field is not None:     # contravariant u -> Cartesian, div(eta (...)), back
-            h, g = self.halo2, self._g_op
-            U = h.pad(cartesian(u, g), key="u")
-            E = h.pad(eta_field, key="eta")
-            v = oblique_viscous_variable(U, E, self.dx, g)
-            contravariant(np.array(h.interior(v)), g, out=out)
-            out *= 1.0 / self.rho
-            return out
-        DistributedMAC._viscous(self, u, None, out)
-        g = self._g_op
-        if g:
-            h = self.halo
-            U = self._padded(u, "visc")
-            T = h.work((3,), "obl")
-            _d11(U, self.dx, T)
-            out += (self.nu * g * g) * h.interior(T)
-            _d12(U, self.dx, T, work=h.work((3,), "obl2"))
-            out -= (2.0 * self.nu * g) * h.interior(T)
-        return out
-
-    def _operator(self, ustar, eta_field):
-        """The implicit operator matrix-free (as ObliqueMAC): linearised advection on the
-        widened block, the oblique viscous term through ``_viscous``."""
-        from scipy.sparse.linalg import LinearOperator
-        from . import operators as op
-        h = self.halo
-        n3 = 3 * int(np.prod(self.fshape))
-        shape = (3,) + self.fshape
-        hdt = 0.5 * self.dt
-        US = np.array(h.pad(ustar, key="ustar"))
-        O = h.work((3,), "mvo")
-        tmp = np.empty(shape)
-
-        def mv(x):
-            w = np.asarray(x).reshape(shape)
-            X = h.pad(w, key="mv")
-            op.advection_nc_linear(US, X, self.dx, out=O)
-            out = np.array(h.interior(O))
-            out *= hdt
-            out += w
-            out -= hdt * self._viscous(w, eta_field, tmp)
-            return out.ravel()
-        return LinearOperator((n3, n3), matvec=mv, dtype=np.float64)
-
-    def _shift(self, f, shift):
-        """shift_rows of a block: the rows gathered along x over the column's ranks, shifted
-        whole, this block cut out; ``shift`` over the whole mesh's y."""
-        g = self.grid
-        (x0, x1), (y0, y1), _ = g.real_range
-        parts = g.comm_x.allgather(np.ascontiguousarray(f))
-        rows = np.concatenate(parts, axis=f.ndim - 3)
-        out = shift_rows(rows, np.asarray(shift)[y0:y1], self.interpolation)
-        return np.ascontiguousarray(out[..., x0:x1, :, :])
-
-    def shift_scalar(self, f, n):
-        return self._shift(f, self.row_shift(n))
-
-    def _remap(self, u, n):
-        g_old = self.frame_strain + n * self.s
-        g_new = self.frame_strain
-        sh = self.row_shift(n)
-        u[...] = self._shift(u, sh)
-        uo = cartesian(self._u_old, g_old)
-        self._u_old[...] = contravariant(self._shift(uo, sh), g_new)
-        if self._have_n_old:          # the explicit scheme's advection history alike
-            no = cartesian(self._n_old, g_old)
-            self._n_old[...] = contravariant(self._shift(no, sh), g_new)
-        self.pressure[...] = self._shift(self.pressure, sh + 0.5 * n * self.s)
-        self.remaps += n
-        self.remap_count += 1
-        self.remap_fields = n
-
-
 class ObliqueCahnHilliard:
     """Mixin of the Cahn-Hilliard solver in the oblique frame (eq 32):
     d_t psi + d^_i (xi^i psi) = kappa G^ij d^_i d^_j mu, xi^i the contravariant deviation
     velocity, mu with the metric Laplacian and the physical |grad phi|^2; the capillary force
     uses the physical gradient (Cartesian components, converted by the MAC solver).
-    ``frame()`` returns the current frame strain g."""
+    ``frame()`` returns the current frame strain g.  The operators run on the block widened
+    by the solver's halo (identities on one process); the implicit operator through them
+    (no width-2 shortcut: ``halo2`` None)."""
+
+    halo = WholeFields()      # used alone, on whole fields; a solver sets its own
 
     def _lap(self, f, out):
-        return oblique_laplacian(f, self.dx, self.frame(), out)
+        h = self.halo
+        lead = f.shape[:-3]
+        L = oblique_laplacian(h.pad(f, key="ch"), self.dx, self.frame(),
+                              h.target(out, lead, "chlap"), work=h.work(lead, "chlapw"))
+        return h.keep(L, out)
 
     def _grad(self, f, out):
-        return oblique_gradient(f, self.dx, self.frame(), out)
+        h = self.halo
+        G = oblique_gradient(h.pad(f, key="ch"), self.dx, self.frame(),
+                             h.target(out, (3,), "chgrad"))
+        return h.keep(G, out)
 
     def _grad_sq(self, f):
         gr = self._grad(f, np.empty((3,) + f.shape))
@@ -994,57 +906,19 @@ class ObliqueCahnHilliard:
         return self.z * s * self._grad_sq(psi)
 
     def _div_flux(self, psi, u, out, work):
-        from ..phase.cahn_hilliard import _div_flux
-        return _div_flux(psi, contravariant(u, self.frame()), self.dx, out, work)
+        from ..phase.cahn_hilliard import CahnHilliard
+        return CahnHilliard._div_flux(self, psi, contravariant(u, self.frame()), out, work)
 
 
-def make_oblique_cahn_hilliard(frame, *args, grid=None, **kwargs):
-    """A CahnHilliard (kapsel.phase.cahn_hilliard) with the oblique operators; its stability
-    estimate uses the largest metric Laplacian of the frame (|g| <= s/2).  ``grid``: a
-    distributed run's PencilGrid (args then start with the mesh spacing, not the shape):
-    the DistributedCahnHilliard with the oblique operators on the halo-widened block."""
+def make_oblique_cahn_hilliard(frame, *args, **kwargs):
+    """A CahnHilliard (kapsel.phase.cahn_hilliard; its arguments, ``layout`` too) with the
+    oblique operators; its stability estimate uses the largest metric Laplacian of the
+    frame (|g| <= s/2)."""
     from ..phase.cahn_hilliard import CahnHilliard
-    if grid is not None:
-        ch = _DistributedObliqueCH(grid, *args, **kwargs)
-        ch.frame = frame
-        return ch
 
     class _OCH(ObliqueCahnHilliard, CahnHilliard):
         pass
     ch = _OCH(*args, **kwargs)
+    ch.halo2 = None
     ch.frame = frame
     return ch
-
-
-class _DistributedObliqueCH(DistributedCahnHilliard):
-    """ObliqueCahnHilliard's operators (metric Laplacian, physical gradient, flux of the
-    contravariant velocity) on this rank's block widened by one ghost layer; the implicit
-    operator through them (no width-2 shortcut)."""
-
-    def __init__(self, *args, **kwargs):
-        super().__init__(*args, **kwargs)
-        self.halo2 = None
-
-    def _lap(self, f, out):
-        h = self.halo
-        lead = f.shape[:-3]
-        L = oblique_laplacian(h.pad(f, key="ch"), self.dx, self.frame(),
-                              h.work(lead, "chlap"), work=h.work(lead, "chlapw"))
-        out[...] = h.interior(L)
-        return out
-
-    def _grad(self, f, out):
-        h = self.halo
-        G = oblique_gradient(h.pad(f, key="ch"), self.dx, self.frame(), h.work((3,), "chgrad"))
-        out[...] = h.interior(G)
-        return out
-
-    def _div_coef_grad(self, c, f):
-        return ObliqueCahnHilliard._div_coef_grad(self, c, f)
-
-    def _z_density(self, s, psi):
-        return ObliqueCahnHilliard._z_density(self, s, psi)
-
-    def _div_flux(self, psi, u, out, work):
-        return DistributedCahnHilliard._div_flux(self, psi, contravariant(u, self.frame()),
-                                                 out, work)

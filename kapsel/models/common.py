@@ -280,16 +280,17 @@ class Model:
         self.run_id = secrets.token_hex(8)
         self.run_id_known = False   # True once taken from a restart's state file
         # distributed run (kapsel.parallel): rank 0 writes, the others serve its collectives
+        # (``collectives``; on one process a call runs at once); ``lockstep``: the run's
+        # handle on them in a distributed run, None on one process
+        from ..parallel.lockstep import Lockstep
         self.dist = getattr(args, "dist", None)
-        self.lockstep = None
-        if self.dist is not None:
-            from ..parallel.lockstep import Lockstep
-            self.lockstep = Lockstep(self.dist)
-            self.lockstep.register("source", self._gathered_source)
-            self._local_sources = {}
-            self.lockstep.register("particles", lambda: self.spm.gather())
-            self.lockstep.register("h5_fields", self.write_h5_fields)
-            self._gathered_at = None
+        self.collectives = Lockstep(self.dist)
+        self.collectives.register("source", self._gathered_source)
+        self.collectives.register("particles", lambda: self.spm.gather())
+        self.collectives.register("h5_fields", self.write_h5_fields)
+        self._local_sources = {}
+        self._gathered_at = None
+        self.lockstep = self.collectives if self.dist is not None else None
 
     def spm_radius(self) -> float:
         """The radius of the SPM profile: A, or with ``--spm-drag calibrated`` the radius
@@ -340,13 +341,11 @@ class Model:
             if isinstance(p.constraints, RigidBodies):
                 src["E_rot"] = p.constraints.rotational_energies
         h5_fields = None
-        if self.dist is not None:      # every source a collective of the lockstep protocol
-            self._local_sources = src
-            src = {name: (lambda name=name: self.lockstep.call("source", name))
-                   for name in src}
-            if parallel_hdf5():
-                h5_fields = (lambda tmp, datasets, attrs:
-                             self.lockstep.call("h5_fields", tmp, datasets, attrs))
+        self._local_sources = src      # every source a collective (gathered to rank 0)
+        src = {name: (lambda name=name: self.collectives.call("source", name)) for name in src}
+        if self.lockstep is not None and parallel_hdf5():
+            h5_fields = (lambda tmp, datasets, attrs:
+                         self.collectives.call("h5_fields", tmp, datasets, attrs))
         return Snapshot(step=self.step_index, time=self.time, dt=self.dt,
                         shape=tuple(self.cfg.mesh.shape), dx=self.cfg.mesh.DX, particles=p,
                         strain=float(self.frame_strain()), sheared=self.sheared, sources=src,
@@ -391,7 +390,7 @@ class Model:
         if self._owned() is None or not self.lockstep.leading:
             return
         if self._gathered_at != self.step_index:
-            self.lockstep.call("particles")
+            self.collectives.call("particles")
             self._gathered_at = self.step_index
 
     def whole_particles(self):
@@ -407,8 +406,8 @@ class Model:
         return self.particles
 
     def _gathered_source(self, name):
-        """A snapshot source in a distributed run (every rank): a field of local blocks
-        gathered to rank 0 (None elsewhere); sources that gather or reduce themselves
+        """A snapshot source (every rank): a field of local blocks gathered to rank 0
+        (None elsewhere; on one process the field itself); sources that gather or reduce themselves
         return a ``Gathered`` (taken as is), scalars and particle data are the same
         everywhere."""
         from ..parallel.pencil import Gathered
@@ -436,8 +435,7 @@ class Model:
         local = self._owned()          # this rank's particles (owned + ghosts)
         if local is not None and local.p.n:
             umax2 = float(np.max([umax2, np.max(np.einsum("ij,ij->i", local.p.v, local.p.v))]))
-        if self.dist is not None:
-            umax2 = self.grid.max(umax2)
+        umax2 = self.grid.max(umax2)
         p = self.particles
         if local is None and p is not None and p.n:
             umax2 = max(umax2, float(np.max(np.einsum("ij,ij->i", p.v, p.v))))

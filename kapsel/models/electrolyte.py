@@ -83,13 +83,12 @@ class ElectrolyteModel(SpectralModel):
     def __init__(self, cfg, args):
         from ..fluid.ions import Ions
         from ..fluid.spectral import SpectralNS
-        from ..grid import Grid
         from ..models.common import Model
         from ..particles.spm import SPM
         Model.__init__(self, cfg, args)
         f, el = cfg.fluid, cfg.electrolyte
         self.el = el
-        self.grid = Grid(cfg.mesh.shape, cfg.mesh.DX, threads=self.threads)
+        self.grid = self.make_grid(cfg)
         self.fluid = SpectralNS(self.grid, f.RHO, f.ETA, self.dt, fix_cell=cfg.switches.fix_cell)
         self.particles = make_particles(cfg, self.rng)
         spm_class = type("IonSPM", (_IonSPM, SPM), {"model": self})

@@ -53,7 +53,7 @@ class FDMModel(Model):
         shape, dx = cfg.mesh.shape, cfg.mesh.DX
         f = cfg.fluid
         self.rho, self.dx, self.shape = f.RHO, dx, shape
-        self.grid = self._make_grid(cfg) if self.dist is not None else None
+        self.grid = self._make_grid(cfg)
         self.mac = self._make_fluid(cfg)
         try:
             self.mac.check_stability()
@@ -105,37 +105,34 @@ class FDMModel(Model):
                 self._update_viscosity()
 
     def _make_grid(self, cfg):
-        """A distributed run: this rank's blocks of the mesh (kapsel.parallel.pencil), the
-        collectives rank 0's writers call (the whole fields of the restart)."""
-        from ..parallel.pencil import PencilGrid
+        """The mesh's layout (kapsel.parallel.make_layout; a distributed run: this rank's
+        blocks) and the collective rank 0's writers call (the whole fields of the restart)."""
+        from ..parallel import make_layout
         try:
-            grid = PencilGrid(cfg.mesh.shape, cfg.mesh.DX, self.dist.comm, self.dist.dims)
+            # one FFT thread: the SPM's projection, as before (the MAC solver's FFTs take
+            # the run's threads themselves)
+            grid = make_layout(cfg.mesh.shape, cfg.mesh.DX, self.dist, 1)
         except ValueError as e:
             raise ConfigError(str(e), path="mesh", value="process grid") from None
-        self.lockstep.register("whole", lambda name: grid.gather_real(self._restart_field(name)))
+        self.collectives.register("whole",
+                                  lambda name: grid.gather_real(self._restart_field(name)))
         return grid
 
     def _make_fluid(self, cfg):
-        """The MAC solver of the type (the sheared types: kapsel.fluid.oblique.ObliqueMAC;
-        a distributed run: kapsel.fluid.mac.DistributedMAC on this rank's block)."""
-        from ..fluid.mac import DistributedMAC, MACSolver
+        """The MAC solver of the type (the sheared types: kapsel.fluid.oblique.ObliqueMAC)
+        on the layout (a distributed run: this rank's block)."""
+        from ..fluid.mac import MACSolver
         f = cfg.fluid
-        kw = dict(scheme=f.ns_solver, tolerance=f.tolerance,
-                  maximum_iteration=f.maximum_iteration, threads=self.threads)
-        if self.grid is not None:
-            return DistributedMAC(self.grid, cfg.mesh.DX, f.RHO, f.ETA, self.dt, **kw)
-        return MACSolver(cfg.mesh.shape, cfg.mesh.DX, f.RHO, f.ETA, self.dt, **kw)
+        return MACSolver(cfg.mesh.shape, cfg.mesh.DX, f.RHO, f.ETA, self.dt, scheme=f.ns_solver,
+                         tolerance=f.tolerance, maximum_iteration=f.maximum_iteration,
+                         threads=self.threads, layout=self.grid)
 
     def _make_ch(self, dt):
-        """The Cahn-Hilliard solver of the type with time step dt."""
+        """The Cahn-Hilliard solver of the type with time step dt, on the layout."""
         from ..phase import CahnHilliard
-        from ..phase.cahn_hilliard import DistributedCahnHilliard
         try:
-            if self.grid is not None:
-                return DistributedCahnHilliard(self.grid, self.dx, self.cfg.phase, dt,
-                                               wall=self.wall, **self.ch_kwargs)
             return CahnHilliard(self.shape, self.dx, self.cfg.phase, dt, wall=self.wall,
-                                **self.ch_kwargs)
+                                layout=self.grid, **self.ch_kwargs)
         except ValueError as e:
             raise ConfigError(str(e), path=f"constitutive_eq.{self.cfg.type}.Potential."
                               f"Landau.psi_0_wall.user_specify.psi_0_wall[]") from None
@@ -256,7 +253,7 @@ class FDMModel(Model):
     def kinetic_energy(self) -> float:
         return kinetic_energy(self.rho, self.dx, self.u, self.phi_total(),
                               self.spm.owned_particles(),
-                              reduce=self.grid.sum if self.grid is not None else None,
+                              reduce=self.grid.sum,
                               owned=self._owned() is not None)
 
     def record_items(self) -> dict:
@@ -290,13 +287,11 @@ class FDMModel(Model):
     def _whole(self, name):
         """The whole field ``name`` (_restart_field): in a distributed run gathered to rank
         0 (a collective rank 0's writers call)."""
-        if self.grid is None:
-            return self._restart_field(name)
-        return self.lockstep.call("whole", name)
+        return self.collectives.call("whole", name)
 
     def _local(self, a):
-        """This rank's block of a whole field (itself in a plain run)."""
-        return a if self.grid is None else np.ascontiguousarray(self.grid.local_real(a))
+        """This rank's block of a whole field (itself on one process)."""
+        return np.ascontiguousarray(self.grid.local_real(a))
 
     @property
     def restart_kind(self):
@@ -373,28 +368,26 @@ class FDMModel(Model):
         """u, pressure (at the nodes, the particles' force included), tau; phi with particles; psi, psi_all (psi is defined
         inside the particles too, so it is the total order parameter) and flux with a phase
         field (kapsel.snapshot)."""
-        src = {"u": lambda: self.u, "pressure": self._pressure, "tau": self._tau}
+        from ..parallel.pencil import Gathered
+        g = self.grid                 # pressure, tau: from the gathered fields, on rank 0
+
+        def pressure():
+            from ..fluid.diagnostics import pressure_at_nodes
+            p = g.gather_real(self._pressure_cells())
+            return Gathered(pressure_at_nodes(p) if g.is_root else None)
+
+        def tau():
+            from ..fluid.diagnostics import stress_from_gradient, velocity_gradient_central
+            u = g.gather_real(self.u)
+            eta = (g.gather_real(self.eta_field) if self.eta_field is not None
+                   else self.cfg.fluid.ETA)
+            return Gathered(stress_from_gradient(velocity_gradient_central(u, self.dx), eta)
+                            if g.is_root else None)
+        src = {"u": lambda: self.u, "pressure": pressure, "tau": tau}
         if self.particles.n or self.wall is not None:
             src["phi"] = self.phi_total
         if self.psi is not None:
             src.update(psi=lambda: self.psi, psi_all=lambda: self.psi, flux=self._flux)
-        if self.grid is not None:   # pressure, tau: from the gathered fields, on rank 0
-            from ..parallel.pencil import Gathered
-            g, root = self.grid, self.dist.root
-
-            def pressure():
-                from ..fluid.diagnostics import pressure_at_nodes
-                p = g.gather_real(self._pressure_cells())
-                return Gathered(pressure_at_nodes(p) if root else None)
-
-            def tau():
-                from ..fluid.diagnostics import stress_from_gradient, velocity_gradient_central
-                u = g.gather_real(self.u)
-                eta = (g.gather_real(self.eta_field) if self.eta_field is not None
-                       else self.cfg.fluid.ETA)
-                return Gathered(stress_from_gradient(velocity_gradient_central(u, self.dx), eta)
-                                if root else None)
-            src.update(pressure=pressure, tau=tau)
         return src
 
     def _pressure_cells(self):
@@ -405,16 +398,8 @@ class FDMModel(Model):
             p += self.mac.projection_pressure(self.spm.last_increment())
         return p
 
-    def _pressure(self):
-        from ..fluid.diagnostics import pressure_at_nodes
-        return pressure_at_nodes(self._pressure_cells())
-
     def _eta(self):
         return self.eta_field if self.eta_field is not None else self.cfg.fluid.ETA
-
-    def _tau(self):
-        from ..fluid.diagnostics import stress_from_gradient, velocity_gradient_central
-        return stress_from_gradient(velocity_gradient_central(self.u, self.dx), self._eta())
 
     def _flux(self):
         """Order-parameter flux psi u - kappa grad mu of the current state (eq 16)."""

@@ -138,7 +138,7 @@ class ShearLEModel(SpectralModel):
         phi = self.spm.phi() if self.particles.n else None
         return kinetic_energy(self.cfg.fluid.RHO, self.cfg.mesh.DX, u, phi,
                               self.spm.owned_particles(),
-                              reduce=self.grid.sum if self.dist is not None else None,
+                              reduce=self.grid.sum,
                               owned=self._owned() is not None)
 
     sheared = True
@@ -245,8 +245,7 @@ class ShearLEModel(SpectralModel):
         uy = uh[1]
         n = self.grid.size
         uxuy = float(np.sum(self.grid.half_weight * (ux.real * uy.real + ux.imag * uy.imag)))
-        if self.dist is not None:
-            uxuy = self.grid.sum(uxuy)
+        uxuy = self.grid.sum(uxuy)
         reynolds = -self.cfg.fluid.RHO * uxuy / (n * n)   # Parseval: sum_x = sum_k / N
         rate = fl.shear.rate(self.time - self.dt)
         return le_table_row(self.time, rate, g, fl.applied_strain,
@@ -354,7 +353,7 @@ class ShearFDMModel(FDMModel):
     def __init__(self, cfg: RunConfig, args):
         self.interpolation = check_interpolation(cfg)
         super().__init__(cfg, args)
-        if self.grid is not None and cfg.fluid.viscosity_change and self.mac.halo2 is None:
+        if cfg.fluid.viscosity_change and self.mac.halo2 is None:
             raise ConfigError("viscosity_change in the oblique frame needs blocks of at "
                               "least 2 mesh points along the split directions (its viscous "
                               "term reaches 2 points): use fewer ranks along x or y (-X, -Y)",
@@ -364,16 +363,12 @@ class ShearFDMModel(FDMModel):
         self.field_stress_sum = 0.0
 
     def _make_fluid(self, cfg):
-        from ..fluid.oblique import DistributedObliqueMAC, ObliqueMAC
+        from ..fluid.oblique import ObliqueMAC
         f = cfg.fluid
-        kw = dict(scheme=f.ns_solver, tolerance=f.tolerance,
-                  maximum_iteration=f.maximum_iteration, threads=self.threads,
-                  interpolation=self.interpolation)
-        if self.grid is not None:     # a distributed run: this rank's block
-            return DistributedObliqueMAC(self.grid, cfg.mesh.DX, f.RHO, f.ETA, self.dt,
-                                         shear_flow(cfg), **kw)
         return ObliqueMAC(cfg.mesh.shape, cfg.mesh.DX, f.RHO, f.ETA, self.dt, shear_flow(cfg),
-                          **kw)
+                          scheme=f.ns_solver, tolerance=f.tolerance,
+                          maximum_iteration=f.maximum_iteration, threads=self.threads,
+                          interpolation=self.interpolation, layout=self.grid)
 
     def _fix_cell(self, cfg):
         """The original forces FIX_CELL.y ON for the sheared types (PHYSICS-EXTRA §1.2)."""
@@ -383,12 +378,8 @@ class ShearFDMModel(FDMModel):
     def _make_ch(self, dt):
         from ..fluid.oblique import make_oblique_cahn_hilliard
         mac = self.mac
-        if self.grid is not None:
-            ch = make_oblique_cahn_hilliard(lambda: mac.frame_strain, self.dx, self.cfg.phase,
-                                            dt, grid=self.grid, **self.ch_kwargs)
-        else:
-            ch = make_oblique_cahn_hilliard(lambda: mac.frame_strain, self.shape, self.dx,
-                                            self.cfg.phase, dt, **self.ch_kwargs)
+        ch = make_oblique_cahn_hilliard(lambda: mac.frame_strain, self.shape, self.dx,
+                                        self.cfg.phase, dt, layout=self.grid, **self.ch_kwargs)
         g = mac.max_frame_strain
         ch._k2 = ch._k2 * (1.0 + (4 * g * g + 2 * g) / 12.0)   # metric Laplacian bound
         return ch
@@ -447,12 +438,9 @@ class ShearFDMModel(FDMModel):
         """kapsel.fluid.oblique.oblique_gradient of a field (of this rank's block: on the
         block widened by the halo)."""
         from ..fluid.oblique import oblique_gradient
-        if self.grid is None:
-            return oblique_gradient(f, self.dx, g, out)
         h = self.mac.halo
-        G = oblique_gradient(h.pad(f, key="stress"), self.dx, g, h.work((3,), "stress"))
-        out[...] = h.interior(G)
-        return out
+        G = oblique_gradient(h.pad(f, key="stress"), self.dx, g, h.target(out, (3,), "stress"))
+        return h.keep(G, out)
 
     def shear_record(self) -> dict:
         rate = self.mac.shear_rate_now
@@ -481,40 +469,31 @@ class ShearFDMModel(FDMModel):
         interpolated; d_y U_x = gamma_dot added to xy); no flux (the original writes
         flux_<n>.h5 for Navier_Stokes_Cahn_Hilliard_FDM only)."""
         from ..fluid.diagnostics import pressure_at_nodes
-        src = {"u": self._u_rect,
-               "pressure": lambda: self._rect(pressure_at_nodes(self._pressure_cells())),
-               "tau": self._tau}
-        if self.particles.n:
-            src["phi"] = lambda: self._rect(self.phi)
-        if self.psi is not None:
-            src["psi"] = lambda: self._rect(self.psi)
-            src["psi_all"] = src["psi"]
-        if self.grid is not None:     # from the fields gathered to rank 0, computed there
-            from ..parallel.pencil import Gathered
-            g, root = self.grid, self.dist.root
+        from ..parallel.pencil import Gathered
+        g = self.grid                 # from the fields gathered to rank 0, computed there
 
-            def on_root(fn, *parts):
-                def gathered():
-                    whole = [g.gather_real(p()) for p in parts]
-                    return Gathered(fn(*whole) if root else None)
-                return gathered
-            src["u"] = on_root(self._u_rect, lambda: self.u)
-            src["pressure"] = on_root(lambda p: self._rect(pressure_at_nodes(p)),
-                                      self._pressure_cells)
-            src["tau"] = (on_root(self._tau, lambda: self.u, lambda: self.eta_field)
-                          if self.eta_field is not None else on_root(self._tau, lambda: self.u))
-            if self.particles.n:
-                src["phi"] = on_root(self._rect, lambda: self.phi)
-            if self.psi is not None:
-                src["psi"] = on_root(self._rect, lambda: self.psi)
-                src["psi_all"] = src["psi"]
+        def on_root(fn, *parts):
+            def gathered():
+                whole = [g.gather_real(p()) for p in parts]
+                return Gathered(fn(*whole) if g.is_root else None)
+            return gathered
+        src = {"u": on_root(self._u_rect, lambda: self.u),
+               "pressure": on_root(lambda p: self._rect(pressure_at_nodes(p)),
+                                   self._pressure_cells),
+               "tau": (on_root(self._tau, lambda: self.u, lambda: self.eta_field)
+                       if self.eta_field is not None else on_root(self._tau, lambda: self.u))}
+        if self.particles.n:
+            src["phi"] = on_root(self._rect, lambda: self.phi)
+        if self.psi is not None:
+            src["psi"] = on_root(self._rect, lambda: self.psi)
+            src["psi_all"] = src["psi"]
         return src
 
     def _gathered_source(self, name):
         """The record's PSI in the rectangular frame, from the gathered psi."""
         if name == "record" and self.psi is not None:
             psi = self.grid.gather_real(self.psi)
-            return {"PSI": self._rect(psi) if self.dist.root else None}
+            return {"PSI": self._rect(psi) if self.grid.is_root else None}
         return super()._gathered_source(name)
 
     def _u_rect(self, u=None):
@@ -541,13 +520,10 @@ class ShearFDMModel(FDMModel):
     def kinetic_energy(self) -> float:
         from .common import kinetic_energy
         u = self.u.copy()
-        if self.grid is None:
-            y = (np.arange(self.shape[1]) * self.dx)[None, :, None]
-        else:                         # this rank's rows
-            y = (np.arange(*self.grid.real_range[1]) * self.dx)[None, :, None]
+        y = (np.arange(*self.grid.real_range[1]) * self.dx)[None, :, None]   # this block's rows
         u[0] += self.mac.shear_rate_now * (y - self.mac.y0)
         return kinetic_energy(self.rho, self.dx, u, self.phi, self.spm.owned_particles(),
-                              reduce=self.grid.sum if self.grid is not None else None,
+                              reduce=self.grid.sum,
                               owned=self._owned() is not None)
 
     # ------------------------------------------------------------------ restart

@@ -30,22 +30,19 @@ class SpectralModel(Model):
                        dry=self.dry)
 
     def make_grid(self, cfg):
-        """The mesh: a ``kapsel.grid.Grid``, or in a distributed run this rank's blocks of
-        it (kapsel.parallel.pencil.PencilGrid)."""
-        from ..grid import Grid
-        if self.dist is None:
-            return Grid(cfg.mesh.shape, cfg.mesh.DX, threads=self.threads)
-        from ..parallel.pencil import PencilGrid
+        """The mesh's layout (kapsel.parallel.make_layout: a ``kapsel.grid.Grid``, or in a
+        distributed run this rank's blocks of it)."""
+        from ..parallel import make_layout
         try:
-            grid = PencilGrid(cfg.mesh.shape, cfg.mesh.DX, self.dist.comm, self.dist.dims)
+            grid = make_layout(cfg.mesh.shape, cfg.mesh.DX, self.dist, self.threads)
         except ValueError as e:
             raise ConfigError(str(e), path="mesh", value="process grid") from None
-        self.lockstep.register("u_hat", lambda: grid.gather_complex(self.fluid.u_hat))
+        self.collectives.register("u_hat", lambda: grid.gather_complex(self.fluid.u_hat))
         return grid
 
     def local(self, a):
-        """This rank's block of a whole Fourier field (itself in a plain run)."""
-        return a if self.dist is None else self.grid.local_complex(a)
+        """This rank's block of a whole Fourier field (itself on one process)."""
+        return self.grid.local_complex(a)
 
     def advance(self):
         self.spm.step()
@@ -62,14 +59,12 @@ class SpectralModel(Model):
         phi = self.phi_total() if self.particles.n or self.wall is not None else None
         return kinetic_energy(self.cfg.fluid.RHO, self.cfg.mesh.DX, self.spm.velocity(), phi,
                               self.spm.owned_particles(),
-                              reduce=self.grid.sum if self.dist is not None else None,
+                              reduce=self.grid.sum,
                               owned=self._owned() is not None)
 
     def global_u_hat(self):
         """The whole u_hat: gathered to rank 0 in a distributed run (None on the others)."""
-        if self.dist is None:
-            return self.fluid.u_hat
-        return self.lockstep.call("u_hat")
+        return self.collectives.call("u_hat")
 
     def record_items(self) -> dict:
         return {}
@@ -138,21 +133,18 @@ class SpectralModel(Model):
                 memo["u"] = self.spm.velocity()
             return memo["u"]
 
-        src = {"u": u,
-               "tau": lambda: viscous_stress_spectral(u(), dx, f.ETA),
-               "pressure": lambda: spectral_pressure(u(), self.spm.last_increment(), f.RHO, self.dt, dx)}
-        if self.dist is not None:   # tau, pressure: from the gathered fields, on rank 0
-            from ..parallel.pencil import Gathered
-            g = self.grid
+        from ..parallel.pencil import Gathered
+        g = self.grid
 
-            def on_root(fn):
-                def gathered():
-                    args = [g.gather_real(a()) for a in fn[1:]]
-                    return Gathered(fn[0](*args) if self.dist.root else None)
-                return gathered
-            src["tau"] = on_root((lambda U: viscous_stress_spectral(U, dx, f.ETA), u))
-            src["pressure"] = on_root((lambda U, D: spectral_pressure(U, D, f.RHO, self.dt, dx),
-                                       u, self.spm.last_increment))
+        def on_root(fn):            # tau, pressure: from the gathered fields, on rank 0
+            def gathered():
+                args = [g.gather_real(a()) for a in fn[1:]]
+                return Gathered(fn[0](*args) if g.is_root else None)
+            return gathered
+        src = {"u": u,
+               "tau": on_root((lambda U: viscous_stress_spectral(U, dx, f.ETA), u)),
+               "pressure": on_root((lambda U, D: spectral_pressure(U, D, f.RHO, self.dt, dx),
+                                    u, self.spm.last_increment))}
         if self.particles.n or self.wall is not None:
             src["phi"] = self.phi_total
         return src

@@ -139,17 +139,16 @@ class ZigzagStress:
         self.pin, self.grid, self.rho, self.dt = pin, g, float(rho), float(dt)
         self.drho_species = np.asarray(mass_ratio, dtype=float) * self.rho - self.rho
         self.heavy = bool(heavy)        # particles denser or lighter than the fluid
-        self.dist = hasattr(g, "comm")
         self.n_points = g.size
         self.norm = g.dx ** 3 / (g.volume * self.dt)
-        (y0, y1) = g.real_range[1] if self.dist else (0, ny)
+        (y0, y1) = g.real_range[1]
         self.y = np.arange(y0, y1) * g.dx                    # this rank's y = j DX
         self.y_sum = nx * nz * g.dx * ny * (ny - 1) / 2.0    # sum_x y over the whole mesh
         # c = u_x^(0, k_y, 0), the modes of this rank (when it holds k_z = 0): the sum of u_x
         # over a plane j is ifft_y(c)[j], so sum_j w_j(k_y) c(k_y) gives the sum over the
         # middle half of d_y u_x (w_rate) and sum_x y u_x (w_moment)
-        self.column = (not self.dist) or g.spec_range[2][0] == 0
-        m0, m1 = g.spec_range[1] if self.dist else (0, ny)
+        self.column = g.spec_range[2][0] == 0
+        m0, m1 = g.spec_range[1]
         ky = np.asarray(g.ky).reshape(-1)
         j = np.arange(ny)
         mid = j[(j >= ny // 4) & (j < 3 * ny // 4)]
@@ -167,7 +166,7 @@ class ZigzagStress:
         self._ux = None               # u_x in real space (AC with heavy particles)
 
     def _sum(self, values):
-        return self.grid.sums(values) if self.dist else [float(v) for v in values]
+        return self.grid.sums(values)
 
     def _at_profiles(self, spm, field):
         """(sum_i drho_i sum_s phi_is f_s, sum_i drho_i sum_s phi_is y_s f_s) over the

@@ -30,7 +30,7 @@ from __future__ import annotations
 import os
 import sys
 
-__all__ = ["DISTRIBUTED", "Dist", "launched_size", "start"]
+__all__ = ["DISTRIBUTED", "Dist", "launched_size", "make_layout", "start"]
 
 from ..typespec import names
 
@@ -132,6 +132,17 @@ def start(args):
             comm.Abort(1)
         sys.excepthook = abort
     return dist
+
+
+def make_layout(shape, dx, dist=None, threads=1):
+    """The layout of a run's mesh: a ``kapsel.grid.Grid`` on one process (``dist`` None),
+    else this rank's blocks of it (kapsel.parallel.pencil.PencilGrid on ``dist``'s process
+    grid; ValueError when the mesh is too small for it)."""
+    from ..grid import Grid
+    if dist is None:
+        return Grid(shape, dx, threads=threads)
+    from .pencil import PencilGrid
+    return PencilGrid(shape, dx, dist.comm, dist.dims)
 
 
 def refuse(dist, cfg) -> str | None:

@@ -6,7 +6,8 @@ whole).
 ghost layers on both sides of every split direction, filled from the periodic neighbour
 ranks: x first (MPI_Sendrecv with the left and right ranks of the column, preallocated
 contiguous buffers), then y on the x-widened array, so that the corner ghosts come along.
-A direction held by one rank is not widened: the periodic kernels wrap it locally.
+A direction held by one rank is not widened: the periodic kernels wrap it locally, so on
+one process (kapsel.grid.Grid, px = py = 1) ``pad`` and ``keep`` are identities.
 
 The stencil operators of the serial solvers (kapsel.fluid.stencils, kapsel.fluid.operators:
 periodic by index wrap or shifted copies) then run unchanged on the padded block and
@@ -24,7 +25,30 @@ import time
 
 import numpy as np
 
-__all__ = ["Halo"]
+__all__ = ["Halo", "WholeFields"]
+
+
+class WholeFields:
+    """The halo of fields that are the whole periodic mesh, without a layout (an operator
+    mixin used alone): ``pad`` and ``keep`` return the field, ``target`` the caller's
+    array, ``work`` None (the kernels make their own scratch)."""
+
+    trivial = True
+
+    def pad(self, a, key="pad"):
+        return a
+
+    def target(self, out, lead=(), key="out"):
+        return out
+
+    def keep(self, a, out=None):
+        return a
+
+    def work(self, lead=(), key="work"):
+        return None
+
+    def interior(self, a):
+        return a
 
 
 class Halo:
@@ -59,6 +83,29 @@ class Halo:
         if b is None:
             b = self._bufs[k] = np.empty(tuple(lead) + self.pshape)
         return b
+
+    @property
+    def trivial(self) -> bool:
+        """No direction is split: ``pad`` returns the block itself (the kernels wrap)."""
+        return not (self.hx or self.hy)
+
+    def target(self, out, lead=(), key="out"):
+        """Where a stencil on padded arrays writes a result meant for ``out`` (lead +
+        block): ``out`` itself on a trivial halo (a new array for None), else a padded
+        scratch of (lead, key); ``keep`` then gives the block's points."""
+        if self.trivial:
+            return np.empty(tuple(lead) + self.lshape) if out is None else out
+        return self.work(lead, key)
+
+    def keep(self, a, out=None):
+        """The interior of ``a`` (from ``target``) in ``out`` (None: a new array); ``a``
+        itself on a trivial halo."""
+        if self.trivial:
+            return a
+        if out is None:
+            return np.array(self.interior(a))
+        out[...] = self.interior(a)
+        return out
 
     def interior(self, a):
         """The view of a padded array's points that belong to this rank's block."""

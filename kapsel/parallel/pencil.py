@@ -35,7 +35,7 @@ import pyfftw
 
 from ..grid import Grid, auto_planner
 
-__all__ = ["Gathered", "PencilGrid", "block"]
+__all__ = ["Gathered", "PencilDiagonal", "PencilGrid", "PencilScalarSolve", "block"]
 
 
 class Gathered:
@@ -216,11 +216,62 @@ class _Pipeline:
         return self._run(self.bz, self.A, out, self.R)
 
 
+class PencilScalarSolve:
+    """``kapsel.grid.ScalarSolve`` on a distributed grid: this rank's block in ``rhs``, the
+    symbol cut to this rank's Fourier block with the c2r's 1/N folded in (``symbol``), the
+    pencil FFTs."""
+
+    def __init__(self, grid):
+        self.grid = grid
+        self.rhs = grid.empty_real(1)[0]
+        self._c = grid.empty_complex(1)
+        self._o = grid.empty_real(1)
+
+    def symbol(self, m):
+        return m / self.grid.size
+
+    def solve(self, m):
+        g = self.grid
+        g.forward(self.rhs[None], self._c)
+        np.multiply(self._c[0], m, out=self._c[0])
+        g.backward_raw(self._c, self._o)
+        return self._o[0]
+
+
+class PencilDiagonal:
+    """``kapsel.linalg.FourierDiagonal`` on a distributed grid: v -> FFT^-1[m(k) FFT(v)] for
+    v holding one or more fields of this rank's block (flattened), ``m`` on this rank's
+    Fourier block (``local=True``) or on the whole half spectrum (NX, NY, NZ//2 + 1)."""
+
+    def __init__(self, grid, m, local=False):
+        self.grid = grid
+        self.lshape = tuple(grid.local_shape)
+        if not local:
+            m = grid.local_complex(np.broadcast_to(m, grid.cshape))
+        self.m = np.ascontiguousarray(np.broadcast_to(m, grid.local_cshape)) / grid.size
+        self._c = {}
+
+    def solve(self, v):
+        g = self.grid
+        v = np.asarray(v).reshape((-1,) + self.lshape)
+        n = v.shape[0]
+        c = self._c.get(n)
+        if c is None:
+            c = self._c[n] = (g.empty_complex(n), g.empty_real(n))
+        ch, out = c
+        g.forward(np.ascontiguousarray(v), ch)
+        ch *= self.m
+        g.backward_raw(ch, out)
+        return out.reshape(-1).copy()
+
+
 class PencilGrid(Grid):
     """``kapsel.grid.Grid`` distributed over ``comm`` on a px x py process grid (module
     docstring).  ``shape``, ``size``, ``box`` are global; arrays (``empty_real``,
     ``empty_complex``, ``kx`` ... ``dealias``) are this rank's blocks; ``forward`` /
     ``backward`` are collective (every rank calls them in the same order)."""
+
+    whole_mesh = False
 
     def __init__(self, shape, dx, comm, dims, threads=1, planner="auto"):
         self.shape = tuple(int(n) for n in shape)
@@ -236,6 +287,7 @@ class PencilGrid(Grid):
             raise ValueError(f"mesh {nx} x {ny} x {nz} is too small for a {self.px} x "
                              f"{self.py} process grid (NX, NY >= X; NY, NZ/2+1 >= Y)")
         rank = comm.Get_rank()
+        self.rank, self.ranks, self.is_root = rank, comm.Get_size(), rank == 0
         self.cx, self.cy = divmod(rank, self.py)
         self.comm_x = comm.Split(self.cy, self.cx)     # one column: varying cx
         self.comm_y = comm.Split(self.cx, self.cy)     # one row: varying cy
@@ -348,6 +400,33 @@ class PencilGrid(Grid):
         self.comm.Allgather(v, buf)
         return [float(sum(col)) for col in buf.T.tolist()]
 
+    def reduce(self, *arrays):
+        """Sums over the ranks of per-particle arrays, the same bits on every rank (MPI
+        Reduce to rank 0 in MPI's fixed order for this number of ranks, then Bcast)."""
+        from mpi4py import MPI
+        buf = np.concatenate([np.asarray(a, dtype=float).reshape(-1) for a in arrays])
+        out = np.empty_like(buf)
+        self.comm.Reduce(buf, out, op=MPI.SUM, root=0)
+        self.comm.Bcast(out, root=0)
+        res, i = [], 0
+        for a in arrays:
+            a = np.asarray(a)
+            res.append(out[i:i + a.size].reshape(a.shape))
+            i += a.size
+        return tuple(res)
+
+    def dots(self, *pairs) -> list:
+        """The dot products a.b of pairs of local blocks, summed over the ranks (``sums``):
+        the Krylov solver's (kapsel.linalg.bicgstab_dot)."""
+        return self.sums([float(np.dot(a, b)) for a, b in pairs])
+
+    def scalar_solver(self, threads=1, backend=None):
+        return PencilScalarSolve(self)
+
+    def fourier_diagonal(self, m, threads=1):
+        """``PencilDiagonal`` of the symbol ``m`` on this rank's Fourier block."""
+        return PencilDiagonal(self, m, local=True)
+
     def max(self, x) -> float:
         """Max over the ranks of a local float (NaN counts as infinity)."""
         x = float(x)
@@ -372,6 +451,12 @@ class PencilGrid(Grid):
         for (_, yr, zr), blk in parts:
             out[..., :, yr[0]:yr[1], zr[0]:zr[1]] = blk
         return out
+
+    def gather_rows(self, f):
+        """The whole x rows of this rank's y range: the blocks of ``f`` (..., nx, ny, nz)
+        of the ranks of this column (comm_x), joined along x."""
+        parts = self.comm_x.allgather(np.ascontiguousarray(f))
+        return np.concatenate(parts, axis=f.ndim - 3)
 
     def local_complex(self, a):
         """This rank's block of a global Fourier field (every rank holds ``a``)."""

@@ -101,24 +101,24 @@ class SPM:
         else:
             raise TypeError("fluid must be a SpectralNS or a MACSolver")
         self.size = int(np.prod(self.shape))
-        # distributed fluid (kapsel.parallel.pencil): this rank's block of the fields
-        g = getattr(fluid, "grid", None)
+        # the fluid's layout (kapsel.grid.Grid; distributed, kapsel.parallel.pencil: this
+        # rank's block of the fields)
+        g = self.layout = fluid.grid
         self.dist = g if hasattr(g, "comm") else None
         if self.dist is not None and wall is not None:
             raise ValueError("walls do not run distributed")
-        self.fshape = tuple(g.local_shape) if self.dist is not None else self.shape
+        self.fshape = tuple(g.local_shape)
         self.fsize = int(np.prod(self.fshape))
         self._T = None          # distributed: the particles whose stencil meets the block
         self.wall = wall
         self._sole = None       # MAC: the spectral projection of the whole u (step 6)
         if self.mode == "mac" and not dry:
-            grid = self.dist if self.dist is not None else _mac_grid(self.shape, self.dx)
             if getattr(fluid, "oblique", False):
                 from ..fluid.oblique import MetricProjector
-                self._sole = MetricProjector(grid, fluid)
+                self._sole = MetricProjector(g, fluid)
             else:
                 from ..fluid.spectral import SpectralProjector
-                self._sole = SpectralProjector(grid)
+                self._sole = SpectralProjector(g)
         # kept 0 between steps: a step scatters du onto its stencil points and clears them
         # (with walls du is dense: cleared whole at the start of the next step instead)
         self._du = None
@@ -151,7 +151,9 @@ class SPM:
         # bodies: that of their first bead), with ghosts (kapsel.parallel.particles)
         self.owned = None
         self._bodies = None
-        self.p_own = particles
+        self.p_own = self.whole = particles     # owned rows, whole table (one process: all)
+        self.n_global = particles.n
+        self._janus_whole = self.janus
         if self.dist is not None and particles.n:
             self._own(particles, smax)
         if particles.n and not dry:
@@ -263,22 +265,8 @@ class SPM:
         self._on = on
 
     def _reduce(self, *arrays):
-        """Sum of per-particle arrays over the ranks, the same bits on every rank (MPI
-        Reduce to rank 0 in MPI's fixed order for this number of ranks, then Bcast)."""
-        if self.dist is None:
-            return arrays
-        from mpi4py import MPI
-        buf = np.concatenate([np.asarray(a, dtype=float).reshape(-1) for a in arrays])
-        out = np.empty_like(buf)
-        comm = self.dist.comm
-        comm.Reduce(buf, out, op=MPI.SUM, root=0)
-        comm.Bcast(out, root=0)
-        res, i = [], 0
-        for a in arrays:
-            a = np.asarray(a)
-            res.append(out[i:i + a.size].reshape(a.shape))
-            i += a.size
-        return tuple(res)
+        """Sum of per-particle arrays over the ranks (the layout's ``reduce``)."""
+        return self.layout.reduce(*arrays)
 
     # ------------------------------------------------------------------ owned particles
     def _own(self, whole, strain_max):
@@ -351,7 +339,7 @@ class SPM:
     def owned_particles(self):
         """The particles this rank accounts for in global sums (energies): its owned rows
         in a distributed run with owned particles, else all."""
-        return self.p_own if self.owned is not None else self.p
+        return self.p_own
 
     def _exchange(self):
         """Migration and new halos (kapsel.parallel.particles ``exchange``); the whole
@@ -369,7 +357,7 @@ class SPM:
         if self.owned is not None:
             extra = None if self._bodies is None else self._bodies.bead_records()
             self._take(self.owned.scatter(self.whole, extra=extra))
-        if self.p.n or self.owned is not None:
+        if self.n_global:
             self._profiles()
 
     # ------------------------------------------------------------------ fields
@@ -395,7 +383,7 @@ class SPM:
     def _fluid_step(self):
         if self.mode == "spectral":
             self.fluid.step()
-            if self.p.n or self.owned is not None or self.wall is not None:
+            if self.n_global or self.wall is not None:
                 self.fluid.velocity(out=self.u)       # (a collective when distributed)
         else:
             self.fluid.step(self.u)
@@ -467,8 +455,7 @@ class SPM:
         if isinstance(getattr(self.p_own, "constraints", None), RigidBodies) or (
                 self._bodies is not None):
             return
-        tables = [self.p] + ([self.whole] if self.owned is not None else [])
-        for t in tables:
+        for t in (self.p, self.whole):            # (the same table on one process)
             if t.n:
                 t.v[:, 0] = 0.0
                 t.omega[:, 2] = 0.0
@@ -569,7 +556,7 @@ class SPM:
     def step(self):
         """Advance fluid and particles by dt (steps 1-6 of the module docstring)."""
         self._fluid_step()
-        if self.p.n or self.owned is not None:
+        if self.n_global:
             first = self.step_index == 0
             self._move(first)
             self._profiles()
@@ -579,7 +566,7 @@ class SPM:
                 F_H, T_H = FT[:, :3], FT[:, 3:]
             F_o, T_o = self._other_forces()
             dP, dL = self._impulses()
-            janus = self._janus_whole if self.owned is not None else self.janus
+            janus = self._janus_whole
             if janus is not None and janus.active:         # self force, squirmer slip
                 self.janus.update_velocities(self, F_H, T_H, F_o, T_o, dP, dL)
             else:
@@ -646,7 +633,3 @@ class SPM:
             P = P + (dM[:, None] * self._sub(self.p.v)).sum(axis=0)
         return P
 
-
-def _mac_grid(shape, dx):
-    from ..grid import Grid
-    return Grid(shape, dx)

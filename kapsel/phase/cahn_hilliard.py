@@ -81,6 +81,8 @@ from scipy.sparse.linalg import LinearOperator
 from .potentials import make_potential
 
 from ..fluid import operators as ops
+from ..grid import Grid
+from ..parallel.halo import Halo
 from ..linalg import SolverDidNotConverge, UnstableTimeStep, solve_correction  # noqa: F401
 
 __all__ = ["CahnHilliard", "chemical_potential", "free_energy", "capillary_force",
@@ -263,13 +265,32 @@ class CahnHilliard:
     neutral composition; ``kBT`` is the Flory-Huggins energy unit (1, see potentials.py);
     ``preconditioner``: None (original), 'jacobi' or 'fft' (exact inverse of the
     constant-coefficient part c0 + dt kappa alpha K^4); ``threads`` for the FFTs.
+
+    ``layout``: the mesh's layout (kapsel.grid.Grid, default; a rank's block:
+    kapsel.parallel.pencil.PencilGrid, docs/distributed.md).  ``shape`` is then the block,
+    ``global_shape`` the mesh; the stencils run on the block widened by the halo (one
+    layer; the implicit operator by two in one exchange, ``halo2``, when the blocks are
+    thick enough), sums, means and maxima are over the ranks in a fixed order, BiCGSTAB
+    takes the layout's dot products and the FFT preconditioner its transforms: on one
+    process all of these are identities.  Walls need a layout of the whole mesh.
     """
 
     def __init__(self, shape, dx, params, dt, threads=1, *, xi=1.0, psi_bar=None, kBT=1.0,
-                 preconditioner=None, wall=None):
-        self.shape = tuple(int(n) for n in shape)
-        if len(self.shape) != 3 or min(self.shape) < 1:
+                 preconditioner=None, wall=None, layout=None):
+        shape = tuple(int(n) for n in shape)
+        if len(shape) != 3 or min(shape) < 1:
             raise ValueError("shape must be (NX, NY, NZ)")
+        self.grid = layout if layout is not None else Grid(shape, dx)
+        if wall is not None and not self.grid.whole_mesh:
+            raise ValueError("walls do not run distributed")
+        self.global_shape = tuple(self.grid.shape)
+        self.shape = tuple(self.grid.local_shape)
+        self.halo = Halo(self.grid, 1)
+        try:                  # the implicit operator in one exchange (reach 2), if it fits
+            self.halo2 = Halo(self.grid, 2)
+        except ValueError:
+            self.halo2 = None
+        self._step_pads = None
         if params.ch_solver not in ("explicit_scheme", "implicit_scheme"):
             raise ValueError("ch_solver must be 'explicit_scheme' or 'implicit_scheme', not %r"
                              % (params.ch_solver,))
@@ -304,7 +325,9 @@ class CahnHilliard:
         self.psi_old = None          # psi^{n-1} (restart PSI_OLD); None before the first step
         self.iterations = 0
         self.residual = 0.0
-        self._k2 = discrete_k2(self.shape, self.dx)
+        # the modes of this process's block of the half spectrum (which holds every value
+        # of K^2): the preconditioner's symbol, this process's part of stable_dt
+        self._k2 = discrete_k2(self.global_shape, self.dx, self.grid.spec_range)
         self._a = np.empty(self.shape)
         self._b = np.empty(self.shape)
         self._c = np.empty(self.shape)
@@ -343,7 +366,8 @@ class CahnHilliard:
 
     def _div_coef_grad(self, c, f):
         """div(c grad f) of the z term (face-centred: ``div_coef_grad``)."""
-        return div_coef_grad(c, f, self.dx)
+        h = self.halo
+        return h.keep(div_coef_grad(h.pad(c, key="chc"), h.pad(f, key="chf"), self.dx))
 
     def _z_density(self, s, psi):
         """z phi_s |grad psi|^2 per node, the discrete density whose derivative is the z
@@ -376,7 +400,7 @@ class CahnHilliard:
 
         Landau: psi is the order parameter itself (the sample's 0.0 is the symmetric quench);
         Flory-Huggins: psi is the volume fraction of A, composition_ratio in (0, 1)."""
-        return self._initial(self.shape, phi, lambda a: a)
+        return self._initial(self.global_shape, phi, self.grid.local_real)
 
     def _initial(self, shape, phi, local):
         from .fluctuation import initial_composition
@@ -416,37 +440,44 @@ class CahnHilliard:
         """-(psi/rho) grad mu for the Navier-Stokes equation (eq 15), (3, NX, NY, NZ)."""
         return capillary_force(psi, mu, rho, self.dx, out, grad=self._grad)
 
-    # operators (overridden by the oblique frame's CH, kapsel.fluid.oblique)
+    # operators on the block widened by the halo (overridden by the oblique frame's CH,
+    # kapsel.fluid.oblique)
     def _lap(self, f, out):
-        return _lap(f, self.dx, out)
+        h = self.halo
+        L = _lap(h.pad(f, key="ch"), self.dx, h.target(out, f.shape[:-3], "chlap"))
+        return h.keep(L, out)
 
     def _grad(self, f, out):
-        return _grad(f, self.dx, out)
+        h = self.halo
+        G = _grad(h.pad(f, key="ch"), self.dx, h.target(out, (3,), "chgrad"))
+        return h.keep(G, out)
 
     def _grad_sq(self, f):
-        return _grad_sq(f, self.dx)
+        g = self._grad(f, np.empty((3,) + f.shape))
+        return np.einsum("i...,i...->...", g, g)
 
     def _div_flux(self, psi, u, out, work):
-        return _div_flux(psi, u, self.dx, out, work)
+        h = self.halo
+        D = _div_flux(h.pad(psi, key="chpsi"), h.pad(u, key="chu"), self.dx,
+                      h.target(out, (), "chdiv"), h.target(work, (), "chwork"))
+        return h.keep(D, out)
 
     def total(self, psi):
         """sum psi DX^3 (conserved)."""
         return self._sum(psi) * self.dx ** 3
 
-    # reductions over the mesh (DistributedCahnHilliard: over the ranks)
-    _dot = None
-
+    # reductions over the ranks of the layout (identities on one process)
     def _sum(self, a):
-        return float(np.sum(a))
+        return self.grid.sum(float(np.sum(a)))
 
     def _mean(self, a):
-        return np.mean(a)
+        return self._sum(a) / self.grid.size
 
     def _max(self, x):
-        return x
+        return self.grid.max(x)
 
     def _count(self, a):
-        return a.size
+        return self.grid.size
 
     # ------------------------------------------------------------------ stability
     def growth_rate(self, k2, fpp):
@@ -471,7 +502,12 @@ class CahnHilliard:
         K^2; frozen coefficients with the largest f''(psi) (+ 2 d phi) of the field, or of
         the bulk values when psi is None).  explicit: G = 1 + dt omega, i.e.
         dt <= 2 / (kappa K^2 (f'' + alpha K^2)); implicit: roots of the BDF2/AB2 recurrence
-        (``amplification``).  Advection is not included (central differences)."""
+        (``amplification``).  Advection is not included (central differences).  Over the
+        ranks: the smallest of their limits over their Fourier blocks (each an interval of
+        stable dt)."""
+        return -self.grid.max(-self._stable_dt(psi, phi))
+
+    def _stable_dt(self, psi, phi):
         fpp = self._fpp_max(psi, phi)
         k2 = np.unique(self._k2)
         k2 = k2[k2 > 0]
@@ -565,9 +601,27 @@ class CahnHilliard:
 
     # ---- implicit (eq 31)
     def _apply(self, x, c0, u, dphi, out):
-        """A x = c0 x + dt div(x u) + dt kappa alpha lap lap x - dt kappa lap(2 d phi x)."""
-        return self._operator(x, c0, u, dphi, out, self._lap, self._div_flux,
-                              self._a, self._c, self._a, self._c)
+        """A x = c0 x + dt div(x u) + dt kappa alpha lap lap x - dt kappa lap(2 d phi x);
+        during a step with ``halo2``, on x widened by two ghost layers (the Laplacian of
+        the Laplacian has reach 2): the same operations point by point, one exchange."""
+        pads = self._step_pads
+        if pads is None:
+            return self._operator(x, c0, u, dphi, out, self._lap, self._div_flux,
+                                  self._a, self._c, self._a, self._c)
+        h = self.halo2
+        D = None
+        if dphi is not None:
+            src, D = pads["dphi"]
+            if src is not dphi:
+                D = h.pad(dphi, key="dphi")
+                pads["dphi"] = (dphi, D)
+        dx = self.dx
+        o = self._operator(h.pad(x, key="x"), c0, None if u is None else pads["u"], D,
+                           h.target(out, (), "o"), lambda f, w: _lap(f, dx, w),
+                           lambda f, v, w, w2: _div_flux(f, v, dx, w, w2),
+                           h.work((), "la"), h.work((), "t"), h.work((), "df"),
+                           h.work((), "dfw"))
+        return h.keep(o, out)
 
     def _operator(self, x, c0, u, dphi, out, lap, div_flux, la, t, df, dfw):
         """``_apply`` with the stencils ``lap(f, out)``, ``div_flux(psi, u, out, work)`` and
@@ -591,6 +645,17 @@ class CahnHilliard:
         return out
 
     def _step_implicit(self, psi, u, phi, euler=False):
+        h = self.halo2
+        if h is None:
+            return self._implicit(psi, u, phi, euler)
+        # u and the particle term padded once for the solve (kept with their source)
+        self._step_pads = {"u": None if u is None else h.pad(u, key="u"), "dphi": (None, None)}
+        try:
+            return self._implicit(psi, u, phi, euler)
+        finally:
+            self._step_pads = None
+
+    def _implicit(self, psi, u, phi, euler):
         pot, p, dt = self.potential, self.params, self.dt
         n = psi.size
         dphi = dphi_p = None
@@ -654,140 +719,13 @@ class CahnHilliard:
         half = 1.0 / sym[:, :, : self.shape[2] // 2 + 1]
         key = (float(c0), self.dt)
         if getattr(self, "_fourier_key", None) != key:      # plans once, symbol per c0
-            self._fourier = self._fourier_diagonal(half)
+            self._fourier = self.grid.fourier_diagonal(half, self.threads)
             self._fourier_key = key
         return LinearOperator((n, n), matvec=self._fourier.solve, dtype=np.float64)
-
-    def _fourier_diagonal(self, half):
-        from ..linalg import FourierDiagonal
-        return FourierDiagonal(self.shape, half, self.threads)
 
     def _bicgstab(self, A, b, x0, c0, dphi):
         x, self.iterations, self.residual = solve_correction(
             A, b, x0, self.tolerance, self.maximum_iteration,
             M=self._precond(c0, dphi, b.size),
-            what="implicit Cahn-Hilliard solver (BiCGSTAB)", dot=self._dot)
+            what="implicit Cahn-Hilliard solver (BiCGSTAB)", dot=self.grid.dots)
         return x
-
-
-class DistributedCahnHilliard(CahnHilliard):
-    """The Cahn-Hilliard solver on this rank's block of a distributed grid (kapsel.parallel.
-    pencil.PencilGrid; docs/distributed.md).  ``shape`` is the block, ``global_shape``
-    the mesh.  CahnHilliard's steps with its stencil operators (Laplacian, central
-    gradient, flux divergence, the z term) applied to the block widened by one ghost layer
-    (kapsel.parallel.halo; the same operations point by point as the serial run), sums,
-    means and maxima over the ranks in a fixed order, BiCGSTAB with those dot products and
-    the FFT preconditioner on the pencil FFTs.  Walls do not run distributed."""
-
-    def __init__(self, grid, dx, params, dt, threads=1, **kw):
-        from ..parallel.halo import Halo
-        if kw.get("wall") is not None:
-            raise ValueError("walls do not run distributed")
-        self.grid = grid
-        self.global_shape = tuple(grid.shape)
-        self.halo = Halo(grid, 1)
-        try:                  # the implicit operator in one exchange (reach 2), if it fits
-            self.halo2 = Halo(grid, 2)
-        except ValueError:
-            self.halo2 = None
-        self._step_pads = None
-        super().__init__(grid.local_shape, dx, params, dt, threads, **kw)
-        # the modes of this rank's Fourier block (of the half spectrum, which holds every
-        # value of K^2): the preconditioner's symbol, this rank's part of stable_dt
-        self._k2 = discrete_k2(self.global_shape, self.dx, grid.spec_range)
-
-    def stable_dt(self, psi=None, phi=None):
-        """CahnHilliard.stable_dt over every mode: the smallest of the ranks' limits over
-        their Fourier blocks (each an interval of stable dt)."""
-        lim = super().stable_dt(psi, phi)
-        return -self.grid.max(-lim)
-
-    def initial_field(self, phi=None):
-        """The serial run's field (the same random numbers), this rank's block of it (phi:
-        this rank's block of the profile)."""
-        return self._initial(self.global_shape, phi, self.grid.local_real)
-
-    # reductions
-    def _sum(self, a):
-        return self.grid.sum(float(np.sum(a)))
-
-    def _mean(self, a):
-        return self._sum(a) / self.grid.size
-
-    def _max(self, x):
-        return self.grid.max(x)
-
-    def _count(self, a):
-        return self.grid.size
-
-    def _dot(self, *pairs):
-        return self.grid.sums([float(np.dot(a, b)) for a, b in pairs])
-
-    def _fourier_diagonal(self, half):
-        from ..fluid.mac import PencilDiagonal
-        return PencilDiagonal(self.grid, half, local=True)
-
-    # the implicit operator: one exchange of width 2 per product
-    def _step_implicit(self, psi, u, phi, euler=False):
-        if self.halo2 is None:
-            return super()._step_implicit(psi, u, phi, euler)
-        h = self.halo2
-        # u and the particle term padded once for the solve (kept with their source)
-        self._step_pads = {"u": None if u is None else np.array(h.pad(u, key="u")),
-                           "dphi": (None, None)}
-        try:
-            return super()._step_implicit(psi, u, phi, euler)
-        finally:
-            self._step_pads = None
-
-    def _apply(self, x, c0, u, dphi, out):
-        """CahnHilliard._apply on x widened by two ghost layers (the Laplacian of the
-        Laplacian has reach 2): the same operations point by point, one exchange."""
-        pads = self._step_pads
-        if pads is None:
-            return super()._apply(x, c0, u, dphi, out)
-        h = self.halo2
-        X = h.pad(x, key="x")
-        D = None
-        if dphi is not None:
-            src, D = pads["dphi"]
-            if src is not dphi:
-                D = np.array(h.pad(dphi, key="dphi"))
-                pads["dphi"] = (dphi, D)
-        dx = self.dx
-        o = self._operator(X, c0, None if u is None else pads["u"], D, h.work((), "o"),
-                           lambda f, w: _lap(f, dx, w),
-                           lambda f, v, w, w2: _div_flux(f, v, dx, w, w2),
-                           h.work((), "la"), h.work((), "t"), h.work((), "df"),
-                           h.work((), "dfw"))
-        out[...] = h.interior(o)
-        return out
-
-    # stencils through the halo
-    def _lap(self, f, out):
-        h = self.halo
-        L = _lap(h.pad(f, key="ch"), self.dx, h.work(f.shape[:-3], "chlap"))
-        out[...] = h.interior(L)
-        return out
-
-    def _grad(self, f, out):
-        h = self.halo
-        G = _grad(h.pad(f, key="ch"), self.dx, h.work((3,), "chgrad"))
-        out[...] = h.interior(G)
-        return out
-
-    def _grad_sq(self, f):
-        g = self._grad(f, np.empty((3,) + f.shape))
-        return np.einsum("i...,i...->...", g, g)
-
-    def _div_flux(self, psi, u, out, work):
-        h = self.halo
-        D = _div_flux(h.pad(psi, key="chpsi"), h.pad(u, key="chu"), self.dx,
-                      h.work((), "chdiv"), h.work((), "chwork"))
-        out[...] = h.interior(D)
-        return out
-
-    def _div_coef_grad(self, c, f):
-        h = self.halo
-        D = div_coef_grad(h.pad(c, key="chc"), h.pad(f, key="chf"), self.dx)
-        return np.array(h.interior(D))
