@@ -182,6 +182,12 @@ SCENES = {
         common(NS), spheres([row((16.0, 16.0, 16.0), w=(0, 0, 0.01))])), 200),
     "ns_lj48": ("Navier_Stokes 64^3 (LJ cells right from 48), 2 spheres colliding", merge(
         common(NS, n=6), spheres(PAIR48), {"EPSILON": 1.0}), 200),
+    # LJ_truncate OFF where the half-box cap binds (A 8: min(64 / 2, 2.5 x 16) = 32 = 2 sigma),
+    # settling 28 apart in x and in y (39.6, minimum image): within the uncapped 2.5 sigma = 40,
+    # beyond the cap
+    "ns_lj_off_cap": ("Navier_Stokes 64^3, LJ_truncate OFF cut at half the box, 2 spheres", merge(
+        common(NS, n=6), {"A": 8.0, "A_XI": 2.0, "switch.LJ_truncate": "OFF", "EPSILON": 50.0},
+        spheres([row((18.0, 18.0, 32.0)), row((46.0, 46.0, 32.0))]), gravity()), 200),
     "ns_chain": ("Navier_Stokes 64^3, FENE chain of 4 beads sedimenting", merge(
         common(NS, n=6, objects="chain"), {"A": 2.0},
         chain([row((26.0 + 4.2 * b, 32.0, 32.0)) for b in range(4)]), gravity()), 200),

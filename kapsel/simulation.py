@@ -24,6 +24,8 @@ import sys
 
 import numpy as np
 
+from udf.files import disk_full, write_failure
+
 from .checks import check_finite, check_step, first_blow_up, table_row  # noqa: F401
 from .errors import InstabilityError, Interrupted, NothingToDo, RunError  # noqa: F401
 
@@ -81,16 +83,6 @@ def planned_files(cfg, args, model, resumed: bool = False) -> list[tuple[str, st
         files.append((os.path.dirname(restart), f"{os.path.basename(restart)} + "
                       f"{os.path.basename(restart)}.state.npz (restart)"))
     return files
-
-
-def _write_error(e: OSError) -> str:
-    from udf.files import write_failure
-    return write_failure(e)
-
-
-def _disk_full(e: OSError) -> bool:
-    import errno
-    return e.errno in (errno.ENOSPC, errno.EDQUOT) or "No space left" in str(e)
 
 
 class TimeLoop:
@@ -166,8 +158,8 @@ class TimeLoop:
                                   f"{os.path.dirname(os.path.abspath(args.output))}")
             verb = "open" if getattr(e, "kapsel_opening", False) else "write"
             raise RunError(f"cannot {verb} {what} at step {model.step_index}: "
-                           f"{_write_error(e)}. {restart_hint(self.restart.step, args)}."
-                           + (" Free some space and continue from it." if _disk_full(e)
+                           f"{write_failure(e)}. {restart_hint(self.restart.step, args)}."
+                           + (" Free some space and continue from it." if disk_full(e)
                               else "")) from None
 
     def _guarded(self, target):

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-__all__ = ["TypeSpec", "TYPES", "spec", "names"]
+__all__ = ["TypeSpec", "TYPES", "spec", "names", "sheared"]
 
 
 @dataclass(frozen=True)
@@ -50,6 +50,11 @@ TYPES = {s.name: s for s in (
 def spec(name: str) -> TypeSpec:
     """The TypeSpec of a type name (KeyError for a name that is no type)."""
     return TYPES[name]
+
+
+def sheared(name) -> bool:
+    """Whether ``name`` is a sheared type (False for a name that is no type)."""
+    return name in TYPES and TYPES[name].sheared
 
 
 def names(**flags) -> tuple[str, ...]:

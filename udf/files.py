@@ -53,10 +53,6 @@ def create_temporary(path) -> tuple[int, str]:
         return fd, tmp
 
 
-def is_temporary(name: str) -> bool:
-    return bool(_TEMP_NAMES.match(os.path.basename(name)))
-
-
 def fsync_directory(directory) -> None:
     """Make a rename in ``directory`` durable (no-op where directories cannot be synced)."""
     try:
@@ -156,8 +152,7 @@ def remove_temporaries(directory, of=None) -> list[str]:
         m = _TEMP_NAMES.match(name)
         if m is None:
             continue
-        target, pid = (m.group("a"), m.group("pa")) if m.group("a") else (m.group("b"),
-                                                                          m.group("pb"))
+        target, pid = m.group("a") or m.group("b"), m.group("pa") or m.group("pb")
         if (of is not None and target not in of) or _writer_alive(int(pid)):
             continue
         p = os.path.join(directory, name)
@@ -210,14 +205,20 @@ def open_regular(path, mode: str = "rb", **kw):
         raise
 
 
+def disk_full(e: OSError) -> bool:
+    """Whether a write failed for want of space (ENOSPC, or the quota: EDQUOT)."""
+    import errno
+    return e.errno in (errno.ENOSPC, errno.EDQUOT) or "No space left" in str(e)
+
+
 def write_failure(e: OSError) -> str:
     """Why a write failed, in the user's words (the disk is full, the quota is exceeded, or
     the system's own reason)."""
     import errno
-    if e.errno == errno.ENOSPC or "No space left" in str(e):
-        return "the disk is full (No space left on device)"
     if e.errno == errno.EDQUOT:
         return "the disk quota is exceeded"
+    if disk_full(e):
+        return "the disk is full (No space left on device)"
     return e.strerror or str(e)
 
 

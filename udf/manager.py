@@ -151,7 +151,6 @@ class UDFManager:
         raise_all(errors)
         self.current = 0 if self.records else -1
 
-
     def blank(self) -> "UDFManager":
         """A new empty document with this one's schema (UDFManager(schema_from=...) without
         reading the define file again: a document made once at start-up serves every
@@ -160,6 +159,7 @@ class UDFManager:
         doc.schema, doc.header_text = self.schema, self.header_text
         doc.schema_texts = list(self.schema_texts)
         return doc
+
     def _without_torn_tail(self, path, error):
         """A file whose last record is incomplete (a run stopped while appending it: power
         loss, a full disk) is read without that record, and says so (``torn_tail``, a

@@ -11,14 +11,9 @@ import sys
 import numpy as np
 
 from ..config import ConfigError, RunConfig
-from ..typespec import TYPES
+from ..typespec import sheared as sheared_type
 from ..particles.interactions import make_forces  # noqa: F401  (the models' import)
 from ..particles.state import ParticleState
-
-
-def _sheared(cfg) -> bool:
-    t = getattr(cfg, "type", None)
-    return t in TYPES and TYPES[t].sheared
 
 
 def time_step(cfg: RunConfig) -> float:
@@ -142,7 +137,7 @@ def _placed(cfg, kind, n, radius, rng):
                              f"{cfg.particles.A:g}")
     inter = cfg.interactions
     sigma = None
-    if _sheared(cfg):
+    if sheared_type(getattr(cfg, "type", None)):
         sigma = pf.sheared_lj_dia(inter.LJ_powers, cfg.particles.A, cfg.particles.A_XI)
     if kind == "uniform_random":
         R = placement.uniform_random(n, radius, box, rng)
@@ -242,13 +237,8 @@ def overlap_guard(forces, limit: float = 0.5):
         check(ratio)
         return F, T
     guarded.virial = getattr(forces, "virial", None)
-    def check_bonds(stretch):
-        from ..particles import chains
-        if stretch >= chains.BOND_BREAK:
-            raise FloatingPointError(f"a chain bond stretched to {stretch:.3f} of the FENE "
-                                     f"maximum R0 = {chains.FENE_R0} (2 A)")
     guarded.check = check           # a distributed run checks the smallest ratio of all ranks
-    guarded.check_bonds = check_bonds
+    guarded.check_bonds = forces.check_stretch
     guarded.local = getattr(forces, "local", None)
     guarded.cutoff = getattr(forces, "cutoff", 0.0)
     return guarded

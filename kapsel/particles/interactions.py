@@ -158,11 +158,16 @@ class Interactions:
             ratio, stretch = min(ratio, ri), max(stretch, si)
         return (zeros.copy() if F is None else F), T, ratio, stretch
 
-    def __call__(self, p):
-        F, T, ratio, stretch = self._sum(p, self._zeros)
+    @staticmethod
+    def check_stretch(stretch) -> None:
+        """FloatingPointError when a chain bond reached chains.BOND_BREAK of R0."""
         if stretch >= chains.BOND_BREAK:
             raise FloatingPointError(f"a chain bond stretched to {stretch:.3f} of the FENE "
                                      f"maximum R0 = {chains.FENE_R0} (2 A)")
+
+    def __call__(self, p):
+        F, T, ratio, stretch = self._sum(p, self._zeros)
+        self.check_stretch(stretch)
         return F, T, ratio
 
     def local(self, p, weight, gid, reduce=None):
@@ -175,10 +180,9 @@ def _pairs(cfg, particles, strain, wall, virial):
     inter = cfg.interactions
     if inter.LJ_truncate == "NONE" or particles.n < 2 or inter.EPSILON <= 0:
         return None
-    from ..typespec import TYPES
+    from ..typespec import sheared
     sigma = None
-    t = getattr(cfg, "type", None)
-    if t in TYPES and TYPES[t].sheared:                 # LJ_dia of the sheared types
+    if sheared(getattr(cfg, "type", None)):             # LJ_dia of the sheared types
         sigma = pf.sheared_lj_dia(inter.LJ_powers, cfg.particles.A, cfg.particles.A_XI)
         if sigma == 2.0 * cfg.particles.A:
             sigma = None
