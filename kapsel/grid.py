@@ -44,7 +44,7 @@ try:  # pragma: no cover - import guard
 except ImportError:  # pragma: no cover
     pyfftw = None
 
-__all__ = ["FourierDiagonal", "Grid", "LazyPlan", "ScalarSolve"]
+__all__ = ["FourierDiagonal", "Grid", "LazyPlan", "ScalarSolve", "WholeTable"]
 
 
 class LazyPlan:
@@ -499,6 +499,17 @@ class Grid:
         """Sums over the ranks of per-particle arrays: ``arrays``."""
         return arrays
 
+    def owned_table(self, offsets, dx, cutoff=0.0, frame=None, strain_max=0.0, bodies=None,
+                    extra_width=0):
+        """The particles' layout (kapsel.parallel.particles.Owned on the ranks' blocks): on
+        one process a ``WholeTable``, every row owned here."""
+        return WholeTable()
+
+    def cut_stencils(self, idx, phi):
+        """Stencils (flat indices ``idx``, profiles ``phi`` (N, S)) cut to this process's
+        block: (idx, phi, on) with ``on`` (N, S) the points on the block: all of them."""
+        return idx, phi, np.ones(idx.shape, dtype=bool)
+
     def k0(self, a_hat):
         """a_hat[:, 0, 0, 0] (the k = 0 mode) of a (c, ...) Fourier array."""
         return a_hat[:, 0, 0, 0].copy()
@@ -581,6 +592,76 @@ class Grid:
 
     def __repr__(self):
         return f"Grid(shape={self.shape}, dx={self.dx}, threads={self.threads})"
+
+
+class WholeTable:
+    """The particle table of a run on one process, as kapsel.parallel.particles.Owned is a
+    rank's (same methods): every row is owned here, in global-id order, and there are no
+    ghosts, so the table is the whole table; migration, halos, reverse sums to the owners
+    and gathers are identities, the minima over the ranks are the local values, this
+    process's rows of a per-particle array (the thermal impulses) are all of them, and the
+    constraints and self-propulsion of the owned rows are the whole table's."""
+
+    me, P = 0, 1
+    partial = False         # the table is the whole one (its sums need no sum over ranks)
+
+    def __init__(self):
+        self.n_own = 0
+        self.gid = np.zeros(0, dtype=np.int64)
+        self._whole = None
+
+    def scatter(self, whole, constraints=None, extra=None):
+        """This process's table of the whole table: ``whole`` itself."""
+        self.n_own = whole.n
+        self.gid = np.arange(whole.n, dtype=np.int64)
+        self._whole = whole
+        return whole
+
+    def exchange(self, p, constraints=None, extra=None):
+        """Migration and new halos after the move: none (``p`` itself)."""
+        return p
+
+    def owned_view(self, p):
+        """The owned rows of the table: all of them (``p``)."""
+        return p
+
+    def local_constraints(self, bodies, pins):
+        """The rigid bodies / pins of the owned rows: the whole table's constraints as they
+        are now (RigidBodies or motion.Pinned, None without)."""
+        return getattr(self._whole, "constraints", None)
+
+    def local_janus(self, janus):
+        """The self-propulsion (kapsel.particles.janus.Janus) of the table's rows: ``janus``."""
+        return janus
+
+    def own_rows(self, a):
+        """This process's rows of an array over all particles (N, ...): ``a``."""
+        return a
+
+    def reverse_sum(self, values):
+        """Totals of the owned rows of per-particle partial sums: ``values``."""
+        return values
+
+    def sum_to_owners(self, full, F, T):
+        """(F, T) of the coupled rows summed on their owners: (F, T) (``full``: the map of
+        the coupled rows onto the table, not needed)."""
+        return F, T
+
+    def refresh(self, *arrays) -> None:
+        """The owners' rows copied into the ghosts: there are none."""
+
+    def allmin(self, *x):
+        return tuple(float(v) for v in x)
+
+    def gather(self, p, whole, everyone=False, extra=None):
+        """The owned rows into the whole table: ``p`` is the whole table (nothing to do; the
+        rigid bodies' state is the whole table's: None)."""
+        return None
+
+    def other_forces(self, forces, p, reduce):
+        """(F, T) of the non-hydrodynamic forces of the owned rows: ``forces(p)``."""
+        res = forces(p)
+        return res[0], res[1]
 
 
 def _measure_planners(shapes=((32, 32, 32), (64, 64, 64)), repeat=20):  # pragma: no cover

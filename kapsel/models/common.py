@@ -369,15 +369,23 @@ class Model:
                 f.attrs[key] = value
 
     def _owned(self):
-        """The SPM of a distributed run whose particles are owned by ranks, else None."""
+        """The SPM whose particles are owned by ranks (on one process all by this one),
+        else None (no particles, no SPM)."""
         spm = getattr(self, "spm", None)
         return spm if getattr(spm, "owned", None) is not None else None
+
+    def _partial_particles(self) -> bool:
+        """Whether the SPM's particle table is a rank's part of the run's (kapsel.parallel.
+        particles.Owned): its sums (the kinetic energy) are then summed over the ranks; on
+        one process (kapsel.grid.WholeTable) or without particles it is the whole."""
+        spm = self._owned()
+        return spm is not None and spm.owned.partial
 
     def gather_particles(self):
         """Distributed run with owned particles: the particle table gathered into
         ``self.particles`` on rank 0 (once per step), asked by rank 0 in a round of output
         (a collective of the lockstep protocol; nothing to do elsewhere)."""
-        if self._owned() is None or not self.lockstep.leading:
+        if self._owned() is None or not self.collectives.leading:
             return
         if self._gathered_at != self.step_index:
             self.collectives.call("particles")

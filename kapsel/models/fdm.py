@@ -254,7 +254,7 @@ class FDMModel(Model):
         return kinetic_energy(self.rho, self.dx, self.u, self.phi_total(),
                               self.spm.owned_particles(),
                               reduce=self.grid.sum,
-                              owned=self._owned() is not None)
+                              owned=self._partial_particles())
 
     def record_items(self) -> dict:
         return {"PSI": self.psi} if self.psi is not None else {}

@@ -139,7 +139,7 @@ class ShearLEModel(SpectralModel):
         return kinetic_energy(self.cfg.fluid.RHO, self.cfg.mesh.DX, u, phi,
                               self.spm.owned_particles(),
                               reduce=self.grid.sum,
-                              owned=self._owned() is not None)
+                              owned=self._partial_particles())
 
     sheared = True
 
@@ -524,7 +524,7 @@ class ShearFDMModel(FDMModel):
         u[0] += self.mac.shear_rate_now * (y - self.mac.y0)
         return kinetic_energy(self.rho, self.dx, u, self.phi, self.spm.owned_particles(),
                               reduce=self.grid.sum,
-                              owned=self._owned() is not None)
+                              owned=self._partial_particles())
 
     # ------------------------------------------------------------------ restart
     def restart_fields(self) -> dict:

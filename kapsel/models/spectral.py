@@ -60,7 +60,7 @@ class SpectralModel(Model):
         return kinetic_energy(self.cfg.fluid.RHO, self.cfg.mesh.DX, self.spm.velocity(), phi,
                               self.spm.owned_particles(),
                               reduce=self.grid.sum,
-                              owned=self._owned() is not None)
+                              owned=self._partial_particles())
 
     def global_u_hat(self):
         """The whole u_hat: gathered to rank 0 in a distributed run (None on the others)."""

@@ -134,6 +134,8 @@ class Owned:
     cells, a pair cutoff ``cutoff`` (DX units of length), ``frame()`` -> (strain, origin)
     of an oblique grid (None: rectangular) whose strain never exceeds ``strain_max``."""
 
+    partial = True          # a rank's part of the run's table (its sums over the ranks)
+
     def __init__(self, grid, offsets, dx, cutoff=0.0, frame=None, strain_max=0.0,
                  bodies=None, extra_width=0):
         from mpi4py import MPI
@@ -282,6 +284,58 @@ class Owned:
             recv = self._alltoallv(a[self.send_rows].reshape(-1, w), self.send_counts,
                                    self.ghost_counts, w)
             a[n:] = recv.reshape((-1,) + a.shape[1:])
+
+    # ------------------------------------------------------------------ the owned rows
+    def owned_view(self, p: ParticleState) -> ParticleState:
+        """The owned rows of the local table ``p`` (views: updates write through)."""
+        return view(p, self.n_own)
+
+    def local_constraints(self, bodies, pins):
+        """The constraints of the owned rows: the rigid bodies they make up whole (of the
+        run's ``bodies``, their state from the records' ``extra`` columns), or the owned
+        pinned rows (of the run's motion.Pinned ``pins``), or None."""
+        n = self.n_own
+        gid = self.gid[:n]
+        if bodies is not None:
+            return bodies.local(gid, self.extra[:n])
+        if pins is not None:
+            from ..particles.motion import Pinned
+            return Pinned(np.flatnonzero(np.isin(gid, pins.pin)),
+                          np.flatnonzero(np.isin(gid, pins.pin_rot)))
+        return None
+
+    def local_janus(self, janus):
+        """The self-propulsion of the table's rows (a subset of the run's Janus), or None."""
+        return None if janus is None else janus.subset(self.gid)
+
+    def own_rows(self, a):
+        """This rank's owned rows of an array over all particles (N, ...) (by global id)."""
+        return a[self.gid[:self.n_own]]
+
+    def sum_to_owners(self, full, F, T):
+        """(F, T) (n_own, 3) totals of the partial sums (F, T) of the coupled rows
+        (``full``: those rows onto the local table, zeros elsewhere) over the ranks."""
+        FT = self.reverse_sum(full(np.concatenate([F, T], axis=1)))
+        return FT[:, :3], FT[:, 3:]
+
+    def other_forces(self, forces, p: ParticleState, reduce):
+        """(F, T) (n_own, 3) of the non-hydrodynamic forces of the owned rows
+        (kapsel.particles.interactions ``local``: pairs with ghosts, the virial counting
+        each pair once over the ranks, ``reduce`` its sum); the overlap and bond-stretch
+        checks on the minima over the ranks (the same on every rank)."""
+        n = self.n_own
+        weight = np.zeros(p.n)
+        weight[:n] = 1.0
+        F_o, T_o, ratio, stretch = forces.local(p, weight, self.gid,
+                                                reduce=lambda a: reduce(a)[0])
+        ratio, stretch = self.allmin(ratio, -stretch)      # the same on every rank
+        if hasattr(forces, "check"):                        # (overlap_guard)
+            forces.check_bonds(-stretch)
+            forces.check(ratio)
+        virial = getattr(forces, "virial", None)
+        if virial is not None:
+            virial[...] = reduce(virial)[0]
+        return F_o[:n], T_o[:n]
 
     def allmin(self, *x):
         """The minima over the ranks of local floats (one collective)."""

@@ -400,6 +400,31 @@ class PencilGrid(Grid):
         self.comm.Allgather(v, buf)
         return [float(sum(col)) for col in buf.T.tolist()]
 
+    def owned_table(self, offsets, dx, cutoff=0.0, frame=None, strain_max=0.0, bodies=None,
+                    extra_width=0):
+        """The particles owned by the ranks of this layout, with their ghosts
+        (kapsel.parallel.particles.Owned)."""
+        from .particles import Owned
+        return Owned(self, offsets, dx, cutoff, frame, strain_max, bodies=bodies,
+                     extra_width=extra_width)
+
+    def cut_stencils(self, idx, phi):
+        """Stencils cut to this rank's block: (idx, phi, on) with ``idx`` flat indices into
+        the local block (0 off the block), ``phi`` 0 off the block (so every sum over
+        stencil points is this rank's part of it), ``on`` (N, S) the points on the block."""
+        nx, ny, nz = self.shape
+        (x0, x1), (y0, y1), _ = self.real_range
+        ix, rest = np.divmod(idx, ny * nz)
+        iy, iz = np.divmod(rest, nz)
+        ix -= x0
+        iy -= y0
+        on = (ix >= 0) & (ix < x1 - x0) & (iy >= 0) & (iy < y1 - y0)
+        ix *= (y1 - y0)
+        ix += iy
+        ix *= nz
+        ix += iz
+        return np.where(on, ix, 0), np.where(on, phi, 0.0), on
+
     def reduce(self, *arrays):
         """Sums over the ranks of per-particle arrays, the same bits on every rank (MPI
         Reduce to rank 0 in MPI's fixed order for this number of ranks, then Bcast)."""

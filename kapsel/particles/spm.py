@@ -104,12 +104,11 @@ class SPM:
         # the fluid's layout (kapsel.grid.Grid; distributed, kapsel.parallel.pencil: this
         # rank's block of the fields)
         g = self.layout = fluid.grid
-        self.dist = g if hasattr(g, "comm") else None
-        if self.dist is not None and wall is not None:
+        if wall is not None and not g.whole_mesh:
             raise ValueError("walls do not run distributed")
         self.fshape = tuple(g.local_shape)
         self.fsize = int(np.prod(self.fshape))
-        self._T = None          # distributed: the particles whose stencil meets the block
+        self._T = None          # the rows of the particles whose stencil meets the block
         self.wall = wall
         self._sole = None       # MAC: the spectral projection of the whole u (step 6)
         if self.mode == "mac" and not dry:
@@ -147,14 +146,16 @@ class SPM:
         if self.janus is not None and len(self.janus.squirmers) and (
                 self.mode != "spectral" or self.oblique):
             raise ValueError("squirmers need the spectral (rectangular) fluid")
-        # distributed: particles owned by the rank holding their stencil's base point (rigid
-        # bodies: that of their first bead), with ghosts (kapsel.parallel.particles)
+        # the layout's particle table (``owned``): particles owned by the rank holding their
+        # stencil's base point (rigid bodies: that of their first bead), with ghosts
+        # (kapsel.parallel.particles); on one process every row, no ghosts (kapsel.grid
+        # WholeTable)
         self.owned = None
         self._bodies = None
         self.p_own = self.whole = particles     # owned rows, whole table (one process: all)
         self.n_global = particles.n
         self._janus_whole = self.janus
-        if self.dist is not None and particles.n:
+        if particles.n:
             self._own(particles, smax)
         if particles.n and not dry:
             self._profiles()
@@ -176,20 +177,16 @@ class SPM:
         """phi_i, r at the current positions; phi_sum and the weights w_i (step 3)."""
         p = self.p
         g, y0 = (self.fluid.frame_strain, self.fluid.y0) if self.oblique else (0.0, 0.0)
-        R = p.R
-        if self.owned is not None:     # the rows whose stencil meets the block (owned first)
-            T = self._near(p.R, g, y0)
-            n = self.owned.n_own
-            if self._bodies is not None:     # every owned bead (a body's may lie elsewhere)
-                T = np.concatenate([np.arange(n), T[T >= n]])
-            self._T = T
-            R = p.R[self._T]
-        self.idx, self.phi_i, self.r = particle_profiles(R, self.stencil, self.shape, self.dx,
-                                                         g, y0)
-        # DX^3 sum_x phi_i over the whole profile (before a distributed run cuts it)
+        T = self._near(p.R, g, y0)     # the rows whose stencil meets the block (owned first)
+        n = self.owned.n_own
+        if self._bodies is not None:     # every owned bead (a body's may lie elsewhere)
+            T = np.concatenate([np.arange(n), T[T >= n]])
+        self._T = T
+        self.idx, self.phi_i, self.r = particle_profiles(p.R[T], self.stencil, self.shape,
+                                                         self.dx, g, y0)
+        # DX^3 sum_x phi_i over the whole profile (before the layout cuts it to the block)
         self.grid_volume = self.phi_i.sum(axis=1) * self.dx ** 3
-        if self.owned is not None:
-            self._localize()
+        self.idx, self.phi_i, self._on = self.layout.cut_stencils(self.idx, self.phi_i)
         self._weights()
 
     def _weights(self):
@@ -217,9 +214,10 @@ class SPM:
             np.add.at(s, self.idx.reshape(-1), self.phi_i.reshape(-1))
         return s
 
-    # ------------------------------------------------------------------ distributed
+    # ------------------------------------------------------------------ the rank's block
     def _near(self, R, strain, origin):
-        """Indices of the particles whose stencil meets this rank's block."""
+        """Indices of the particles whose stencil meets this rank's block (all on one
+        process)."""
         s = np.asarray(R, dtype=float) / self.dx
         if strain:
             s[:, 0] = (R[:, 0] - strain * (R[:, 1] - origin)) / self.dx
@@ -228,7 +226,7 @@ class SPM:
         near = np.ones(len(s), dtype=bool)
         for axis in (0, 1):                   # the blocks split x and y
             n = self.shape[axis]
-            a0, a1 = self.dist.real_range[axis]
+            a0, a1 = self.layout.real_range[axis]
             o = self.stencil.offsets[:, axis]
             lo, width = int(o.min()), int(o.max() - o.min()) + 1
             start = np.mod(b[:, axis] + lo, n)
@@ -237,7 +235,7 @@ class SPM:
         return np.flatnonzero(near)
 
     def _sub(self, a):
-        """The rows of the particles this rank couples (all of them in a plain run)."""
+        """The rows of the particles this rank couples (all of them on one process)."""
         return a if self._T is None else a[self._T]
 
     def _full(self, a):
@@ -245,41 +243,21 @@ class SPM:
         out[self._T] = a
         return out
 
-    def _localize(self):
-        """Cut the stencils to this rank's block of the distributed fields: ``idx`` flat
-        indices into the local block (0 off the block), ``phi_i`` 0 off the block, so every
-        sum over stencil points is this rank's part of it."""
-        nx, ny, nz = self.shape
-        (x0, x1), (y0, y1), _ = self.dist.real_range
-        ix, rest = np.divmod(self.idx, ny * nz)
-        iy, iz = np.divmod(rest, nz)
-        ix -= x0
-        iy -= y0
-        on = (ix >= 0) & (ix < x1 - x0) & (iy >= 0) & (iy < y1 - y0)
-        ix *= (y1 - y0)
-        ix += iy
-        ix *= nz
-        ix += iz
-        self.idx = np.where(on, ix, 0)
-        self.phi_i = np.where(on, self.phi_i, 0.0)
-        self._on = on
-
     def _reduce(self, *arrays):
         """Sum of per-particle arrays over the ranks (the layout's ``reduce``)."""
         return self.layout.reduce(*arrays)
 
     # ------------------------------------------------------------------ owned particles
     def _own(self, whole, strain_max):
-        """Distributed run: keep this rank's owned particles and ghosts of the whole table
-        ``whole`` (the model's, the same on every rank at the start; kapsel.parallel.
-        particles).  ``self.p`` is then the local table, owned rows first."""
-        from ..parallel.particles import Owned
+        """Keep this rank's owned particles and ghosts of the whole table ``whole`` (the
+        model's, the same on every rank at the start; kapsel.parallel.particles; on one
+        process all of it).  ``self.p`` is then the local table, owned rows first."""
         from .rigid import RigidBodies
         f = self.forces
         cutoff = float(getattr(f, "cutoff", 0.0) or 0.0) if f is not None else 0.0
         frame = ((lambda: (self.fluid.frame_strain, self.fluid.y0)) if self.oblique
                  else None)
-        c = whole.constraints
+        c = getattr(whole, "constraints", None)
         self._bodies = c if isinstance(c, RigidBodies) else None   # global bodies
         self._pins = None if self._bodies is not None else c       # motion.Pinned or None
         bodies, width, extra = None, 0, None
@@ -290,45 +268,35 @@ class SPM:
             bodies, width, extra = (b.body, b.first_beads()), b.RECORD_WIDTH, b.bead_records()
             if cutoff > 0:
                 cutoff += b.span()
-        self.owned = Owned(self.dist, self.stencil.offsets, self.dx, cutoff, frame,
-                           strain_max, bodies=bodies, extra_width=width)
+        self.owned = self.layout.owned_table(self.stencil.offsets, self.dx, cutoff, frame,
+                                             strain_max, bodies=bodies, extra_width=width)
         self.whole = whole
         self.n_global = whole.n
-        self._janus_whole = whole.janus             # janus.Janus of all particles, or None
+        self._janus_whole = getattr(whole, "janus", None)   # janus.Janus of all, or None
         self._released = False
         self._take(self.owned.scatter(whole, extra=extra))
 
     def _take(self, p):
         """Make ``p`` (owned rows first, then ghosts) the local table."""
-        from ..parallel.particles import view
-        from .motion import Pinned
-        self.p = p
         o = self.owned
-        n = o.n_own
-        self.p_own = view(p, n)                 # the owned rows (views: updates write through)
-        self.motion = _free_motion
-        if self._bodies is not None:            # the bodies this rank owns, whole
-            self.p_own.constraints = self.motion = self._bodies.local(o.gid[:n],
-                                                                      o.extra[:n])
-        if self._pins is not None:
-            gid = o.gid[:n]
-            self.p_own.constraints = self.motion = Pinned(
-                np.flatnonzero(np.isin(gid, self._pins.pin)),
-                np.flatnonzero(np.isin(gid, self._pins.pin_rot)))
-        self._own_weight = np.zeros(p.n)
-        self._own_weight[:n] = 1.0
+        self.p = p
+        self.p_own = o.owned_view(p)            # the owned rows (views: updates write through)
+        c = o.local_constraints(self._bodies, self._pins)   # the bodies this rank owns, whole,
+        self.motion = _free_motion                          # or its pinned rows
+        if c is not None:
+            self.p_own.constraints = self.motion = c
         if self._janus_whole is not None:       # the self-propulsion of the table's rows
-            self.janus = self._janus_whole.subset(o.gid)
+            self.janus = o.local_janus(self._janus_whole)
 
     def gather(self):
         """Collective: the owned rows of every rank into the whole table on rank 0 (the
         output writers and the restart read it there)."""
-        if self.owned is not None:
-            root = self.owned.me == 0
-            extra = self._records()
-            rec = self.owned.gather(self.p, self.whole if root else None, extra=extra)
-            if rec is not None:                 # the bodies' state into the global bodies
-                self._bodies.take_records(np.arange(self.n_global), rec)
+        if not self.n_global:
+            return
+        root = self.owned.me == 0
+        rec = self.owned.gather(self.p, self.whole if root else None, extra=self._records())
+        if rec is not None:                     # the bodies' state into the global bodies
+            self._bodies.take_records(np.arange(self.n_global), rec)
 
     def _records(self):
         """The extra columns of the owned rows (the state of rigid bodies), or None."""
@@ -338,7 +306,7 @@ class SPM:
 
     def owned_particles(self):
         """The particles this rank accounts for in global sums (energies): its owned rows
-        in a distributed run with owned particles, else all."""
+        (all of them on one process)."""
         return self.p_own
 
     def _exchange(self):
@@ -354,10 +322,9 @@ class SPM:
 
     def refresh(self):
         """Recompute the profiles after the positions were set from outside (a restart)."""
-        if self.owned is not None:
+        if self.n_global:
             extra = None if self._bodies is None else self._bodies.bead_records()
             self._take(self.owned.scatter(self.whole, extra=extra))
-        if self.n_global:
             self._profiles()
 
     # ------------------------------------------------------------------ fields
@@ -512,35 +479,18 @@ class SPM:
         """(F_other, T_other) of the particles this rank moves, at R^{n+1}."""
         if self.forces is None:
             return None, None
-        p = self.p
-        if self.owned is None:
-            res = self.forces(p)
-            return res[0], res[1]
-        o, n = self.owned, self.owned.n_own
-        F_o, T_o, ratio, stretch = self.forces.local(
-            p, self._own_weight, o.gid, reduce=lambda a: self._reduce(a)[0])
-        ratio, stretch = o.allmin(ratio, -stretch)      # the same on every rank
-        if hasattr(self.forces, "check"):           # (overlap_guard)
-            self.forces.check_bonds(-stretch)
-            self.forces.check(ratio)
-        virial = getattr(self.forces, "virial", None)
-        if virial is not None:
-            virial[...] = self._reduce(virial)[0]
-        return F_o[:n], T_o[:n]
+        return self.owned.other_forces(self.forces, self.p, self._reduce)
 
     def _impulses(self):
         if self.noise is None:
             return None, None
-        if self.owned is None:
-            return self.noise(self.p.n, self.dt)
         dP, dL = self.noise(self.n_global, self.dt)       # the serial stream, this rank's rows
-        gid = self.owned.gid[:self.owned.n_own]
-        return dP[gid], dL[gid]
+        return self.owned.own_rows(dP), self.owned.own_rows(dL)
 
     def _move(self, first):
-        """Step 2 for the particles this rank owns (all in a plain run): positions and
-        orientations; Lees-Edwards images in an oblique frame; then, distributed, the
-        migration and the new halos."""
+        """Step 2 for the particles this rank owns (all on one process): positions and
+        orientations; Lees-Edwards images in an oblique frame; then the migration and the
+        new halos (none on one process)."""
         q = self.p_own
         le = self.oblique and not self._own_images
         if le:                    # Lees-Edwards images instead of the periodic wrap
@@ -549,8 +499,7 @@ class SPM:
             self.fluid.wrap_particles(q)
         else:
             self.motion.update_positions(q, self.dt, self.box, self.rotation, first=first)
-        if self.owned is not None:
-            self._exchange()
+        self._exchange()
 
     # ------------------------------------------------------------------ step
     def step(self):
@@ -561,9 +510,7 @@ class SPM:
             self._move(first)
             self._profiles()
             us, F_H, T_H = self._hydro_sums()
-            if self.owned is not None:           # the ghosts' sums to their owners
-                FT = self.owned.reverse_sum(self._full(np.concatenate([F_H, T_H], axis=1)))
-                F_H, T_H = FT[:, :3], FT[:, 3:]
+            F_H, T_H = self.owned.sum_to_owners(self._full, F_H, T_H)   # ghosts' to owners
             F_o, T_o = self._other_forces()
             dP, dL = self._impulses()
             janus = self._janus_whole
@@ -572,8 +519,7 @@ class SPM:
             else:
                 self.motion.update_velocities(self.p_own, F_H, T_H, F_o, T_o, self.dt,
                                               self.rotation, dP, dL, first=first)
-            if self.owned is not None:
-                self.owned.refresh(self.p.v, self.p.omega)
+            self.owned.refresh(self.p.v, self.p.omega)   # the owners' velocities to ghosts
             du = self._rigidity(self.u, sampled=us)
             self._add_solenoidal(du)
             self._du_stepped = True
