@@ -56,6 +56,8 @@ particles on its block, and sums the coupling of the ghosts to their owners; the
 """
 from __future__ import annotations
 
+import os
+
 import numpy as np
 
 from .coupling import (clear_points, hydro_force_torque, particle_velocity_field,
@@ -137,7 +139,11 @@ class SPM:
         # (sp_3d_ns.cxx Time_evolution_hydro_OBL[_fdm]): u interpolated from the oblique grid
         # (Transform_obl_u), the profiles there with Lees-Edwards images, the increment
         # interpolated back; a distributed run couples on the oblique grid
-        self.rect = bool(self.oblique and self.dist is None and wall is None)
+        # (interpolated fields that a distributed run does not gather); the environment's
+        # KAPSEL_LE_COUPLING=oblique makes a plain run couple as a distributed one (the
+        # tests comparing the two)
+        self.rect = bool(self.oblique and self.dist is None and wall is None
+                         and os.environ.get("KAPSEL_LE_COUPLING", "rect") != "oblique")
         self.interpolation = "linear"       # the original's OBL_INT (models set it)
         smax = fluid.max_frame_strain if self.oblique else 0.0
         self.stencil = (Stencil(A, xi, dx, strain_max=0.0 if self.rect else smax)
