@@ -158,16 +158,17 @@ def test_rigid_square_rotates_at_half_the_shear_rate(yc):
     (yc = 0.5: two beads are images across y = 0), spins at Omega_z = -gamma_dot / 2 within
     5 % once the start transient is over, through a re-mapping of the frame, and moves with
     the imposed flow at its centre without drifting in y.  (24^3, A = 2.5, gamma_dot = 0.02,
-    650 steps of 0.05.)  Measured (2026-12-01, the original's step, after the merge of the
-    sheared start): Omega_z / (-gamma_dot/2) at steps 100 / 200 / 300 / 400 / 500 / 650 =
-    0.952 / 0.982 / 0.990 / 0.978 / 0.978 / 0.988 (origin), 1.144 / 1.059 / 1.035 / 1.024 /
-    1.008 / 0.998 (straddling: the longer transient; the window starts at step 300);
+    650 steps of 0.05.)  Measured (2026-12-02, the original's rect-frame coupling, issue 24):
+    Omega_z / (-gamma_dot/2) at steps 100 / 200 / 300 / 400 / 500 / 650 =
+    0.936 / 0.958 / 0.972 / 0.973 / 0.978 / 0.977 (origin), 1.138 / 1.044 / 1.020 / 1.009 /
+    0.999 / 0.987 (straddling: the longer transient; the window starts at step 300); on the
+    oblique-grid coupling before it 0.952 / ... / 0.988 and 1.144 / ... / 0.998;
     V_x = gamma_dot (yc - Ly/2) to 1e-16 (2.5 s each)."""
     rate = 0.02
     f, b, spin, images = square_in_shear(yc, 650, rate=rate)
     assert f.remap_count == 1
     assert np.abs(spin[300:] - 1.0).max() < 0.05, (spin[300:].min(), spin[300:].max())
-    assert abs(spin[-1] - 1.0) < 0.015
+    assert abs(spin[-1] - 1.0) < 0.03
     s = b.state
     assert s.v[0, 0] == pytest.approx(rate * (yc - 12.0), abs=1e-4)
     assert abs(s.v[0, 1]) < 1e-4 and abs(s.R[0, 1] - yc) < 1e-3
@@ -238,6 +239,6 @@ def test_rigid_square_straddling_the_boundary_rotates_in_the_fdm_shear():
     spin = np.array(spin)
     assert f.remap_count == 1
     assert np.abs(spin[300:] - 1.0).max() < 0.05, (spin[300:].min(), spin[300:].max())
-    assert abs(spin[-1] - 1.0) < 0.015
+    assert abs(spin[-1] - 1.0) < 0.03
     assert b.state.v[0, 0] == pytest.approx(rate * (yc - 12.0), abs=1e-4)
     assert abs(b.state.R[0, 1] - yc) < 1e-3

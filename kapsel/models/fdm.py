@@ -71,6 +71,7 @@ class FDMModel(Model):
                                    wall=self.wall)),
                                noise=make_noise(cfg, self.particles, seed), wall=self.wall,
                                impose=not self.sheared_start, dry=self.dry)
+        self.spm.interpolation = getattr(self, "interpolation", "linear")   # (OBL_INT)
         if self.sheared_start:
             self.spm.start_sheared(impose=not self.dry)    # as the original (SPM.start_sheared)
         self.spm.fix_cell = self._fix_cell(cfg)

@@ -121,6 +121,7 @@ class ShearLEModel(SpectralModel):
                        cfg.mesh.DX, self.dt, rotation=cfg.switches.ROTATION,
                        forces=overlap_guard(forces), noise=make_noise(cfg, self.particles, seed),
                        impose=False, dry=self.dry)
+        self.spm.interpolation = self.interpolation       # (OBL_INT)
         self.spm.start_sheared(impose=not self.dry)    # as the original (SPM.start_sheared)
         self.stress = ShearStress(self.grid.volume, f.RHO, cfg.mesh.DX, self.dt, f.ETA)
 

@@ -143,6 +143,45 @@ def particle_profiles(R, stencil, shape, dx, strain=0.0, origin=0.0):
     return idx, phi, rc.transpose(1, 2, 0)
 
 
+def lees_edwards_profiles(R, stencil, shape, dx, offset):
+    """Profiles of all particles (eq 1) on the rectangular grid under Lees-Edwards images:
+    a stencil point beyond the y boundary (above Ly: sign +1, below 0: sign -1) is the
+    image of a point of the box whose x is displaced by -sign ``offset`` (g Ly), as the
+    original's Relative_coord_check_stepover_Y (make_phi.h): the particle's x index
+    coordinate there is R_x / DX - sign offset / DX, and the point's x index and r_x follow
+    from that coordinate's floor and fraction.  Returns (idx, phi, r) as
+    ``particle_profiles``; r is the displacement from the particle (or its image)."""
+    R = np.asarray(R, dtype=float).reshape(-1, 3)
+    n, S = len(R), stencil.size
+    s = R / dx
+    with np.errstate(invalid="ignore"):
+        b = np.floor(s).astype(np.int64)
+    frac = s - b
+    ny = shape[1]
+    yu = b[:, 1:2] + stencil.o[1][None, :]                   # unwrapped y index (n, S)
+    sign = np.floor_divide(yu, ny)                           # -1, 0, +1
+    q = s[:, 0:1] - sign * (float(offset) / dx)              # x index coordinate (n, S)
+    with np.errstate(invalid="ignore"):
+        bq = np.floor(q).astype(np.int64)
+    rc = np.empty((3, n, S))
+    np.subtract(stencil.of[0][None, :], q - bq, out=rc[0])
+    for c in (1, 2):
+        np.subtract(stencil.of[c][None, :], frac[:, c:c + 1], out=rc[c])
+    if dx != 1.0:
+        rc *= dx
+    idx = np.remainder(bq + stencil.o[0][None, :], shape[0])
+    idx *= shape[1]
+    idx += np.remainder(yu, ny)
+    idx *= shape[2]
+    idx += np.remainder(b[:, 2:3] + stencil.o[2][None, :], shape[2])
+    dist = rc[0] * rc[0]
+    dist += rc[1] * rc[1]
+    dist += rc[2] * rc[2]
+    np.sqrt(dist, out=dist)
+    phi = g(dist, stencil.A, stencil.xi, dx)
+    return idx, phi, rc.transpose(1, 2, 0)
+
+
 def total_phi(idx, phi, size):
     """Eq 4: phi = sum_i phi_i as a flat field of ``size`` points (reshape to the grid)."""
     return np.bincount(idx.ravel(), weights=phi.ravel(), minlength=size)

@@ -56,12 +56,14 @@ particles on its block, and sums the coupling of the ghosts to their owners; the
 """
 from __future__ import annotations
 
+import os
+
 import numpy as np
 
 from .coupling import (clear_points, hydro_force_torque, particle_velocity_field,
                        rigidity_increment, sample)
 from . import motion as _free_motion
-from .profile import Stencil, particle_profiles, total_phi
+from .profile import Stencil, lees_edwards_profiles, particle_profiles, total_phi
 
 __all__ = ["SPM"]
 
@@ -132,8 +134,20 @@ class SPM:
         # oblique fluid (kapsel.fluid.oblique, Lees-Edwards): profiles on the sheared grid,
         # velocities relative to the imposed shear flow, Lees-Edwards images
         self.oblique = getattr(fluid, "oblique", False)
+        # a plain (one-process) oblique run couples on the rectangular grid as the original
+        # (sp_3d_ns.cxx Time_evolution_hydro_OBL[_fdm]): u interpolated from the oblique grid
+        # (Transform_obl_u), the profiles there with Lees-Edwards images, the increment
+        # interpolated back; a distributed run couples on the oblique grid
+        # (interpolated fields that a distributed run does not gather); the environment's
+        # KAPSEL_LE_COUPLING=oblique makes a plain run couple as a distributed one (the
+        # tests comparing the two)
+        self.rect = bool(self.oblique and self.layout.whole_mesh and wall is None
+                         and os.environ.get("KAPSEL_LE_COUPLING", "rect") != "oblique")
+        self.interpolation = "linear"       # the original's OBL_INT (models set it)
         smax = fluid.max_frame_strain if self.oblique else 0.0
-        self.stencil = Stencil(A, xi, dx, strain_max=smax) if particles.n else None
+        self.stencil = (Stencil(A, xi, dx, strain_max=0.0 if self.rect else smax)
+                        if particles.n else None)
+        self._uc = None         # rect: u* on the rectangular grid
         self.moment = np.zeros((3, 3))    # sum du_a r_b of the last step (particle stress)
         self.step_index = 0
         self.motion = getattr(particles, "constraints", None) or _free_motion
@@ -182,8 +196,12 @@ class SPM:
         if self._bodies is not None:     # every owned bead (a body's may lie elsewhere)
             T = np.concatenate([np.arange(n), T[T >= n]])
         self._T = T
-        self.idx, self.phi_i, self.r = particle_profiles(p.R[T], self.stencil, self.shape,
-                                                         self.dx, g, y0)
+        if self.rect:                    # on the rectangular grid, Lees-Edwards images
+            self.idx, self.phi_i, self.r = lees_edwards_profiles(
+                p.R[T], self.stencil, self.shape, self.dx, self.fluid.image_offset)
+        else:
+            self.idx, self.phi_i, self.r = particle_profiles(p.R[T], self.stencil, self.shape,
+                                                             self.dx, g, y0)
         # DX^3 sum_x phi_i over the whole profile (before the layout cuts it to the block)
         self.grid_volume = self.phi_i.sum(axis=1) * self.dx ** 3
         self.idx, self.phi_i, self._on = self.layout.cut_stencils(self.idx, self.phi_i)
@@ -332,7 +350,39 @@ class SPM:
         """Total profile phi = sum_i phi_i (eq 4), (NX, NY, NZ), walls not included."""
         if not self.p.n:
             return np.zeros(self.fshape)
-        return total_phi(self.idx, self.phi_i, self.fsize).reshape(self.fshape)
+        phi = total_phi(self.idx, self.phi_i, self.fsize).reshape(self.fshape)
+        if self.rect:       # on the fluid's oblique grid, as the original's phi_obl
+            return self._to_oblique(phi, "linear")     # (A2a_oblique: always linear)
+        return phi
+
+    def phi_rectangular(self):
+        """phi on the rectangular grid (a rect-coupled run: the profiles' own grid)."""
+        from ..fluid.oblique import to_rectangular
+        if self.rect or not self.p.n:
+            return total_phi(self.idx, self.phi_i, self.fsize).reshape(self.fshape) \
+                if self.p.n else np.zeros(self.fshape)
+        f = self.fluid
+        return to_rectangular(self.phi(), f.frame_strain, self.interpolation, f.y0 / self.dx)
+
+    # ------------------------------------------------------------------ frames (rect)
+    def _to_rect(self, u):
+        """u* (Cartesian deviation, oblique grid) -> the rectangular grid (Transform_obl_u
+        oblique2cartesian without the mean flow: the coupling uses deviations)."""
+        from ..fluid.oblique import to_rectangular
+        f = self.fluid
+        return to_rectangular(u, f.frame_strain, self.interpolation, f.y0 / self.dx)
+
+    def _to_oblique(self, a, method=None):
+        from ..fluid.oblique import to_oblique
+        f = self.fluid
+        return to_oblique(a, f.frame_strain, method or self.interpolation, f.y0 / self.dx)
+
+    def _coupling_u(self):
+        """The field the particles couple to: u* (rect: on the rectangular grid)."""
+        if self.rect:
+            self._uc = self._to_rect(self.u)
+            return self._uc
+        return self.u
 
     def particle_velocity(self):
         """phi u_p of eq 6 (sum_i w_i (V_i + Omega_i x r)), (3, NX, NY, NZ)."""
@@ -394,10 +444,11 @@ class SPM:
         u = self.fluid.velocity(out=self.u) if self.mode == "spectral" else self.u
         self._deviation = bool(deviation)
         try:
-            du = self._rigidity(u)
+            du = self._rigidity(self._coupling_u() if self.rect and self.p.n else u)
         finally:
             self._deviation = False
-        self._add_solenoidal(du, start=True)
+        self._add_solenoidal(self._to_oblique(du) if self.rect and self.p.n else du,
+                             start=True)
         if self.p.n and self.wall is None:
             clear_points(du, self.idx)
         if self.mode == "spectral":
@@ -441,9 +492,10 @@ class SPM:
         over this rank's part of their profiles."""
         if self._us is None or self._us.shape[1:] != self.idx.shape:
             self._us = np.empty((3,) + self.idx.shape)
-        us = sample(self.u, self.idx, out=self._us)
+        uc = self._uc if self.rect else self.u
+        us = sample(uc, self.idx, out=self._us)
         v, shear = self._relative_velocity()
-        F_H, T_H = hydro_force_torque(self.u, self.idx, self.w, self.r, self._sub(v),
+        F_H, T_H = hydro_force_torque(uc, self.idx, self.w, self.r, self._sub(v),
                                       self._sub(self.p.omega), self.rho, self.dx, self.dt,
                                       shear=shear, sampled=us)
         return us, F_H, T_H
@@ -509,6 +561,7 @@ class SPM:
             first = self.step_index == 0
             self._move(first)
             self._profiles()
+            uc = self._coupling_u()
             us, F_H, T_H = self._hydro_sums()
             F_H, T_H = self.owned.sum_to_owners(self._full, F_H, T_H)   # ghosts' to owners
             F_o, T_o = self._other_forces()
@@ -520,8 +573,9 @@ class SPM:
                 self.motion.update_velocities(self.p_own, F_H, T_H, F_o, T_o, self.dt,
                                               self.rotation, dP, dL, first=first)
             self.owned.refresh(self.p.v, self.p.omega)   # the owners' velocities to ghosts
-            du = self._rigidity(self.u, sampled=us)
-            self._add_solenoidal(du)
+            du = self._rigidity(uc, sampled=us)
+            # rect: the increment back on the oblique grid (Transform_obl_u cartesian2oblique)
+            self._add_solenoidal(self._to_oblique(du) if self.rect else du)
             self._du_stepped = True
             if self.wall is None:
                 flat = self.idx.reshape(-1)
@@ -558,6 +612,8 @@ class SPM:
                 d = du.reshape(3, -1)
                 for c in range(3):
                     d[c][flat] = self._du_points[c]
+        if self.rect:                         # on the fluid's (oblique) grid
+            return self._to_oblique(du)
         return du
 
     def fluid_momentum(self):
