@@ -410,14 +410,27 @@ class Grid:
     def _scalar_plans(self):
         if self._sfwd is not None or pyfftw is None:
             return
-        self.real_buf_s = pyfftw.empty_aligned(self.shape, dtype="float64")
-        self.complex_buf_s = pyfftw.empty_aligned(self.cshape, dtype="complex128")
+        # planned on arrays of their own (FFTW_MEASURE writes them), released at the first
+        # execution: every use points a plan at its arrays (update_arrays) first
+        r = pyfftw.empty_aligned(self.shape, dtype="float64")
+        c = pyfftw.empty_aligned(self.cshape, dtype="complex128")
         flags = (self.planner,)
-        self._sfwd = pyfftw.FFTW(self.real_buf_s, self.complex_buf_s, axes=(0, 1, 2),
+        self._sfwd = pyfftw.FFTW(r, c, axes=(0, 1, 2),
                                  direction="FFTW_FORWARD", flags=flags, threads=self.threads)
-        self._sbwd = pyfftw.FFTW(self.complex_buf_s, self.real_buf_s, axes=(0, 1, 2),
+        self._sbwd = pyfftw.FFTW(c, r, axes=(0, 1, 2),
                                  direction="FFTW_BACKWARD",
                                  flags=flags + ("FFTW_DESTROY_INPUT",), threads=self.threads)
+
+    @functools.cached_property
+    def real_buf_s(self):
+        """Aligned scalar scratch, made on first use (a transform of an unaligned array)."""
+        return pyfftw.empty_aligned(self.shape, dtype="float64")
+
+    @functools.cached_property
+    def complex_buf_s(self):
+        """Aligned complex scalar scratch, made on first use (``irfft_scalar``, unaligned
+        arrays)."""
+        return pyfftw.empty_aligned(self.cshape, dtype="complex128")
 
     def rfft_scalar(self, f, out=None):
         """rfftn of a scalar field (NX, NY, NZ) -> cshape (unnormalised); plans made on
@@ -435,6 +448,25 @@ class Grid:
         oi = out if self._aligned(out, self.cshape, np.complex128) else self.complex_buf_s
         self._sfwd.update_arrays(fi, oi)
         self._sfwd.execute()
+        if oi is not out:
+            np.copyto(out, oi)
+        return out
+
+    def backward_scalar_raw(self, c, out):
+        """Unnormalised c2r of a scalar ``c`` (cshape) -> ``out`` (NX, NY, NZ); destroys ``c``
+        (FFTW c2r).  The plan of ``backward_raw``'s components: a vector field transformed
+        component by component through one scalar scratch gives the same bits."""
+        if pyfftw is None:  # pragma: no cover
+            out[...] = np.fft.irfftn(c, s=self.shape) * self.size
+            return out
+        self._scalar_plans()
+        ci = c if self._aligned(c, self.cshape, np.complex128) else None
+        if ci is None:
+            np.copyto(self.complex_buf_s, c)
+            ci = self.complex_buf_s
+        oi = out if self._aligned(out, self.shape, np.float64) else self.real_buf_s
+        self._sbwd.update_arrays(ci, oi)
+        self._sbwd.execute()
         if oi is not out:
             np.copyto(out, oi)
         return out

@@ -284,6 +284,10 @@ class ObliqueSpectralNS(_ObliqueFrame, SpectralNS):
         super().__init__(grid, rho, eta, dt, fix_cell=fix_cell, scheme="etd1",
                          advection=advection)
         self._init_frame(shear, grid.box, dt, t0, frame_strain0)
+        # the vector scratch of this solver's own step (truncated u^ / N, vorticity, N)
+        self._uh = grid.empty_complex()
+        self._wh = grid.empty_complex()
+        self._n = grid.empty_real()
         k = grid
         self._k11 = k.kx * k.kx
         self._k12 = k.kx * k.ky

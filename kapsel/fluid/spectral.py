@@ -65,6 +65,18 @@ def cross_in_place(u, w, n):
     return n
 
 
+def _real_view(c, grid):
+    """A real scalar field of ``grid`` (this rank's block) in the memory of the complex
+    scalar ``c`` (2 (NZ/2 + 1) >= NZ numbers per row: it fits), or a new array if it does
+    not (a distributed block of another size)."""
+    shape = tuple(grid.local_shape)
+    n = int(np.prod(shape))
+    flat = c.reshape(-1).view(np.float64)
+    if flat.size >= n:
+        return flat[:n].reshape(shape)
+    return grid.empty_real(None)
+
+
 def phi1(z):
     """(e^z - 1)/z, 1 at z = 0."""
     z = np.asarray(z, dtype=float)
@@ -126,16 +138,21 @@ class SpectralNS:
         self.advection = bool(advection)
         g = grid
         self.u_hat = g.zeros_complex()
-        # scratch (complex: truncated u_hat / N, vorticity, N^n, N^{n-1}; real: u, omega, N)
-        self._uh = g.empty_complex()
-        self._wh = g.empty_complex()
+        # scratch: N^n, N^{n-1} (complex vectors); u, omega (real vectors: omega becomes
+        # u x omega in place in the compiled pass); two complex scalars (each component of
+        # the truncated u_hat and of omega passes through one on its way to real space) and
+        # two real scalars in the complex scalars' memory (the numpy pass's u x omega, made
+        # when the scalars are free).  u and omega are free between steps (``scratch_real``).
+        # 11.2 float64 per grid point with ETD1 (issue 25), 20.3 when every stage had its
+        # own vector buffer.
         self._nl = g.empty_complex()
         self._nl_old = g.empty_complex() if scheme == "etd2" else None
         self._u = g.empty_real()
         self._w = g.empty_real()
-        self._n = g.empty_real()
         self._s = g.empty_complex(None)
         self._t = g.empty_complex(None)
+        self._r = (_real_view(self._s, g), _real_view(self._t, g))
+        self._fh = None                 # FFT of a per-step force (``step(force)``), on use
         self._have_old = False
         self.step_index = 0
 
@@ -158,16 +175,14 @@ class SpectralNS:
     @functools.cached_property
     def _weights(self) -> dict:
         """The ETD weights of eq 8 (z = -nu k^2 dt), made on first use: a fluid built for
-        ``kapsel-py --check`` never steps.  E = e^z; f1 = dt phi1(z) for the body force (not
-        truncated); a1 = dt phi1 mask (ETD1 / first step); a2 = dt (phi1 + phi2) mask and
+        ``kapsel-py --check`` never steps.  E = e^z; a1 = dt phi1 mask (ETD1 / first step); a2 = dt (phi1 + phi2) mask and
         b2 = dt phi2 mask (ETD2 weights of N^n and N^{n-1}); mask_n = mask / N (truncation
         and the 1/N of the c2r)."""
         g = self.grid
         z = -self.nu * g.k2 * self.dt
         p1 = phi1(z)
         mask = g.dealias_f
-        w = {"E": np.exp(z), "f1": self.dt * p1, "a1": self.dt * p1 * mask,
-             "mask_n": mask / g.size}
+        w = {"E": np.exp(z), "a1": self.dt * p1 * mask, "mask_n": mask / g.size}
         if self.scheme == "etd2":
             p2 = phi2(z)
             w["a2"] = self.dt * (p1 + p2) * mask
@@ -175,7 +190,11 @@ class SpectralNS:
         return w
 
     _E = property(lambda self: self._weights["E"])
-    _f1 = property(lambda self: self._weights["f1"])
+    @functools.cached_property
+    def _f1(self):
+        """dt phi1(z) of a body force (not truncated), made when a force first acts."""
+        return self.dt * phi1(-self.nu * self.grid.k2 * self.dt)
+
     _a1 = property(lambda self: self._weights["a1"])
     _a2 = property(lambda self: self._weights["a2"])
     _b2 = property(lambda self: self._weights["b2"])
@@ -212,50 +231,78 @@ class SpectralNS:
         """u in real space: into ``out`` (returned) or a new array."""
         if out is None:
             out = self.grid.empty_real()
-        np.multiply(self.u_hat, 1.0 / self.grid.size, out=self._uh)
-        return self.grid.backward_raw(self._uh, out)
+        s = self._s
+        for c in range(3):
+            np.multiply(self.u_hat[c], 1.0 / self.grid.size, out=s)
+            self.grid.backward_scalar_raw(s, out[c])
+        return out
+
+    def scratch_real(self):
+        """Two real vector fields (3, NX, NY, NZ) this solver only uses inside ``step``:
+        free for a caller between steps (the SPM's u* and its increment), overwritten by the
+        next step."""
+        return self._u, self._w
 
     # ------------------------------------------------------------------ step
     def _nonlinear(self):
-        """P[u x omega] (unmasked; the ETD weights carry the 2/3 truncation) in _nl."""
+        """P[u x omega] (unmasked in the compiled pass, whose ETD weights carry the 2/3
+        truncation; truncated and projected in the numpy pass) in _nl.  Each component of the
+        truncated u_hat / N and of its curl is made in a complex scalar and transformed to
+        real space in turn (the scalar plans of a vector transform: the same bits)."""
         g = self.grid
         nl = self._nl
+        if not self.advection:
+            nl[...] = 0.0
+            return nl
+        u, w, s, t = self._u, self._w, self._s, self._t
         K = _compiled.spectral
-        if self.advection and K is not None:
-            uh, wh, u, w, n = self._uh, self._wh, self._u, self._w, self._n
-            K.truncate_curl(self.u_hat, self._mask_n, *self._k1, uh, wh)
-            g.backward_raw(uh, u)      # destroys uh
-            g.backward_raw(wh, w)
-            K.cross(u, w, n)           # n = u x omega
-            g.forward(n, out=nl)
+        if K is not None:
+            for c in range(3):
+                K.truncated_component(self.u_hat, self._mask_n, c, s)
+                g.backward_scalar_raw(s, u[c])         # destroys s
+            for c in range(3):
+                K.vorticity_component(self.u_hat, self._mask_n, *self._k1, c, s)
+                g.backward_scalar_raw(s, w[c])
+            K.cross_into(u, w)                          # w <- u x omega
+            g.forward(w, out=nl)
             if self._k0:
                 nl[:, 0, 0, 0] = 0.0   # exact: mean of (u.grad)u is 0; projected by step()
             return nl
-        if self.advection:
-            uh, wh = self._uh, self._wh
-            np.multiply(self.u_hat, self._mask_n, out=uh)   # truncated, 1/N folded in
-            t = self._t
-            # omega_hat = i k x u_hat
-            np.multiply(self._iky, uh[2], out=wh[0])
-            np.multiply(self._ikz, uh[1], out=t)
-            wh[0] -= t
-            np.multiply(self._ikz, uh[0], out=wh[1])
-            np.multiply(self._ikx, uh[2], out=t)
-            wh[1] -= t
-            np.multiply(self._ikx, uh[1], out=wh[2])
-            np.multiply(self._iky, uh[0], out=t)
-            wh[2] -= t
-            u, w, n = self._u, self._w, self._n
-            g.backward_raw(uh, u)      # destroys uh
-            g.backward_raw(wh, w)
-            cross_in_place(u, w, n)    # n = u x omega
-            g.forward(n, out=nl)
-            if self._k0:
-                nl[:, 0, 0, 0] = 0.0            # exact: mean of (u.grad)u is 0
-            g.project(nl, tmp=(self._s, self._t))
-        else:
-            nl[...] = 0.0
+        ik = (self._ikx, self._iky, self._ikz)
+        mask = self._mask_n
+        for c in range(3):
+            np.multiply(self.u_hat[c], mask, out=s)      # truncated, 1/N folded in
+            g.backward_scalar_raw(s, u[c])
+        for c in range(3):                               # omega_c = i k_p u_q - i k_q u_p
+            p, q = (c + 1) % 3, (c + 2) % 3
+            np.multiply(self.u_hat[q], mask, out=s)
+            np.multiply(ik[p], s, out=s)
+            np.multiply(self.u_hat[p], mask, out=t)
+            np.multiply(ik[q], t, out=t)
+            s -= t
+            g.backward_scalar_raw(s, w[c])
+        self._cross_forward(u, w, nl)                    # N = u x omega -> Fourier space
+        if self._k0:
+            nl[:, 0, 0, 0] = 0.0            # exact: mean of (u.grad)u is 0
+        g.project(nl, tmp=(self._s, self._t))
         return nl
+
+    def _cross_forward(self, u, w, nl):
+        """nl = FFT(u x w), each component transformed as soon as it is made (one real
+        scalars of scratch; u and w are destroyed), the products of ``cross``."""
+        g, (r, r2) = self.grid, self._r
+        np.multiply(u[1], w[2], out=r)
+        np.multiply(u[2], w[1], out=r2)
+        r -= r2
+        g.rfft_scalar(r, out=nl[0])
+        np.multiply(u[2], w[0], out=r)
+        np.multiply(u[0], w[2], out=u[2])                # u[2], w[2] are not needed again
+        r -= u[2]
+        g.rfft_scalar(r, out=nl[1])
+        np.multiply(u[0], w[1], out=r)
+        np.multiply(u[1], w[0], out=w[2])
+        r -= w[2]
+        g.rfft_scalar(r, out=nl[2])
 
     def step(self, force=None):
         """Advance u_hat by dt (eq 8 without the particle term; module docstring, steps 1-5).
@@ -265,7 +312,6 @@ class SpectralNS:
         """
         nl = self._nonlinear()
         uh = self.u_hat
-        t = self._uh  # scratch
         K = _compiled.spectral
         if self.advection and K is not None:    # fused: projection + ETD update
             if self.scheme == "etd2" and self._have_old:
@@ -276,23 +322,20 @@ class SpectralNS:
                                       self.grid.inv_k2, self.scheme == "etd2")
         elif self.scheme == "etd2" and self._have_old:
             uh *= self._E
-            np.multiply(nl, self._a2, out=t)
-            uh += t
-            np.multiply(self._nl_old, self._b2, out=t)
-            uh -= t
+            self._add_weighted(nl, self._a2)
+            self._add_weighted(self._nl_old, self._b2, sign=-1)
         else:
             uh *= self._E
-            np.multiply(nl, self._a1, out=t)
-            uh += t
+            self._add_weighted(nl, self._a1)
         if self.force_hat is not None:  # constant force: exact, dt phi1(z) P f
-            np.multiply(self.force_hat, self._f1, out=t)
-            uh += t
+            self._add_weighted(self.force_hat, self._f1)
         if force is not None:
-            fh = self._wh  # free after _nonlinear
+            if self._fh is None:
+                self._fh = self.grid.empty_complex()
+            fh = self._fh
             self.grid.forward(force, out=fh)
             self.grid.project(fh, tmp=(self._s, self._t))
-            np.multiply(fh, self._f1, out=t)
-            uh += t
+            self._add_weighted(fh, self._f1)
         if self.scheme == "etd2":
             self._nl, self._nl_old = self._nl_old, self._nl
             self._have_old = True
@@ -300,6 +343,16 @@ class SpectralNS:
             self.after_update(uh)
         self.apply_fix_cell()
         self.step_index += 1
+
+    def _add_weighted(self, vh, weight, sign=1):
+        """u_hat += sign weight vh, component by component through a complex scalar."""
+        s = self._s
+        for c in range(3):
+            np.multiply(vh[c], weight, out=s)
+            if sign > 0:
+                self.u_hat[c] += s
+            else:
+                self.u_hat[c] -= s
 
     def run(self, nsteps):
         for _ in range(int(nsteps)):
@@ -321,7 +374,7 @@ class SpectralNS:
         force phi f_p dt), T the 2/3-rule truncation: the state stays truncated, as the
         original's (operate_omega.h Solenoidal_u); the k = 0 mode (mean, momentum) of du is
         kept.  ``du`` may be ``grid.real_buf`` or any array; it is not modified."""
-        d = self._wh
+        d = self._nl          # free between steps (ETD2: the older of the two, overwritten next)
         self.grid.forward(du, out=d)
         if project and _compiled.spectral is not None:
             _compiled.spectral.project_add(d, self.u_hat, self.grid.dealias_f, *self._k1,

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 from numba import njit
 
-__all__ = ["truncate_curl", "cross", "project_etd1", "project_etd2", "project_add"]
+__all__ = ["truncate_curl", "truncated_component", "vorticity_component", "cross", "cross_into", "project_etd1", "project_etd2", "project_add"]
 
 
 @njit(cache=True, nogil=True)
@@ -40,6 +40,51 @@ def truncate_curl(u_hat, mask_n, kx, ky, kz, uh, wh):
                 wh[0, i, j, k] = complex((-(kj * ci)) - (-(kk * bi)), (kj * cr) - (kk * br))
                 wh[1, i, j, k] = complex((-(kk * ai)) - (-(ki * ci)), (kk * ar) - (ki * cr))
                 wh[2, i, j, k] = complex((-(ki * bi)) - (-(kj * ai)), (ki * br) - (kj * ar))
+
+
+@njit(cache=True, nogil=True)
+def truncated_component(u_hat, mask_n, c, out):
+    """out = u_hat[c] mask_n: component c of ``truncate_curl``'s uh."""
+    nx, ny, nzc = mask_n.shape
+    for i in range(nx):
+        for j in range(ny):
+            for k in range(nzc):
+                m = mask_n[i, j, k]
+                a = u_hat[c, i, j, k]
+                out[i, j, k] = complex(a.real * m, a.imag * m)
+
+
+@njit(cache=True, nogil=True)
+def vorticity_component(u_hat, mask_n, kx, ky, kz, c, out):
+    """out = (i k x (u_hat mask_n))[c]: component c of ``truncate_curl``'s wh, the same
+    operations."""
+    nx, ny, nzc = mask_n.shape
+    p, q = (c + 1) % 3, (c + 2) % 3          # w_c = i k_p u_q - i k_q u_p
+    for i in range(nx):
+        for j in range(ny):
+            for k in range(nzc):
+                kp = kx[i] if p == 0 else (ky[j] if p == 1 else kz[k])
+                kq = kx[i] if q == 0 else (ky[j] if q == 1 else kz[k])
+                m = mask_n[i, j, k]
+                a = u_hat[q, i, j, k]
+                b = u_hat[p, i, j, k]
+                ar, ai = a.real * m, a.imag * m
+                br, bi = b.real * m, b.imag * m
+                out[i, j, k] = complex((-(kp * ai)) - (-(kq * bi)), (kp * ar) - (kq * br))
+
+
+@njit(cache=True, nogil=True)
+def cross_into(u, w):
+    """w <- u x w, real (3, NX, NY, NZ) arrays (``cross`` without a third field)."""
+    nx, ny, nz = u.shape[1], u.shape[2], u.shape[3]
+    for i in range(nx):
+        for j in range(ny):
+            for k in range(nz):
+                u0, u1, u2 = u[0, i, j, k], u[1, i, j, k], u[2, i, j, k]
+                w0, w1, w2 = w[0, i, j, k], w[1, i, j, k], w[2, i, j, k]
+                w[0, i, j, k] = u1 * w2 - u2 * w1
+                w[1, i, j, k] = u2 * w0 - u0 * w2
+                w[2, i, j, k] = u0 * w1 - u1 * w0
 
 
 @njit(cache=True, nogil=True)

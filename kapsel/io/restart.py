@@ -115,12 +115,12 @@ def fingerprint(step, time, particles, fields) -> str:
     h = hashlib.sha256()
     h.update(repr((int(step), float(time))).encode())
     if particles is not None:
-        h.update(np.ascontiguousarray(particles, dtype=np.float64).tobytes())
+        h.update(np.ascontiguousarray(particles, dtype=np.float64).data)
     for name in sorted(fields):
         if not isinstance(fields[name], np.ndarray):
             continue                    # uk_dc, oblique: small structs, not fingerprinted
         h.update(name.encode())
-        h.update(np.ascontiguousarray(fields[name], dtype=np.float64).tobytes())
+        h.update(np.ascontiguousarray(fields[name], dtype=np.float64).data)   # no copy
     return h.hexdigest()
 
 
@@ -182,7 +182,7 @@ def write_restart(path: str, define, input_doc: UDFManager, kind: str, step: int
     doc = define.blank() if isinstance(define, UDFManager) else UDFManager(schema_from=define)
     for name, value in input_doc.common.items():
         if name in doc.schema.global_items:
-            doc.common[name] = value
+            doc.common[name] = _lists_copied(value)
     kind = schema_kind(doc, kind)
     doc.put(kind, "resume.Calculation")
     base = f"resume.{kind}.Saved_Data"
@@ -229,6 +229,16 @@ def write_restart(path: str, define, input_doc: UDFManager, kind: str, step: int
     put_in_place(stmp, spath)
     put_in_place(utmp, path)
     return fp
+
+
+def _lists_copied(value):
+    """``value`` with its nested lists copied (the leaves shared): the puts of a restart
+    replace leaves of the copy, so the input document is left as it was read (it used to
+    take in, and hold for the rest of the run, every restart's Saved_Data: 2 float64 per
+    grid point of spectral Zeta; issue 25)."""
+    if isinstance(value, list):
+        return [_lists_copied(v) for v in value]
+    return value
 
 
 def _put_exact(state: dict, exact) -> None:
@@ -394,6 +404,9 @@ def wavenumbers(shape, dx):
     return ks[0].reshape(-1, 1, 1), ks[1].reshape(1, -1, 1), ks[2].reshape(1, 1, -1)
 
 
+PACK_NUMBERS = 1 << 18     # modes per block of pack_zeta
+
+
 def pack_zeta(u_hat: np.ndarray, dx: float, sheared: bool = False):
     """(Zeta (NX, NY, NZ + 2, 2), uk_dc (3,)) of u_hat (3, NX, NY, NZ/2 + 1), the
     unnormalised r2c transform of the velocity (Cartesian; covariant oblique components
@@ -404,22 +417,27 @@ def pack_zeta(u_hat: np.ndarray, dx: float, sheared: bool = False):
         otherwise:                    omega_x, omega_y   (sheared: omega_x, omega_z)
     """
     u = np.asarray(u_hat)
-    kx, ky, kz = wavenumbers(u.shape[1:3] + (2 * (u.shape[3] - 1),), dx)
-    wx = 1j * (ky * u[2] - kz * u[1])
-    wy = 1j * (kz * u[0] - kx * u[2])
-    wz = 1j * (kx * u[1] - ky * u[0])
-    a = np.broadcast_to(kx != 0, wx.shape)
-    b = np.broadcast_to((kz if sheared else ky) != 0, wx.shape)
-    if sheared:
-        z0 = np.where(a, wy, np.where(b, wy, wx))
-        z1 = np.where(a, wz, np.where(b, wx, wz))
-    else:
-        z0 = np.where(a, wy, np.where(b, wz, wx))
-        z1 = np.where(a, wz, np.where(b, wx, wy))
+    kx_all, ky, kz = wavenumbers(u.shape[1:3] + (2 * (u.shape[3] - 1),), dx)
     zeta = np.empty(u.shape[1:3] + (2 * u.shape[3], 2))
-    for c, w in enumerate((z0, z1)):
-        zeta[:, :, 0::2, c] = w.real
-        zeta[:, :, 1::2, c] = w.imag
+    # in blocks of x planes (the same element-wise operations): the temporaries are a block's,
+    # not ten complex fields of the whole mesh at once (issue 25: the restart's peak memory)
+    step = max(1, PACK_NUMBERS // max(1, u[0, 0].size))
+    for s in range(0, u.shape[1], step):
+        ub, kx = u[:, s:s + step], kx_all[s:s + step]
+        wx = 1j * (ky * ub[2] - kz * ub[1])
+        wy = 1j * (kz * ub[0] - kx * ub[2])
+        wz = 1j * (kx * ub[1] - ky * ub[0])
+        a = np.broadcast_to(kx != 0, wx.shape)
+        b = np.broadcast_to((kz if sheared else ky) != 0, wx.shape)
+        if sheared:
+            z0 = np.where(a, wy, np.where(b, wy, wx))
+            z1 = np.where(a, wz, np.where(b, wx, wz))
+        else:
+            z0 = np.where(a, wy, np.where(b, wz, wx))
+            z1 = np.where(a, wz, np.where(b, wx, wy))
+        for c, w in enumerate((z0, z1)):
+            zeta[s:s + step, :, 0::2, c] = w.real
+            zeta[s:s + step, :, 1::2, c] = w.imag
     return zeta, u[:, 0, 0, 0].real.copy()
 
 

@@ -79,7 +79,7 @@ class SpectralModel(Model):
         return {"Zeta": zeta, "uk_dc": [float(c) for c in dc], "oblique": [0.0]}
 
     def exact_state(self) -> dict:
-        return {"u_hat": self.global_u_hat().copy()}
+        return {"u_hat": self.global_u_hat()}       # written at once (no copy: issue 25)
 
     checkpoint_complete = False
 

@@ -374,6 +374,11 @@ class PencilGrid(Grid):
         self._pipe(1).forward(f[None], out[None])
         return out
 
+    def backward_scalar_raw(self, c, out):
+        """Unnormalised c2r of this rank's scalar block ``c`` -> ``out`` (``Grid``'s)."""
+        self._pipe(1).backward(c[None], out[None])
+        return out
+
     def irfft_scalar(self, f_hat, out=None):
         if out is None:
             out = self.empty_real(None)

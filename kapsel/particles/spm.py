@@ -92,7 +92,9 @@ class SPM:
         if hasattr(fluid, "add_solenoidal"):
             self.mode = "spectral"
             self.shape = tuple(fluid.grid.shape)
-            self.u = fluid.grid.empty_real()       # u* buffer (FFT-aligned)
+            # u* and the rigidity increment du live in the solver's two real vector fields,
+            # which it only uses inside its own step (``scratch_real``; issue 25)
+            self.u, self._du_buf = fluid.scratch_real()
         elif hasattr(fluid, "step"):
             self.mode = "mac"
             self.shape = tuple(fluid.shape)
@@ -123,8 +125,8 @@ class SPM:
         # kept 0 between steps: a step scatters du onto its stencil points and clears them
         # (with walls du is dense: cleared whole at the start of the next step instead)
         self._du = None
-        if particles.n or wall is not None:   # spectral: FFT-aligned, transformed in place
-            self._du = (fluid.grid.zeros_real() if self.mode == "spectral"
+        if particles.n or wall is not None:   # spectral: the solver's scratch, zeroed each step
+            self._du = (self._du_buf if self.mode == "spectral"
                         else np.zeros((3,) + self.fshape))
         self._psum = np.zeros(self.fsize) if wall is not None else None   # phi_sum (flat)
         self._us = None         # u* at the stencil points, sampled once a step
@@ -392,9 +394,10 @@ class SPM:
 
     # ------------------------------------------------------------------ fluid access
     def velocity(self):
-        """Current velocity field u (3, NX, NY, NZ) (a copy in spectral mode)."""
+        """Current velocity field u (3, NX, NY, NZ); spectral mode: transformed into the
+        solver's scratch (``self.u``), valid until the next step (copy it to keep it)."""
         if self.mode == "spectral":
-            return self.fluid.velocity()
+            return self.fluid.velocity(out=self.u)
         return self.u
 
     def _fluid_step(self):
@@ -504,8 +507,9 @@ class SPM:
         """du of step 6 into the (zeroed) du buffer, with the walls' part."""
         p = self.p
         du = self._du
-        if self.wall is not None:
-            du.fill(0.0)                      # dense after a wall step
+        if self.wall is not None or self.mode == "spectral":
+            du.fill(0.0)                      # dense after a wall step; spectral: the
+            #                                   solver's scratch, overwritten by its step
         if p.n:
             v, shear = self._relative_velocity()
             du = rigidity_increment(u, self.idx, self.w, self.r, self._sub(v),
