@@ -30,7 +30,7 @@ def _base_here(spm, R, g, y0):
     b = np.floor(s).astype(np.int64)
     here = np.ones(len(s), dtype=bool)
     for axis in (0, 1):
-        a0, a1 = spm.dist.real_range[axis]
+        a0, a1 = spm.layout.real_range[axis]
         base = np.mod(b[:, axis], spm.shape[axis])
         here &= (base >= a0) & (base < a1)
     return here
