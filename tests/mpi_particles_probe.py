@@ -71,7 +71,7 @@ def main():
         R = np.empty((N, 3))
         R[all_gid] = all_R
         g, y0 = ((spm.fluid.frame_strain, spm.fluid.y0) if spm.oblique else (0.0, 0.0))
-        T = spm._near(R, g, y0)
+        T = spm.layout.near_rows(R, spm.stencil.offsets, spm.dx, g, y0)
         own = _base_here(spm, R[T], g, y0)
         assert set(T.tolist()) <= set(gid.tolist()), "a particle meeting the block is missing"
         bodies = spm._bodies
