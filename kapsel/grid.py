@@ -537,10 +537,24 @@ class Grid:
         one process a ``WholeTable``, every row owned here."""
         return WholeTable()
 
+    def near_rows(self, R, offsets, dx, strain=0.0, origin=0.0):
+        """The rows of the particles at ``R`` whose stencil (``offsets``, (S, 3) grid
+        steps) meets this process's block: all of them."""
+        n = len(R)
+        if self._all_rows is None or len(self._all_rows) != n:
+            self._all_rows = np.arange(n)
+        return self._all_rows
+
+    _all_rows = None
+
     def cut_stencils(self, idx, phi):
         """Stencils (flat indices ``idx``, profiles ``phi`` (N, S)) cut to this process's
         block: (idx, phi, on) with ``on`` (N, S) the points on the block: all of them."""
-        return idx, phi, np.ones(idx.shape, dtype=bool)
+        if self._all_on is None or self._all_on.shape != idx.shape:
+            self._all_on = np.ones(idx.shape, dtype=bool)
+        return idx, phi, self._all_on
+
+    _all_on = None
 
     def k0(self, a_hat):
         """a_hat[:, 0, 0, 0] (the k = 0 mode) of a (c, ...) Fourier array."""

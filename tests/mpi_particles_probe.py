@@ -30,7 +30,7 @@ def _base_here(spm, R, g, y0):
     b = np.floor(s).astype(np.int64)
     here = np.ones(len(s), dtype=bool)
     for axis in (0, 1):
-        a0, a1 = spm.dist.real_range[axis]
+        a0, a1 = spm.layout.real_range[axis]
         base = np.mod(b[:, axis], spm.shape[axis])
         here &= (base >= a0) & (base < a1)
     return here
@@ -71,7 +71,7 @@ def main():
         R = np.empty((N, 3))
         R[all_gid] = all_R
         g, y0 = ((spm.fluid.frame_strain, spm.fluid.y0) if spm.oblique else (0.0, 0.0))
-        T = spm._near(R, g, y0)
+        T = spm.layout.near_rows(R, spm.stencil.offsets, spm.dx, g, y0)
         own = _base_here(spm, R[T], g, y0)
         assert set(T.tolist()) <= set(gid.tolist()), "a particle meeting the block is missing"
         bodies = spm._bodies

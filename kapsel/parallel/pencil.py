@@ -413,6 +413,26 @@ class PencilGrid(Grid):
         return Owned(self, offsets, dx, cutoff, frame, strain_max, bodies=bodies,
                      extra_width=extra_width)
 
+    def near_rows(self, R, offsets, dx, strain=0.0, origin=0.0):
+        """The rows of the particles at ``R`` whose stencil (``offsets``, (S, 3) grid
+        steps) meets this rank's block (x and y are split; an oblique frame of ``strain``
+        about the height ``origin`` shears x)."""
+        s = np.asarray(R, dtype=float) / dx
+        if strain:
+            s[:, 0] = (R[:, 0] - strain * (R[:, 1] - origin)) / dx
+        with np.errstate(invalid="ignore"):
+            b = np.floor(s).astype(np.int64)
+        near = np.ones(len(s), dtype=bool)
+        for axis in (0, 1):
+            n = self.shape[axis]
+            a0, a1 = self.real_range[axis]
+            o = offsets[:, axis]
+            lo, width = int(o.min()), int(o.max() - o.min()) + 1
+            start = np.mod(b[:, axis] + lo, n)
+            if width < n:
+                near &= (np.mod(a0 - start, n) < width) | (np.mod(start - a0, n) < a1 - a0)
+        return np.flatnonzero(near)
+
     def cut_stencils(self, idx, phi):
         """Stencils cut to this rank's block: (idx, phi, on) with ``idx`` flat indices into
         the local block (0 off the block), ``phi`` 0 off the block (so every sum over

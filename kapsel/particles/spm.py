@@ -193,7 +193,8 @@ class SPM:
         """phi_i, r at the current positions; phi_sum and the weights w_i (step 3)."""
         p = self.p
         g, y0 = (self.fluid.frame_strain, self.fluid.y0) if self.oblique else (0.0, 0.0)
-        T = self._near(p.R, g, y0)     # the rows whose stencil meets the block (owned first)
+        # the rows whose stencil meets the block (owned first; all on one process)
+        T = self.layout.near_rows(p.R, self.stencil.offsets, self.dx, g, y0)
         n = self.owned.n_own
         if self._bodies is not None:     # every owned bead (a body's may lie elsewhere)
             T = np.concatenate([np.arange(n), T[T >= n]])
@@ -235,25 +236,6 @@ class SPM:
         return s
 
     # ------------------------------------------------------------------ the rank's block
-    def _near(self, R, strain, origin):
-        """Indices of the particles whose stencil meets this rank's block (all on one
-        process)."""
-        s = np.asarray(R, dtype=float) / self.dx
-        if strain:
-            s[:, 0] = (R[:, 0] - strain * (R[:, 1] - origin)) / self.dx
-        with np.errstate(invalid="ignore"):
-            b = np.floor(s).astype(np.int64)
-        near = np.ones(len(s), dtype=bool)
-        for axis in (0, 1):                   # the blocks split x and y
-            n = self.shape[axis]
-            a0, a1 = self.layout.real_range[axis]
-            o = self.stencil.offsets[:, axis]
-            lo, width = int(o.min()), int(o.max() - o.min()) + 1
-            start = np.mod(b[:, axis] + lo, n)
-            if width < n:
-                near &= (np.mod(a0 - start, n) < width) | (np.mod(start - a0, n) < a1 - a0)
-        return np.flatnonzero(near)
-
     def _sub(self, a):
         """The rows of the particles this rank couples (all of them on one process)."""
         return a if self._T is None else a[self._T]
