@@ -150,6 +150,19 @@ def dipoles(p0=2.0, axis="Z"):
             f"{d}.ON.type": "FIXED", f"{d}.ON.FIXED.dir": axis}
 
 
+def quincke_dipoles(pz, p0=6.0, K=20.0):
+    """Two one-bead rollers in ex12's document (its define.udf has the QUINCKE dipoles),
+    axes across the field (body x; the second turned 45 degrees about z), 8 apart."""
+    d = "switch.multipole.ON.Dipole"
+    return merge({"_base": ROOT / "tests" / "data" / "ex12" / "nowall.udf", "A": 2.0},
+                 rigid([row((10.0, 16.0, 16.0)), row((18.0, 16.0, 16.0), q=Q45)], 1, bodies=2),
+                 {"switch.quincke.type": "ON", "switch.quincke.ON.e_dir": "Z",
+                  "switch.quincke.ON.w_dir": "X", "switch.quincke.ON.torque_amp": K,
+                  "switch.multipole.type": "ON", f"{d}.type": "ON", f"{d}.ON.magnitude": p0,
+                  f"{d}.ON.type": "QUINCKE", f"{d}.ON.QUINCKE.type": "no_mirror_image",
+                  f"{d}.ON.QUINCKE.Pz_factor": pz})
+
+
 def merge(*ds):
     out = {}
     for d in ds:
@@ -221,6 +234,15 @@ SCENES = {
         common(NS, objects="rigid"), {"A": 2.0}, rigid(ROLLERS, 1, bodies=2),
         {"switch.quincke.type": "ON", "switch.quincke.ON.e_dir": "Z",
          "switch.quincke.ON.w_dir": "X", "switch.quincke.ON.torque_amp": 20.0}), 200),
+    # QUINCKE dipoles (the define.udf of tests/data/ex12 declares them; ex14's does not): two
+    # rollers, axes across the field (x, and 45 degrees about z), 8 apart, p0 12
+    "ns_quincke_dip": ("Navier_Stokes, 2 Quincke rollers, QUINCKE dipoles p0 12, K 20", merge(
+        common(NS, objects="rigid"), quincke_dipoles(0.0, p0=12.0)), 200),
+    # the same with Pz_factor 3: differs on purpose, the original's static part is
+    # p0 Pz / |n x e| (md_force.cxx:22,26), kapsel-py's p0 Pz as its define.udf says
+    # (docs/differences.md); the rollers' axes tilt under the dipole torques
+    "ns_quincke_pz": ("ns_quincke_dip with Pz_factor 3 (differs: docs/differences.md)", merge(
+        common(NS, objects="rigid"), quincke_dipoles(3.0)), 200),
     "ns_squirmer": ("Navier_Stokes, neutral squirmer (B1 0.01)", merge(
         common(NS), spheres(SED, mass=1.0, janus=("Z", "SQUIRMER", (0, 0, 0), (0, 0, 0), 0.01, 0.0)),
         {"switch.SLIP_tol": 1e-5, "switch.SLIP_iter": 20}), 200),
@@ -333,11 +355,12 @@ def make_input(d: Path, edits: dict, steps: int, kref: Path):
     """input.udf (+ define.udf, kapsel_unit.udf) of a scene in d, and input.flat for the
     original; Num_snap from steps / GTS."""
     d.mkdir(parents=True, exist_ok=True)
-    for f in ("define.udf", "kapsel_unit.udf"):
-        if (BASE.parent / f).exists():
-            shutil.copy(BASE.parent / f, d / f)
-    u = UDFManager(str(BASE))
     edits = dict(edits)
+    base = Path(edits.pop("_base", BASE))
+    for f in ("define.udf", "kapsel_unit.udf"):
+        if (base.parent / f).exists():
+            shutil.copy(base.parent / f, d / f)
+    u = UDFManager(str(base))
     edits["output.Num_snap"] = max(1, steps // int(edits.get("output.GTS", 10)))
     for k, v in edits.items():
         if isinstance(v, list) and v and isinstance(v[0], list):
