@@ -258,6 +258,12 @@ SCENES = {
         common(FD), solvers(FD, ns="explicit_scheme"), spheres(SED), gravity()), 200),
     "fdm_i_sed": ("Navier_Stokes_FDM implicit, 1 sphere sedimenting", merge(
         common(FD), solvers(FD, ns="implicit_scheme"), spheres(SED), gravity()), 200),
+    "fdm_dipoles": ("Navier_Stokes_FDM explicit, ns_dipoles' pair (p0 20, one tilted)", merge(
+        common(FD), solvers(FD, ns="explicit_scheme"),
+        spheres([row((16.0, 16.0, 11.0)), row((17.0, 16.0, 21.0), q=QY)]), dipoles(p0=20.0)), 400),
+    "sns_dipoles": ("Shear_Navier_Stokes DC 0.01, ns_dipoles' pair (p0 20, one tilted)", merge(
+        common(SNS), shear(SNS), spheres([row((16.0, 16.0, 11.0)), row((17.0, 16.0, 21.0), q=QY)]),
+        dipoles(p0=20.0)), 400),
     "fdm_wall": ("Navier_Stokes_FDM explicit, flat wall (Y), 1 sphere settling", merge(
         common(FD), solvers(FD, ns="explicit_scheme"), spheres([row((16.0, 14.0, 16.0))]),
         gravity(), wall()), 200),
