@@ -653,7 +653,8 @@ def main(argv=None):
             r["cmp"] = {"error": f"{type(e).__name__}: {e}"}
         results[name] = r
         c = r.get("cmp", {})
-        print(f"{name:16s} rc {rc_c}/{rc_p}  dR/motion {rel(c, 'dR_rel', 'motion', 'dR')}{floor(c)}  "
+        print(f"{name:16s} rc {rc_c}/{rc_p}  "
+              f"dR/motion {rel(c, 'dR_rel', 'motion', 'dR')}{floor(c)}  "
               f"dv/v {rel(c, 'dv_rel', 'vmax', 'dv')}  dw/w {rel(c, 'dw_rel', 'wmax', 'dw')}  "
               f"u {fmt(c.get('u_L2'))}  psi {fmt(c.get('psi_L2'))}  "
               f"({w_c:.1f} s / {w_p:.1f} s)" + (f"  {c['error']}" if "error" in c else "")
