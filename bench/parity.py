@@ -12,7 +12,10 @@ the original the flattened form its kref stand-in for OCTA's UDFManager reads (m
 ``flatten_udf.py`` with kapsel-py's own reader).  Each program runs in its own directory,
 one thread; then, per record (the same steps in both), against the original:
 
-    dR/motion   max |R_py - R_orig| (minimum image) over the largest displacement of the run
+    dR/motion   max |R_py - R_orig| (minimum image) over the largest displacement of the run;
+                '(f32)' when max |R_py - R_orig| is within one float32 ulp of max |R| (the
+                records' resolution: a run that moves its particles less than ~1e-4 cannot
+                show a difference there)
     dv/|v|      max |v_py - v_orig| over max |v_orig|
     dw/|w|      max |omega_py - omega_orig| over max |omega_orig| ('-' when the original's is 0)
     u L2, psi L2   relative L2 of the velocity field / order parameter at the last common
@@ -147,6 +150,19 @@ def dipoles(p0=2.0, axis="Z"):
             f"{d}.ON.type": "FIXED", f"{d}.ON.FIXED.dir": axis}
 
 
+def quincke_dipoles(pz, p0=6.0, K=20.0):
+    """Two one-bead rollers in ex12's document (its define.udf has the QUINCKE dipoles),
+    axes across the field (body x; the second turned 45 degrees about z), 8 apart."""
+    d = "switch.multipole.ON.Dipole"
+    return merge({"_base": ROOT / "tests" / "data" / "ex12" / "nowall.udf", "A": 2.0},
+                 rigid([row((10.0, 16.0, 16.0)), row((18.0, 16.0, 16.0), q=Q45)], 1, bodies=2),
+                 {"switch.quincke.type": "ON", "switch.quincke.ON.e_dir": "Z",
+                  "switch.quincke.ON.w_dir": "X", "switch.quincke.ON.torque_amp": K,
+                  "switch.multipole.type": "ON", f"{d}.type": "ON", f"{d}.ON.magnitude": p0,
+                  f"{d}.ON.type": "QUINCKE", f"{d}.ON.QUINCKE.type": "no_mirror_image",
+                  f"{d}.ON.QUINCKE.Pz_factor": pz})
+
+
 def merge(*ds):
     out = {}
     for d in ds:
@@ -170,7 +186,8 @@ CH8 = [row((8.0 + 16 * i, 8.0 + 16 * j, 8.0 + 16 * k)) for i in range(2) for j i
 ROD = [row((12.0 + 4.0 * b, 16.0, 16.0)) for b in range(3)]        # 3 touching beads (A 2)
 Q45 = (np.cos(np.pi / 8), 0.0, 0.0, np.sin(np.pi / 8))             # 45 degrees about z
 QY = (np.cos(np.pi / 8), 0.0, np.sin(np.pi / 8), 0.0)              # 45 degrees about y
-ROLLERS = [row((10.0, 16.0, 16.0), q=QY), row((22.0, 16.0, 16.0), q=Q45)]
+QY30 = (np.cos(np.pi / 12), 0.0, np.sin(np.pi / 12), 0.0)          # 30 degrees about y
+ROLLERS = [row((10.0, 16.0, 16.0), q=QY), row((18.0, 16.0, 16.0), q=QY30)]  # 8 apart
 
 # name: (label, edits, steps)
 SCENES = {
@@ -196,8 +213,12 @@ SCENES = {
         {"switch.pin.type": "YES", "switch.pin.YES.pin[]": [0], "switch.pin.YES.pin_rot[]": []}), 200),
     "ns_wall": ("Navier_Stokes, flat wall (Y), 1 sphere settling on it", merge(
         common(NS), spheres([row((16.0, 14.0, 16.0))]), gravity(), wall()), 200),
-    "ns_dipoles": ("Navier_Stokes, 2 FIXED dipoles (Z)", merge(
-        common(NS), spheres([row((16.0, 16.0, 11.0)), row((17.0, 16.0, 21.0))]), dipoles()), 200),
+    # p0 20 and the second dipole tilted 45 degrees (p0 2, both along z, moved them 5.5e-5 in
+    # 200 steps: below the single-precision records' resolution of R near 16, 1.9e-6, so
+    # dR/motion read 2.4e-2 while v and omega agreed to 3e-7)
+    "ns_dipoles": ("Navier_Stokes, 2 FIXED dipoles (Z, one tilted 45 deg), p0 20", merge(
+        common(NS), spheres([row((16.0, 16.0, 11.0)), row((17.0, 16.0, 21.0), q=QY)]),
+        dipoles(p0=20.0)), 400),
     "ns_rigid_rod": ("Navier_Stokes, free rigid rod (3 beads) settling", merge(
         common(NS, objects="rigid"), {"A": 2.0}, rigid(ROD, 3), gravity()), 200),
     "ns_rigid_fix": ("Navier_Stokes, fixed rigid rod moving at V, Omega", merge(
@@ -206,10 +227,22 @@ SCENES = {
     "ns_rigid_start": ("Navier_Stokes, free rigid rod started with V, Omega, q", merge(
         common(NS, objects="rigid"), {"A": 2.0},
         rigid([row(r[:3], q=Q45) for r in ROD], 3, V=(0.002, 0, 0), W=(0, 0, 0.001))), 200),
-    "ns_quincke": ("Navier_Stokes, 2 one-bead Quincke rollers", merge(
+    # torque_amp 20, both rollers tilted out of the plane across the field (torque_amp 0.5 and
+    # the second roller's axis already across it moved them 1.8e-5: below the records'
+    # resolution of R, dR/motion 4.5e-2 while v and omega agreed to 1e-7)
+    "ns_quincke": ("Navier_Stokes, 2 one-bead Quincke rollers (tilted 45, 30 deg), K 20", merge(
         common(NS, objects="rigid"), {"A": 2.0}, rigid(ROLLERS, 1, bodies=2),
         {"switch.quincke.type": "ON", "switch.quincke.ON.e_dir": "Z",
-         "switch.quincke.ON.w_dir": "X", "switch.quincke.ON.torque_amp": 0.5}), 200),
+         "switch.quincke.ON.w_dir": "X", "switch.quincke.ON.torque_amp": 20.0}), 200),
+    # QUINCKE dipoles (the define.udf of tests/data/ex12 declares them; ex14's does not): two
+    # rollers, axes across the field (x, and 45 degrees about z), 8 apart, p0 12
+    "ns_quincke_dip": ("Navier_Stokes, 2 Quincke rollers, QUINCKE dipoles p0 12, K 20", merge(
+        common(NS, objects="rigid"), quincke_dipoles(0.0, p0=12.0)), 200),
+    # the same with Pz_factor 3: differs on purpose, the original's static part is
+    # p0 Pz / |n x e| (md_force.cxx:22,26), kapsel-py's p0 Pz as its define.udf says
+    # (docs/differences.md); the rollers' axes tilt under the dipole torques
+    "ns_quincke_pz": ("ns_quincke_dip with Pz_factor 3 (differs: docs/differences.md)", merge(
+        common(NS, objects="rigid"), quincke_dipoles(3.0)), 200),
     "ns_squirmer": ("Navier_Stokes, neutral squirmer (B1 0.01)", merge(
         common(NS), spheres(SED, mass=1.0, janus=("Z", "SQUIRMER", (0, 0, 0), (0, 0, 0), 0.01, 0.0)),
         {"switch.SLIP_tol": 1e-5, "switch.SLIP_iter": 20}), 200),
@@ -225,6 +258,12 @@ SCENES = {
         common(FD), solvers(FD, ns="explicit_scheme"), spheres(SED), gravity()), 200),
     "fdm_i_sed": ("Navier_Stokes_FDM implicit, 1 sphere sedimenting", merge(
         common(FD), solvers(FD, ns="implicit_scheme"), spheres(SED), gravity()), 200),
+    "fdm_dipoles": ("Navier_Stokes_FDM explicit, ns_dipoles' pair (p0 20, one tilted)", merge(
+        common(FD), solvers(FD, ns="explicit_scheme"),
+        spheres([row((16.0, 16.0, 11.0)), row((17.0, 16.0, 21.0), q=QY)]), dipoles(p0=20.0)), 400),
+    "sns_dipoles": ("Shear_Navier_Stokes DC 0.01, ns_dipoles' pair (p0 20, one tilted)", merge(
+        common(SNS), shear(SNS), spheres([row((16.0, 16.0, 11.0)), row((17.0, 16.0, 21.0), q=QY)]),
+        dipoles(p0=20.0)), 400),
     "fdm_wall": ("Navier_Stokes_FDM explicit, flat wall (Y), 1 sphere settling", merge(
         common(FD), solvers(FD, ns="explicit_scheme"), spheres([row((16.0, 14.0, 16.0))]),
         gravity(), wall()), 200),
@@ -322,11 +361,12 @@ def make_input(d: Path, edits: dict, steps: int, kref: Path):
     """input.udf (+ define.udf, kapsel_unit.udf) of a scene in d, and input.flat for the
     original; Num_snap from steps / GTS."""
     d.mkdir(parents=True, exist_ok=True)
-    for f in ("define.udf", "kapsel_unit.udf"):
-        if (BASE.parent / f).exists():
-            shutil.copy(BASE.parent / f, d / f)
-    u = UDFManager(str(BASE))
     edits = dict(edits)
+    base = Path(edits.pop("_base", BASE))
+    for f in ("define.udf", "kapsel_unit.udf"):
+        if (base.parent / f).exists():
+            shutil.copy(base.parent / f, d / f)
+    u = UDFManager(str(base))
     edits["output.Num_snap"] = max(1, steps // int(edits.get("output.GTS", 10)))
     for k, v in edits.items():
         if isinstance(v, list) and v and isinstance(v[0], list):
@@ -484,6 +524,9 @@ def compare(d: Path, box):
     res["motion"] = float(motion)
     res["dR"] = float(dR.max())
     res["dR_rel"] = float(dR.max() / motion) if motion > 1e-9 else None
+    # what the records resolve: kapsel-py's R is written in single precision (shortest
+    # decimal of the float), up to one float32 ulp of |R| from the exact value
+    res["dR_floor"] = float(np.spacing(np.float32(np.abs(cc["R"][:n]).max())))
     vmax = np.abs(cc["v"][:n]).max()
     dv = np.abs(pp["v"][:n] - cc["v"][:n]).max()
     res["vmax"], res["dv"] = float(vmax), float(dv)
@@ -535,6 +578,13 @@ def rel(c, key, ref, absolute):
     return "-"
 
 
+def floor(c):
+    """' (f32)' when dR is within the single-precision records' resolution of R."""
+    if c.get("dR") is not None and c.get("dR_floor") is not None and c["dR"] <= c["dR_floor"]:
+        return " (f32)"
+    return ""
+
+
 def table(results):
     head = ("| scene | what | steps | motion | dR/motion | dv/max v | dw/max w | u L2 | psi L2 "
             "| rc orig/py |")
@@ -543,7 +593,7 @@ def table(results):
         c = r.get("cmp", {})
         lines.append(
             f"| {name} | {r['label']} | {r['steps']} | {fmt(c.get('motion'), '.3g')} | "
-            f"{rel(c, 'dR_rel', 'motion', 'dR')} | {rel(c, 'dv_rel', 'vmax', 'dv')} | "
+            f"{rel(c, 'dR_rel', 'motion', 'dR')}{floor(c)} | {rel(c, 'dv_rel', 'vmax', 'dv')} | "
             f"{rel(c, 'dw_rel', 'wmax', 'dw')} | "
             f"{fmt(c.get('u_L2'))} | {fmt(c.get('psi_L2'))} | {r['rc'][0]}/{r['rc'][1]}"
             + (f" {c['error']}" if "error" in c else "") + " |")
@@ -603,7 +653,8 @@ def main(argv=None):
             r["cmp"] = {"error": f"{type(e).__name__}: {e}"}
         results[name] = r
         c = r.get("cmp", {})
-        print(f"{name:16s} rc {rc_c}/{rc_p}  dR/motion {rel(c, 'dR_rel', 'motion', 'dR')}  "
+        print(f"{name:16s} rc {rc_c}/{rc_p}  "
+              f"dR/motion {rel(c, 'dR_rel', 'motion', 'dR')}{floor(c)}  "
               f"dv/v {rel(c, 'dv_rel', 'vmax', 'dv')}  dw/w {rel(c, 'dw_rel', 'wmax', 'dw')}  "
               f"u {fmt(c.get('u_L2'))}  psi {fmt(c.get('psi_L2'))}  "
               f"({w_c:.1f} s / {w_p:.1f} s)" + (f"  {c['error']}" if "error" in c else "")

@@ -63,6 +63,28 @@ def test_quincke_dipoles_lie_across_field_and_axis_plus_the_static_part():
     np.testing.assert_allclose(np.cross(rot, np.cross([0, 0, 1.0], e)), 0.0, atol=1e-12)
 
 
+@pytest.mark.parametrize("tilt", [0.0, 30.0, 60.0, 89.0, 90.0])
+def test_quincke_static_part_does_not_follow_the_tilt(tilt):
+    """The static part is p0 Pz_factor along -z at any tilt of the roller's axis out of the
+    plane across the field, for the dipole and its image, and finite with the axis along the
+    field (define.udf: "Pz strength += Pz_factor*magnitude").  The original divides it by
+    |n x e| as its rotating part (md_force.cxx:22,26,34,38; docs/physics-quincke.md)."""
+    qk = dp.Quincke((0.0, 0.0, 1.0), (1.0, 0.0, 0.0), 20.0)
+    d = dp.Dipoles("QUINCKE", 6.0, pz_factor=3.0, mirror_z=2.5)
+    q = from_axis_angle(np.array([[0.0, 1.0, 0.0]]), np.array([-np.radians(tilt)]))
+    e = rotate(q, np.array([[1.0, 0.0, 0.0]]))[0]
+    assert abs(e[2] - np.sin(np.radians(tilt))) < 1e-12        # tilted towards the field
+    mu = dp.moments(q, d, qk)[0]
+    X, m = dp.sources(np.array([[8.0, 8.0, 6.0]]), q, d, qk)
+    across = tilt < 90.0
+    for v in (mu, m[0], m[1]):
+        assert np.all(np.isfinite(v))
+        np.testing.assert_allclose(v[2], -18.0, atol=1e-12)
+        np.testing.assert_allclose(np.hypot(v[0], v[1]), 6.0 if across else 0.0, atol=1e-9)
+    np.testing.assert_allclose(m[1][:2], -m[0][:2], atol=1e-12)     # image: -mu_x, -mu_y
+    np.testing.assert_allclose(X[1], [8.0, 8.0, -1.0])
+
+
 @pytest.mark.parametrize("h", [3.0, 6.0])
 def test_mirror_image_is_the_reflection_in_the_electrode_plane(h):
     """A Quincke dipole at height h above the electrode (z_w = 2.5) feels its conducting-plane
