@@ -441,16 +441,8 @@ class Grid:
             out[...] = np.fft.rfftn(f)
             return out
         self._scalar_plans()
-        fi = f if self._aligned(f, self.shape, np.float64) else None
-        if fi is None:
-            np.copyto(self.real_buf_s, f)
-            fi = self.real_buf_s
-        oi = out if self._aligned(out, self.cshape, np.complex128) else self.complex_buf_s
-        self._sfwd.update_arrays(fi, oi)
-        self._sfwd.execute()
-        if oi is not out:
-            np.copyto(out, oi)
-        return out
+        return self._run_scalar(self._sfwd, f, (self.shape, np.float64, "real_buf_s"),
+                                out, (self.cshape, np.complex128, "complex_buf_s"))
 
     def backward_scalar_raw(self, c, out):
         """Unnormalised c2r of a scalar ``c`` (cshape) -> ``out`` (NX, NY, NZ); destroys ``c``
@@ -460,15 +452,21 @@ class Grid:
             out[...] = np.fft.irfftn(c, s=self.shape) * self.size
             return out
         self._scalar_plans()
-        ci = c if self._aligned(c, self.cshape, np.complex128) else None
-        if ci is None:
-            np.copyto(self.complex_buf_s, c)
-            ci = self.complex_buf_s
-        oi = out if self._aligned(out, self.shape, np.float64) else self.real_buf_s
-        self._sbwd.update_arrays(ci, oi)
-        self._sbwd.execute()
-        if oi is not out:
-            np.copyto(out, oi)
+        return self._run_scalar(self._sbwd, c, (self.cshape, np.complex128, "complex_buf_s"),
+                                out, (self.shape, np.float64, "real_buf_s"))
+
+    def _run_scalar(self, plan, a, a_kind, out, out_kind):
+        """Execute a scalar plan from ``a`` into ``out``, each used in place when aligned,
+        else through the scratch named in its kind (shape, dtype, scratch attribute)."""
+        if not self._aligned(a, *a_kind[:2]):
+            buf = getattr(self, a_kind[2])
+            np.copyto(buf, a)
+            a = buf
+        o = out if self._aligned(out, *out_kind[:2]) else getattr(self, out_kind[2])
+        plan.update_arrays(a, o)
+        plan.execute()
+        if o is not out:
+            np.copyto(out, o)
         return out
 
     def irfft_scalar(self, f_hat, out=None):

@@ -13,38 +13,12 @@ from __future__ import annotations
 
 from numba import njit
 
-__all__ = ["truncate_curl", "truncated_component", "vorticity_component", "cross", "cross_into", "project_etd1", "project_etd2", "project_add"]
-
-
-@njit(cache=True, nogil=True)
-def truncate_curl(u_hat, mask_n, kx, ky, kz, uh, wh):
-    """uh = u_hat mask_n;  wh = i k x uh  (the 2/3-truncated velocity and its vorticity)."""
-    nx, ny, nzc = mask_n.shape
-    for i in range(nx):
-        ki = kx[i]
-        for j in range(ny):
-            kj = ky[j]
-            for k in range(nzc):
-                kk = kz[k]
-                m = mask_n[i, j, k]
-                a = u_hat[0, i, j, k]
-                b = u_hat[1, i, j, k]
-                c = u_hat[2, i, j, k]
-                ar, ai = a.real * m, a.imag * m
-                br, bi = b.real * m, b.imag * m
-                cr, ci = c.real * m, c.imag * m
-                uh[0, i, j, k] = complex(ar, ai)
-                uh[1, i, j, k] = complex(br, bi)
-                uh[2, i, j, k] = complex(cr, ci)
-                # (i q) z = (-q z.imag) + i (q z.real)
-                wh[0, i, j, k] = complex((-(kj * ci)) - (-(kk * bi)), (kj * cr) - (kk * br))
-                wh[1, i, j, k] = complex((-(kk * ai)) - (-(ki * ci)), (kk * ar) - (ki * cr))
-                wh[2, i, j, k] = complex((-(ki * bi)) - (-(kj * ai)), (ki * br) - (kj * ar))
+__all__ = ["truncated_component", "vorticity_component", "cross", "cross_into", "project_etd1", "project_etd2", "project_add"]
 
 
 @njit(cache=True, nogil=True)
 def truncated_component(u_hat, mask_n, c, out):
-    """out = u_hat[c] mask_n: component c of ``truncate_curl``'s uh."""
+    """out = u_hat[c] mask_n: component c of the 2/3-truncated velocity (1/N folded in)."""
     nx, ny, nzc = mask_n.shape
     for i in range(nx):
         for j in range(ny):
@@ -56,8 +30,9 @@ def truncated_component(u_hat, mask_n, c, out):
 
 @njit(cache=True, nogil=True)
 def vorticity_component(u_hat, mask_n, kx, ky, kz, c, out):
-    """out = (i k x (u_hat mask_n))[c]: component c of ``truncate_curl``'s wh, the same
-    operations."""
+    """out = (i k x (u_hat mask_n))[c]: component c of the truncated velocity's vorticity
+    (a complex times i k as two real products: numpy's complex product with a zero real
+    part of i k, up to the sign of zero results)."""
     nx, ny, nzc = mask_n.shape
     p, q = (c + 1) % 3, (c + 2) % 3          # w_c = i k_p u_q - i k_q u_p
     for i in range(nx):
@@ -73,6 +48,16 @@ def vorticity_component(u_hat, mask_n, kx, ky, kz, c, out):
                 out[i, j, k] = complex((-(kp * ai)) - (-(kq * bi)), (kp * ar) - (kq * br))
 
 
+@njit(inline="always")
+def _cross_point(u, w, n, i, j, k):
+    """n = u x w at one point (n may be w: every component is read first)."""
+    u0, u1, u2 = u[0, i, j, k], u[1, i, j, k], u[2, i, j, k]
+    w0, w1, w2 = w[0, i, j, k], w[1, i, j, k], w[2, i, j, k]
+    n[0, i, j, k] = u1 * w2 - u2 * w1
+    n[1, i, j, k] = u2 * w0 - u0 * w2
+    n[2, i, j, k] = u0 * w1 - u1 * w0
+
+
 @njit(cache=True, nogil=True)
 def cross_into(u, w):
     """w <- u x w, real (3, NX, NY, NZ) arrays (``cross`` without a third field)."""
@@ -80,11 +65,7 @@ def cross_into(u, w):
     for i in range(nx):
         for j in range(ny):
             for k in range(nz):
-                u0, u1, u2 = u[0, i, j, k], u[1, i, j, k], u[2, i, j, k]
-                w0, w1, w2 = w[0, i, j, k], w[1, i, j, k], w[2, i, j, k]
-                w[0, i, j, k] = u1 * w2 - u2 * w1
-                w[1, i, j, k] = u2 * w0 - u0 * w2
-                w[2, i, j, k] = u0 * w1 - u1 * w0
+                _cross_point(u, w, w, i, j, k)
 
 
 @njit(cache=True, nogil=True)
@@ -94,11 +75,7 @@ def cross(u, w, n):
     for i in range(nx):
         for j in range(ny):
             for k in range(nz):
-                u0, u1, u2 = u[0, i, j, k], u[1, i, j, k], u[2, i, j, k]
-                w0, w1, w2 = w[0, i, j, k], w[1, i, j, k], w[2, i, j, k]
-                n[0, i, j, k] = u1 * w2 - u2 * w1
-                n[1, i, j, k] = u2 * w0 - u0 * w2
-                n[2, i, j, k] = u0 * w1 - u1 * w0
+                _cross_point(u, w, n, i, j, k)
 
 
 @njit(inline="always")

@@ -135,12 +135,16 @@ def particle_profiles(R, stencil, shape, dx, strain=0.0, origin=0.0):
         idx += tmp
     if strain:
         rc[0] += strain * rc[1]                          # physical x offset
+    return idx, _phi_of(rc, stencil, dx), rc.transpose(1, 2, 0)
+
+
+def _phi_of(rc, stencil, dx):
+    """phi (eq 1) at the stencil points of displacements rc (3, N, S) from the centres."""
     dist = rc[0] * rc[0]
     dist += rc[1] * rc[1]
     dist += rc[2] * rc[2]
     np.sqrt(dist, out=dist)
-    phi = g(dist, stencil.A, stencil.xi, dx)
-    return idx, phi, rc.transpose(1, 2, 0)
+    return g(dist, stencil.A, stencil.xi, dx)
 
 
 def lees_edwards_profiles(R, stencil, shape, dx, offset):
@@ -174,12 +178,7 @@ def lees_edwards_profiles(R, stencil, shape, dx, offset):
     idx += np.remainder(yu, ny)
     idx *= shape[2]
     idx += np.remainder(b[:, 2:3] + stencil.o[2][None, :], shape[2])
-    dist = rc[0] * rc[0]
-    dist += rc[1] * rc[1]
-    dist += rc[2] * rc[2]
-    np.sqrt(dist, out=dist)
-    phi = g(dist, stencil.A, stencil.xi, dx)
-    return idx, phi, rc.transpose(1, 2, 0)
+    return idx, _phi_of(rc, stencil, dx), rc.transpose(1, 2, 0)
 
 
 def total_phi(idx, phi, size):
