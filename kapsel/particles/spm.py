@@ -112,7 +112,9 @@ class SPM:
             raise ValueError("walls do not run distributed")
         self.fshape = tuple(g.local_shape)
         self.fsize = int(np.prod(self.fshape))
-        self._T = None          # the rows of the particles whose stencil meets the block
+        # the rows of the particles whose stencil meets the block (the layout's near_rows;
+        # all of them until the first profiles)
+        self._T = np.arange(particles.n)
         self.wall = wall
         self._sole = None       # MAC: the spectral projection of the whole u (step 6)
         if self.mode == "mac" and not dry:
@@ -238,7 +240,7 @@ class SPM:
     # ------------------------------------------------------------------ the rank's block
     def _sub(self, a):
         """The rows of the particles this rank couples (all of them on one process)."""
-        return a if self._T is None else a[self._T]
+        return a[self._T]
 
     def _full(self, a):
         out = np.zeros((self.p.n,) + a.shape[1:])
