@@ -65,7 +65,7 @@ def prepared_model():
     prepared = prepare(args)
     if isinstance(prepared, int):
         raise SystemExit(prepared)
-    return prepared[2], (args.dist.comm if args.dist is not None else None)
+    return prepared[2], (args.dist.comm if args.dist.size > 1 else None)
 
 
 def worker(steps):

@@ -136,21 +136,18 @@ class ProgressLine(Activity):
 # --------------------------------------------------------------- output, rank 0 in the round
 class FiniteCheck(Activity):
     """Before anything is written at a snapshot: the fields and particles are finite and
-    within the CFL limit (kapsel.simulation.check_finite, check_step; the latter, a
-    collective, on every rank before the round in a distributed run)."""
+    within the CFL limit (kapsel.checks check_step, a collective: on every rank before the
+    round; then check_finite on the snapshot rank 0 writes)."""
 
     name = "finite check"
 
     def before_round(self, loop):
-        if loop.lockstep is not None:
-            from .checks import check_step
-            check_step(loop.model)
+        from .checks import check_step
+        check_step(loop.model)
 
     def __call__(self, loop):
-        from .checks import check_finite, check_step
+        from .checks import check_finite
         check_finite(loop.model, loop.snap)
-        if loop.lockstep is None:
-            check_step(loop.model)
 
 
 class WriterActivity(Activity):

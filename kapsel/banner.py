@@ -140,10 +140,7 @@ def describe(cfg, args, model, resumed: bool, files: list[tuple[str, str]],
                      f"every {cfg.output.GTS} steps (plus the initial state), then one step "
                      f"more for the restart (as the original)")
     lines += _files(files)
-    dist = getattr(args, "dist", None)
-    if dist is not None:          # a distributed run (kapsel.parallel): rank 0 writes
-        lines.append(f"distributed over {dist.size} MPI rank(s), process grid -X{dist.dims[0]} "
-                     f"-Y{dist.dims[1]} (fields split along x and y); rank 0 writes the files")
+    lines += model.dist.describe()        # the division of work (kapsel.parallel)
     seed = f"seed {args.seed}" + (f" (drawn; rerun with --seed {args.seed} to reproduce)"
                                   if seed_drawn else "")
     lines.append(f"threads {args.threads}, {seed}")

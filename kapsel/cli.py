@@ -499,29 +499,26 @@ def build(args, locks: list | None = None, overrides: dict | None = None):
     instead of printing it.  ``overrides``: {item path: value} put into the input as read
     (kapsel.api).  Returns (cfg, doc, model, resumed, seed_drawn, source), ``source`` the
     (path, fingerprint, step) of the restart text a continued run was loaded from."""
-    dist = getattr(args, "dist", None)
+    from .parallel import OneRank, world
+    args.dist = dist = world(args)
     try:
         checked, problem = _check_inputs(args, locks, dist, overrides), None
     except BadInput as e:
         checked, problem = None, e
-    if dist is not None:      # every rank stops if one refuses, before any collective work
-        code = dist.agree(problem.code if problem is not None else None)
-        if code:
-            raise problem if problem is not None else BadInput("", code)
-        args.seed = dist.bcast(args.seed)
-        if _not_distributed(checked[0]):
-            args.dist = dist = None       # one rank (refused with more): a plain run
-    elif problem is not None:
-        raise problem
+    # every rank stops if one refuses, before any collective work
+    code = dist.agree(problem.code if problem is not None else None)
+    if code:
+        raise problem if problem is not None else BadInput("", code)
+    args.seed = dist.bcast(args.seed)
+    if _not_distributed(checked[0]):
+        args.dist = dist = OneRank()      # one rank (refused with more): a plain run
     cfg, doc, define, resumed, seed_drawn = checked
     origin: dict = {}
     model = build_model(cfg, args, doc, resumed, origin)
     _START.check()
     problem = (check_define(define, args, model) or check_same_schema(doc, define, args)
                or (resumed and check_own_output(args, model)))
-    code = EXIT_BAD_INPUT if problem else None
-    if dist is not None:
-        code = dist.agree(code)
+    code = dist.agree(EXIT_BAD_INPUT if problem else None)
     if code:
         raise BadInput(problem or "", code)
     return cfg, doc, model, resumed, seed_drawn, origin.get("source")
@@ -545,16 +542,15 @@ def _check_inputs(args, locks, dist, overrides=None):
         except OSError as e:
             raise BadInput(f"{flag}{path}: {e.strerror}") from None
     cfg, doc, define = validate(args.input, args.define, overrides)
-    if dist is not None:
-        from .parallel import refuse
-        problem = refuse(dist, cfg)
-        if problem:
-            raise BadInput(problem)
+    from .parallel import refuse
+    problem = refuse(dist, cfg)
+    if problem:
+        raise BadInput(problem)
     problem = check_address_limit(cfg)
     if problem:
         raise BadInput(problem)
     _START.check()
-    writes = dist is None or dist.root
+    writes = dist.root
     problem = (check_output_paths(args) or irregular_outputs(args, cfg)) if writes else None
     if problem:
         raise BadInput(problem)
@@ -607,7 +603,7 @@ def main(argv=None) -> int:
         return fail(problem)
     from .parallel import DistError, start
     try:
-        args.dist = start(args)      # None for a plain run (mpi4py is not imported)
+        args.dist = start(args)      # a plain run: OneRank (mpi4py is not imported)
     except DistError as e:
         return fail(str(e))
     locks: list = []

@@ -9,8 +9,8 @@ A *model* is the physics of one ``constitutive_eq.type``; it does no I/O and off
     model.snapshot() -> Snapshot                what it offers the output writers
                                                 (kapsel.snapshot: fields, particles, E, ...)
 
-What a model offers is declared on kapsel.models.common.Model: ``lockstep`` (None unless
-distributed), ``sheared`` (a per-step stress table: ``shear_table``, ``shear_table_row``),
+What a model offers is declared on kapsel.models.common.Model: ``lockstep`` (the output
+protocol of the run's world, kapsel.parallel.lockstep; with one rank its calls run at once), ``sheared`` (a per-step stress table: ``shear_table``, ``shear_table_row``),
 ``restart_kind`` (None: no restart file), ``whole_particles()``, ``stability()``.
 
 ``SOLVERS`` maps each implemented ``constitutive_eq.type`` to a factory
@@ -95,7 +95,8 @@ class TimeLoop:
     are dropped), unless --overwrite asks for a new file.  ``source``: (path, fingerprint,
     step) of the restart text the model was loaded from (kapsel.cli.build_model).
 
-    A distributed run (kapsel.parallel.lockstep) runs the same loop on every rank: the
+    Every run is a run of the lockstep protocol (kapsel.parallel.lockstep; a plain run
+    is its one-rank case): the same loop on every rank, the
     activities between steps on every rank, the output activities on rank 0 in a round of
     output the others serve.  A file that cannot be written (a full disk) stops the run,
     naming the file; records are appended whole or not at all and the restart pair is
@@ -109,7 +110,7 @@ class TimeLoop:
         self.total = cfg.output.total_steps
         self.start = model.step_index
         self.lockstep = model.lockstep
-        self.writes = self.lockstep is None or self.lockstep.dist.root
+        self.writes = self.lockstep.dist.root
         self.snap = None
         self.state = "new"       # "opening" the writers, "open" once they are, then "closed"
         self.closing = "failed"            # the reason the activities are closed with
@@ -244,9 +245,8 @@ class TimeLoop:
     def _poll_stop(self):
         """SIGINT / SIGTERM: the state of this step saved in full, then Interrupted."""
         model, args = self.model, self.args
-        if self.lockstep is not None:     # every rank stops at the same step
-            self.stop = self.lockstep.dist.comm.allreduce(self.stop or 0,
-                                                          op=_mpi_max()) or None
+        # every rank stops at the same step
+        self.stop = self.lockstep.dist.allmax(self.stop or 0) or None
         if self.stop is None:
             return
         self.closing = "interrupted"
@@ -286,8 +286,7 @@ class TimeLoop:
             raise RunError(f"the step after the last snapshot failed: {e}. "
                            f"{restart_hint(self.restart.step, self.args)}.") from None
         need = self.restart.full != model.step_index
-        if self.lockstep is not None:         # rank 0 keeps the books of the restart
-            need = self.lockstep.dist.bcast(need)
+        need = self.lockstep.dist.bcast(need)    # rank 0 keeps the books of the restart
         if need:
             self._output(lambda: self.restart.save(full=True))
         self._close("end")
@@ -327,9 +326,7 @@ class TimeLoop:
         return [a for a in activities if a.schedule(step)]
 
     def _output(self, body):
-        """Run ``body`` (writers, restart) alone, or on rank 0 as a round of output."""
-        if self.lockstep is None:
-            return body()
+        """Run ``body`` (writers, restart) on rank 0 as a round of output (one rank: at once)."""
         self.model.snapshot()          # every rank: the sources rank 0 may ask for
         return self.lockstep.round(body)
 
@@ -395,8 +392,3 @@ def _same_file(a, b) -> bool:
         return os.path.samefile(a, b)
     except OSError:
         return False
-
-
-def _mpi_max():
-    from mpi4py import MPI
-    return MPI.MAX

@@ -269,18 +269,18 @@ class Model:
         # output.udf's first line, so a continuation can tell its own output.udf
         self.run_id = secrets.token_hex(8)
         self.run_id_known = False   # True once taken from a restart's state file
-        # distributed run (kapsel.parallel): rank 0 writes, the others serve its collectives
-        # (``collectives``; on one process a call runs at once); ``lockstep``: the run's
-        # handle on them in a distributed run, None on one process
+        # the run's world (kapsel.parallel: one rank, or a distributed run): rank 0 writes,
+        # the others serve its collectives (``lockstep``; with one rank a call runs at once)
+        from ..parallel import world
         from ..parallel.lockstep import Lockstep
-        self.dist = getattr(args, "dist", None)
+        self.dist = world(args)
         self.collectives = Lockstep(self.dist)
         self.collectives.register("source", self._gathered_source)
         self.collectives.register("particles", lambda: self.spm.gather())
         self.collectives.register("h5_fields", self.write_h5_fields)
         self._local_sources = {}
         self._gathered_at = None
-        self.lockstep = self.collectives if self.dist is not None else None
+        self.lockstep = self.collectives
 
     def spm_radius(self) -> float:
         """The radius of the SPM profile: A, or with ``--spm-drag calibrated`` the radius
@@ -333,7 +333,7 @@ class Model:
         h5_fields = None
         self._local_sources = src      # every source a collective (gathered to rank 0)
         src = {name: (lambda name=name: self.collectives.call("source", name)) for name in src}
-        if self.lockstep is not None and parallel_hdf5():
+        if self.dist.size > 1 and parallel_hdf5():     # the writer's choice: each rank its block
             h5_fields = (lambda tmp, datasets, attrs:
                          self.collectives.call("h5_fields", tmp, datasets, attrs))
         return Snapshot(step=self.step_index, time=self.time, dt=self.dt,

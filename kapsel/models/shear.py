@@ -151,49 +151,17 @@ class ShearLEModel(SpectralModel):
         """u (full flow) and phi in the rectangular frame (OBL_INT interpolation), tau of the
         full flow (spectral Cartesian derivatives on the oblique grid; d_y U_x = gamma_dot
         added to xy), the pressure (kapsel.fluid.diagnostics.spectral_pressure with the
-        shear terms)."""
-        from ..fluid.diagnostics import viscous_stress_spectral
+        shear terms).  The oblique-grid fields (a rank's blocks along x and y) are gathered
+        to rank 0 (one rank: the fields themselves), which interpolates them to the
+        rectangular frame along x and derives tau and the pressure there."""
+        from ..fluid.diagnostics import spectral_pressure, viscous_stress_spectral
         from ..fluid.oblique import to_rectangular
+        from ..parallel.pencil import Gathered
         g0 = self.fluid.y0 / self.cfg.mesh.DX
-
-        memo = {}
 
         def rect(f):
             return to_rectangular(f, self.fluid.frame_strain, self.interpolation, g0)
 
-        def deviation():          # on the oblique grid, transformed once per snapshot
-            if "u" not in memo:
-                memo["u"] = self.spm.velocity()
-            return memo["u"]
-
-        def tau():
-            eta = self.cfg.fluid.ETA
-            t = viscous_stress_spectral(deviation(), self.cfg.mesh.DX, eta,
-                                        self.fluid.frame_strain)
-            t[1] += eta * self.fluid.shear_rate_now
-            return rect(t)
-
-        def pressure():
-            from ..fluid.diagnostics import spectral_pressure
-            f = self.cfg.fluid
-            return rect(spectral_pressure(deviation(), self.spm.last_increment(), f.RHO, self.dt,
-                                          self.cfg.mesh.DX, self.fluid.shear_rate_now,
-                                          self.fluid.frame_strain))
-
-        src = {"u": lambda: self.fluid.velocity_rectangular(self.interpolation), "tau": tau,
-               "pressure": pressure}
-        if self.particles.n:
-            src["phi"] = lambda: rect(self.spm.phi())
-        if self.dist is not None:
-            return self._gathered_sources(rect)
-        return src
-
-    def _gathered_sources(self, rect):
-        """The field sources of a distributed run: the oblique-grid fields (blocks along x
-        and y) gathered to rank 0, which interpolates them to the rectangular frame along x
-        and derives tau and the pressure there."""
-        from ..fluid.diagnostics import spectral_pressure, viscous_stress_spectral
-        from ..parallel.pencil import Gathered
         g, fl, f, dx = self.grid, self.fluid, self.cfg.fluid, self.cfg.mesh.DX
         root = self.dist.root
         memo = {}

@@ -1,9 +1,11 @@
 """Distributed runs over MPI (docs/distributed.md).
 
-``start(args)`` is called by the command line before anything else: it returns None for a
-plain run (mpi4py is then never imported) or a ``Dist`` when the process was started by an
-MPI launcher (mpiexec / mpirun / srun: their PMI or Open MPI environment variables) or was
-given the original's ``-X`` / ``-Y`` process-grid flags with X Y > 1.
+``start(args)`` is called by the command line before anything else: it returns the run's
+world, a ``OneRank`` for a plain run (its collectives are identities; mpi4py is then never
+imported) or a ``Dist`` when the process was started by an MPI launcher (mpiexec / mpirun /
+srun: their PMI or Open MPI environment variables) or was given the original's ``-X`` /
+``-Y`` process-grid flags with X Y > 1.  A plain run is the one-rank case of the protocol:
+the same calls, answered at once.
 
 Which types run distributed: ``DISTRIBUTED``.  Any other type is refused with more than one
 rank (``refuse``), never run serially on every rank writing the same files.
@@ -30,7 +32,7 @@ from __future__ import annotations
 import os
 import sys
 
-__all__ = ["DISTRIBUTED", "Dist", "launched_size", "make_layout", "start"]
+__all__ = ["DISTRIBUTED", "Dist", "OneRank", "launched_size", "make_layout", "start", "world"]
 
 from ..typespec import names
 
@@ -70,13 +72,70 @@ class Dist:
         """The worst of every rank's ``status`` (None = fine, else an exit code), on every
         rank: a refusal on one rank stops them all, before any collective work."""
         code = 0 if status is None else int(status)
-        return self.comm.allreduce(code, op=_mpi().MAX) or None
+        return self.allmax(code) or None
 
     def bcast(self, value):
         return self.comm.bcast(value, root=0)
 
+    def allmax(self, value):
+        """The largest of every rank's ``value``, on every rank."""
+        return self.comm.allreduce(value, op=_mpi().MAX)
+
+    def layout(self, shape, dx, threads=1):
+        """This rank's blocks of the mesh (kapsel.parallel.pencil.PencilGrid)."""
+        from .pencil import PencilGrid
+        return PencilGrid(shape, dx, self.comm, self.dims)
+
+    def describe(self) -> list[str]:
+        """The banner's line on the division of work."""
+        return [f"distributed over {self.size} MPI rank(s), process grid -X{self.dims[0]} "
+                f"-Y{self.dims[1]} (fields split along x and y); rank 0 writes the files"]
+
     def __repr__(self):
         return f"Dist(rank {self.rank} of {self.size}, grid {self.dims[0]} x {self.dims[1]})"
+
+
+class _SelfComm:
+    """The communicator of a one-rank world: every collective returns its own value."""
+
+    def Get_rank(self):
+        return 0
+
+    def Get_size(self):
+        return 1
+
+    def bcast(self, value, root=0):
+        return value
+
+    def allreduce(self, value, op=None):
+        return value
+
+
+class OneRank(Dist):
+    """The world of a plain run: rank 0 of 1, process grid 1 x 1, collectives answered at
+    once, the whole mesh (kapsel.grid.Grid) as its layout; mpi4py is never imported."""
+
+    def __init__(self):
+        super().__init__(_SelfComm(), (1, 1))
+
+    def allmax(self, value):
+        return value
+
+    def layout(self, shape, dx, threads=1):
+        from ..grid import Grid
+        return Grid(shape, dx, threads=threads)
+
+    def describe(self) -> list[str]:
+        return []
+
+    def __repr__(self):
+        return "OneRank()"
+
+
+def world(args):
+    """The run's world: ``args.dist`` (set by ``start``), a ``OneRank`` when unset (a model
+    built without the command line: kapsel.api, tests)."""
+    return getattr(args, "dist", None) or OneRank()
 
 
 def _mpi():
@@ -85,7 +144,8 @@ def _mpi():
 
 
 def start(args):
-    """None (a plain run) or the ``Dist`` of this process (module docstring).  Raises
+    """The run's world (module docstring): a ``OneRank`` for a plain run, else the ``Dist``
+    of this process.  Raises
     DistError when mpi4py is missing or the -X / -Y grid does not match the ranks."""
     X, Y = getattr(args, "X", None), getattr(args, "Y", None)
     launched = launched_size()
@@ -94,7 +154,7 @@ def start(args):
             raise DistError(f"{flag} must be at least 1, got {v}")
     grid = (X or 1) * (Y or 1)
     if launched is None and grid == 1:
-        return None
+        return OneRank()
     try:
         from mpi4py import MPI
     except ImportError:
@@ -134,21 +194,17 @@ def start(args):
     return dist
 
 
-def make_layout(shape, dx, dist=None, threads=1):
-    """The layout of a run's mesh: a ``kapsel.grid.Grid`` on one process (``dist`` None),
-    else this rank's blocks of it (kapsel.parallel.pencil.PencilGrid on ``dist``'s process
-    grid; ValueError when the mesh is too small for it)."""
-    from ..grid import Grid
-    if dist is None:
-        return Grid(shape, dx, threads=threads)
-    from .pencil import PencilGrid
-    return PencilGrid(shape, dx, dist.comm, dist.dims)
+def make_layout(shape, dx, dist, threads=1):
+    """The layout of a run's mesh in ``dist``, the run's world: a ``kapsel.grid.Grid`` on
+    one process, else this rank's blocks of it (kapsel.parallel.pencil.PencilGrid on the
+    world's process grid; ValueError when the mesh is too small for it)."""
+    return dist.layout(shape, dx, threads)
 
 
 def refuse(dist, cfg) -> str | None:
     """Why the run of ``cfg`` cannot be distributed over ``dist`` (None: it can; one rank
     always can: a run that cannot be distributed then runs as a plain run)."""
-    if dist is None or dist.size == 1:
+    if dist.size == 1:
         return None
     return not_distributed(cfg)
 
