@@ -133,7 +133,7 @@ class ShearLEModel(SpectralModel):
     def kinetic_energy(self) -> float:
         """E of the full flow U + u^ (fluid outside the particles) plus the particles."""
         from .common import kinetic_energy
-        u = self.spm.velocity()
+        u = self.spm.velocity().copy()      # (the solver's scratch holds a snapshot's u)
         y = self.grid.coordinates()[1]
         u[0] += self.fluid.shear_rate_now * (y - self.fluid.y0)
         phi = self.spm.phi() if self.particles.n else None
