@@ -5,7 +5,7 @@
 Builds the scene's input (samples/input.udf with the scene's edits), the model as the CLI does, runs 3
 warm-up steps, then N steps (default 20) under cProfile and prints the functions by their own
 (tottime) and cumulative time per step, plus the CPU ms/step without the profiler.
-The compiled kernels (kapsel.compiled) are on, as in a long CLI run; KAPSEL_PY_COMPILED=0
+The compiled kernels (kapsel.fluid.compiled) are on, as in a long CLI run; KAPSEL_PY_COMPILED=0
 times the numpy passes.  ``--np NP`` overrides the mesh (2^NP per axis).  ``--memory``: peak RSS (ru_maxrss) after the
 steps, per grid point, minus the RSS before the model was built.
 """
@@ -106,8 +106,8 @@ def main(argv=None):
                     help="print only the profiled time per stage (FFT, stencils, ...)")
     a = ap.parse_args(argv)
     try:
-        from kapsel import compiled
-    except ImportError:     # a tree before kapsel.compiled (before/after comparisons)
+        from kapsel.fluid import compiled
+    except ImportError:     # a tree before kapsel.fluid.compiled (before/after comparisons)
         compiled = None
     if compiled is not None and compiled.enable():   # as a long CLI run from step 10 on (KAPSEL_PY_COMPILED=0: never)
         import numpy as np

@@ -329,7 +329,8 @@ def main():
     ap.add_argument("--out", default=os.path.join(HERE, "results", "stability_map.txt"))
     a = ap.parse_args()
     rows = [s for s in scenes() if not a.only or any(k in s.name for k in a.only)]
-    from kapsel import compiled, models  # noqa: F401  (loaded once, shared by the probes)
+    from kapsel import models
+    from kapsel.fluid import compiled  # noqa: F401  (loaded once, shared by the probes)
     compiled.enable()
     t0 = time.perf_counter()
     results = []

@@ -47,7 +47,7 @@ import time  # noqa: E402
 import numpy as np  # noqa: E402
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
-from kapsel import compiled  # noqa: E402
+from kapsel.fluid import compiled  # noqa: E402
 from kapsel.fluid.mac import MACSolver  # noqa: E402
 from kapsel.fluid.oblique import ObliqueMAC, ObliqueSpectralNS, ShearFlow  # noqa: E402
 from kapsel.fluid.spectral import SpectralNS  # noqa: E402
@@ -363,7 +363,7 @@ def main(argv=None):
                     help="directory of the CSV and PNGs (default bench/results)")
     ap.add_argument("--no-plots", action="store_true")
     a = ap.parse_args(argv)
-    compiled.enable()                 # as a long run would (kapsel.compiled)
+    compiled.enable()                 # as a long run would (kapsel.fluid.compiled)
     rows = [r for r in plan(a.quick) if (not a.only or r[0] in a.only)
             and (not a.scheme or a.scheme in r[1])]
     t_start = time.perf_counter()

@@ -661,6 +661,9 @@ class WholeTable:
         self._whole = whole
         return whole
 
+    def release(self, whole):
+        """The whole table stays whole (it is this process's own)."""
+
     def exchange(self, p, constraints=None, extra=None):
         """Migration and new halos after the move: none (``p`` itself)."""
         return p

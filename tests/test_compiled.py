@@ -1,9 +1,10 @@
-"""The compiled kernels (kapsel.compiled) change no bit of a run: a run that switches to them
+"""The compiled kernels (kapsel.fluid.compiled) change no bit of a run: a run that switches to them
 mid-way (as the time loop does at step 10) ends in the same state as one on numpy passes."""
 import numpy as np
 import pytest
 
-from kapsel import compiled, config
+from kapsel import config
+from kapsel.fluid import compiled
 from kapsel.simulation import SOLVERS
 from udf import UDFManager
 

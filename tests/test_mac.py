@@ -139,7 +139,7 @@ def test_assembled_matrix_matches_matrix_free(sh):
 @pytest.mark.parametrize("sh", [(5, 6, 7), (1, 16, 1), (2, 8, 2), (16, 16, 16)])
 def test_compiled_stencil_operator_bit_identical_to_csr(sh):
     """The compiled implicit matvec (constant eta) gives the CSR rows' results bit for bit."""
-    from kapsel import compiled
+    from kapsel.fluid import compiled
     if not compiled.enable():
         pytest.skip("numba not installed")
     try:
@@ -508,7 +508,7 @@ def test_stability_limit():
 def test_compiled_operators_bit_identical_to_numpy(sh):
     """laplacian, advection, div_b, grad_b: the compiled sweeps (kapsel.fluid.stencils) give
     the numpy slice passes' results bit for bit, also where periodic neighbours coincide."""
-    from kapsel import compiled
+    from kapsel.fluid import compiled
     from kapsel.fluid import operators as ops
     rng = np.random.default_rng(0)
     u = rng.standard_normal((3,) + sh)

@@ -257,7 +257,7 @@ def test_oblique_z_term_converges_to_the_continuum_operator():
     grad phi . grad psi, metric Laplacian and physical gradient) at frame strain 0.3 against
     exact derivatives of smooth periodic fields: second order (error ratio about 4 from 16^3
     to 32^3 in the same box)."""
-    from kapsel.fluid.oblique import ObliqueCahnHilliard
+    from kapsel.phase.oblique import ObliqueCahnHilliard
     L, g, errs = 8.0, 0.3, []
     for n in (16, 32):
         dx = L / n

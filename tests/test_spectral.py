@@ -289,7 +289,7 @@ def test_compiled_step_bit_identical_to_numpy_passes(scheme):
     """The fused compiled passes (kapsel.fluid.spectral_kernels) give the same u_hat, bit for
     bit, as the numpy passes they replace: steps with a constant and a per-step force and
     solenoidal increments (the SPM path)."""
-    from kapsel import compiled
+    from kapsel.fluid import compiled
     g = Grid((16, 12, 10), 1.0)
     rng = np.random.default_rng(3)
     u0 = rng.normal(size=(3,) + g.shape) * 0.3

@@ -58,7 +58,7 @@ try:  # pragma: no cover - import guard
     import pyfftw
 except ImportError:  # pragma: no cover
     pyfftw = None
-from .. import compiled as _compiled
+from . import compiled as _compiled
 
 __all__ = ["MACSolver", "SolverDidNotConverge", "UnstableTimeStep"]
 

@@ -7,7 +7,7 @@ Scalars have shape (NX, NY, NZ), vectors (3, NX, NY, NZ), indexed [x, y, z]; flo
 All operators are whole-array numpy: periodic shifts are done with slice copies into
 caller-supplied ``out=`` / ``work=`` buffers (no ``np.roll`` temporaries, no loops over points).
 ``laplacian``, ``advection``, ``div_b`` and ``grad_b`` run as compiled single sweeps
-(kapsel.fluid.stencils, bit-identical) on C-contiguous float64 arrays once kapsel.compiled
+(kapsel.fluid.stencils, bit-identical) on C-contiguous float64 arrays once kapsel.fluid.compiled
 has loaded them.
 ``out`` must not alias the input.  Every operator but the original's non-conservative forms
 (``advection_nc*``, ``viscous_variable_nc``) is a difference of periodic fluxes, so its sum
@@ -19,7 +19,7 @@ div∘grad pair since it maps cell arrays to cell arrays).
 """
 import numpy as np
 
-from .. import compiled as _c
+from . import compiled as _c
 
 __all__ = [
     "shift_assign", "shift_add", "shift_sub", "cdiff_acc",

@@ -44,7 +44,7 @@ import functools
 import numpy as np
 
 from ..grid import Grid
-from .. import compiled as _compiled
+from . import compiled as _compiled
 
 __all__ = ["SpectralNS", "SpectralProjector", "phi1", "phi2"]
 
@@ -159,7 +159,7 @@ class SpectralNS:
         self._ikx = 1j * g.kx
         self._iky = 1j * g.ky
         self._ikz = 1j * g.kz
-        # k as contiguous 1-d arrays for the compiled passes (kapsel.compiled)
+        # k as contiguous 1-d arrays for the compiled passes (kapsel.fluid.compiled)
         self._k1 = tuple(np.ascontiguousarray(k.ravel()) for k in (g.kx, g.ky, g.kz))
         self.force_hat = None
         # after_update(u_hat): applied in step() after the update, before FIX_CELL (the

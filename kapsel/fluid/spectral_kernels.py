@@ -7,7 +7,7 @@ is computed as the two real products, which is what numpy's complex product give
 imaginary part of one factor is 0, up to the sign of zero results).
 
 Compiled with numba (``cache=True``: the machine code is kept in __pycache__, so only the
-first run on a machine pays the JIT); loaded on demand by kapsel.compiled.
+first run on a machine pays the JIT); loaded on demand by kapsel.fluid.compiled.
 """
 from __future__ import annotations
 

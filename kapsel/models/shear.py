@@ -302,7 +302,7 @@ from .fdm import FDMModel  # noqa: E402
 class ShearFDMModel(FDMModel):
     """Shear_Navier_Stokes_Lees_Edwards_FDM and Shear_NS_LE_CH_FDM: the FDM model (MAC
     explicit / implicit, Model H with both Cahn-Hilliard schemes and viscosity_change) in the
-    oblique frame (kapsel.fluid.oblique.ObliqueMAC, eq 32 by ObliqueCahnHilliard).
+    oblique frame (kapsel.fluid.oblique.ObliqueMAC, eq 32 by kapsel.phase.oblique).
 
     u (and psi, phi) live on the oblique grid: u is the Cartesian deviation from
     U = gamma_dot (y - Ly/2) e_x.  A re-mapping of the frame shifts psi and psi^{n-1} with u.
@@ -345,7 +345,7 @@ class ShearFDMModel(FDMModel):
         return (x, True, z)
 
     def _make_ch(self, dt):
-        from ..fluid.oblique import make_oblique_cahn_hilliard
+        from ..phase.oblique import make_oblique_cahn_hilliard
         mac = self.mac
         ch = make_oblique_cahn_hilliard(lambda: mac.frame_strain, self.shape, self.dx,
                                         self.cfg.phase, dt, layout=self.grid, **self.ch_kwargs)

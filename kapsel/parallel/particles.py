@@ -224,6 +224,12 @@ class Owned:
         self._own_at = int(starts[self.me])
         return p
 
+    def release(self, whole: ParticleState) -> None:
+        """Drop the whole table's rows on the ranks other than 0 (``release``): from the
+        first step on only rank 0 keeps them (for its writers)."""
+        if self.me != 0:
+            release(whole)
+
     def scatter(self, whole: ParticleState, constraints=None, extra=None) -> ParticleState:
         """This rank's table (owned + ghosts) of a whole table held alike by every rank
         (``extra`` (N, extra_width): the further columns of every row, kept in ``extra``)."""

@@ -319,9 +319,7 @@ class SPM:
         restart read before fills them on every rank)."""
         if not self._released:
             self._released = True
-            if self.owned.me != 0:
-                from ..parallel.particles import release
-                release(self.whole)
+            self.owned.release(self.whole)
         self._take(self.owned.exchange(self.p, extra=self._records()))
 
     def refresh(self):

@@ -40,7 +40,7 @@ def enable() -> bool:
     if mode() == "0":
         return False
     try:
-        from .fluid import spectral_kernels, stencils as st
+        from . import spectral_kernels, stencils as st
     except ImportError:     # pragma: no cover - numba missing
         return False
     spectral, stencils = spectral_kernels, st
