@@ -9,7 +9,7 @@ ESPResSo's ``System``).
     sim.run()                         # to the input's end (output.GTS x output.Num_snap)
 
 It is the command line without the flags: the same checks and messages at the start
-(kapsel.cli.build: a bad input raises kapsel.cli.BadInput carrying every message, nothing
+(kapsel.startup.build: a bad input raises BadInput carrying every message, nothing
 written), the same time loop (kapsel.simulation.TimeLoop), the same files.  A run stopped
 by an instability, a full disk or SIGINT / SIGTERM raises kapsel.simulation.RunError
 (Interrupted) with the message the command line prints; the restart holds the last good
@@ -23,7 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .activities import Activity, Callback, Every
-from .cli import BadInput
+from .startup import BadInput
 from .simulation import Interrupted, NothingToDo, RunError, TimeLoop
 
 __all__ = ["Simulation", "Particles", "BadInput", "RunError", "Interrupted", "NothingToDo",
@@ -58,7 +58,7 @@ class Simulation:
     """One run of kapsel-py (module docstring); build it with ``from_udf``."""
 
     def __init__(self, args, prepared, locks=()):
-        """From ``args`` (kapsel.cli's flags) and ``kapsel.cli.build``'s result; ``locks``
+        """From ``args`` (kapsel.cli's flags) and ``kapsel.startup.build``'s result; ``locks``
         (the output directories' locks) are released when the run ends or is closed."""
         cfg, doc, model, resumed, self.seed_drawn, source = prepared
         self.args, self.cfg, self.input_doc, self.model, self.resumed = (args, cfg, doc, model,
@@ -81,16 +81,16 @@ class Simulation:
         no console lines on stderr, the default here).  A restart file as ``input``
         continues its run (ours or the original's).  Raises BadInput listing every
         problem; then nothing was written."""
-        from . import cli
+        from . import startup
         from .parallel import DistError, start
-        args = cli.build_parser().parse_args([f"-I{input}"])
+        args = startup.build_parser().parse_args([f"-I{input}"])
         args.output, args.define, args.restart = str(output), str(define), str(restart)
         args.input = str(input)
         args.seed, args.threads, args.quiet, args.overwrite = seed, threads, quiet, overwrite
         if spm_drag not in ("original", "calibrated"):
             raise BadInput(f"spm_drag must be 'original' or 'calibrated', got {spm_drag!r}")
         args.spm_drag = spm_drag
-        problem = cli.check_flags(args)
+        problem = startup.check_flags(args)
         if problem:
             raise BadInput(problem)
         try:
@@ -99,7 +99,7 @@ class Simulation:
             raise BadInput(str(e)) from None
         locks: list = []
         try:
-            prepared = cli.build(args, locks, overrides)
+            prepared = startup.build(args, locks, overrides)
         except BaseException:
             for lock in locks:
                 lock.close()

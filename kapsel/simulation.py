@@ -93,7 +93,7 @@ class TimeLoop:
     ``resumed``: the model continues a restart (its clock is past 0); output.udf then gets
     the records of the continued run appended (later records of the earlier run, if any,
     are dropped), unless --overwrite asks for a new file.  ``source``: (path, fingerprint,
-    step) of the restart text the model was loaded from (kapsel.cli.build_model).
+    step) of the restart text the model was loaded from (kapsel.startup.build_model).
 
     Every run is a run of the lockstep protocol (kapsel.parallel.lockstep; a plain run
     is its one-rank case): the same loop on every rank, the

@@ -3,7 +3,7 @@
 Every file a run writes goes through udf.files: written under a temporary name in its
 directory, synced, renamed into place, the directory synced; a reader (or a run killed at
 any system call) never sees a partial file, and the temporaries of killed writes are
-removed by the next run under its lock (kapsel.cli.lock_output_dirs).  Files that grow
+removed by the next run under its lock (kapsel.startup.lock_output_dirs).  Files that grow
 (output.udf, the .dat tables) are appended whole or not at all (:func:`append_whole`); the
 EXTENDED trajectory, which HDF5 modifies in place, has a rollback journal
 (kapsel.io.journal).
