@@ -131,6 +131,25 @@ def test_double_precision_round_trip_is_exact(tmp_path):
     assert np.array_equal(v.getArray("resume.CONTINUE_FDM.Saved_Data.U[]"), U)
 
 
+def test_put_hands_an_array_over_without_a_copy_when_asked(tmp_path):
+    """put(..., copy=False) keeps the caller's float64 array (a restart's fields: no second
+    copy of hundreds of MB, issue 25); the default put copies it, so a later change of the
+    caller's array does not reach the document."""
+    U = np.arange(8 * 8 * 8 * 3, dtype=float).reshape(8, 8, 8, 3)
+    path = "resume.CONTINUE_FDM.Saved_Data.U[]"
+    u = UDFManager(schema_from=DEFINE)
+    u.put("CONTINUE_FDM", "resume.Calculation")
+    u.put(U, path)
+    U[0, 0, 0, 0] = -1.0
+    assert u.getArray(path)[0, 0, 0, 0] == 0.0
+    u.put(U, path, copy=False)
+    U[0, 0, 0, 1] = -2.0
+    u.write(str(tmp_path / "r.udf"))
+    v = UDFManager(str(tmp_path / "r.udf"))
+    got = v.getArray(path)
+    assert got[0, 0, 0, 0] == -1.0 and got[0, 0, 0, 1] == -2.0
+
+
 def test_single_precision_records():
     u = UDFManager(schema_from=DEFINE)
     u.single_precision_records = True

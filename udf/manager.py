@@ -423,8 +423,10 @@ class UDFManager:
             raise UDFError(f"{path!r} is not an array", path=path)
         return len(v)
 
-    def put(self, value, path: str, indices=None) -> None:
-        """put(value, path[, indices]): set a value; putting at index == size appends."""
+    def put(self, value, path: str, indices=None, *, copy: bool = True) -> None:
+        """put(value, path[, indices]): set a value; putting at index == size appends.
+        ``copy=False`` hands a numpy array of the item's dtype over without copying it (the
+        caller must not change it afterwards: a restart's fields, hundreds of MB)."""
         ops = self._parse(path, indices)
         if any(op[0] == "all" for op in ops):
             # put of a whole array at the end of the path: "Particles[]" -> the array
@@ -435,11 +437,11 @@ class UDFManager:
         name = ops[0][1]
         store, m = self._root(name, path, create=True)
         if len(ops) == 1:
-            store[name] = from_python(m.type, m.ndim, value, path)
+            store[name] = from_python(m.type, m.ndim, value, path, copy)
             return
-        store[name] = self._put(store[name], m.type, m.ndim, ops[1:], value, path)
+        store[name] = self._put(store[name], m.type, m.ndim, ops[1:], value, path, copy)
 
-    def _put(self, v, t, ndim, ops, value, path):
+    def _put(self, v, t, ndim, ops, value, path, copy=True):
         op = ops[0]
         if op[0] == "idx":
             if not ndim:
@@ -475,9 +477,9 @@ class UDFManager:
                 arr[index] = _leaves_of(value, subt, remaining, path, arr[index].shape)
                 return v
             if len(ops) == 1:
-                v[i] = from_python(t, ndim - 1, value, path)
+                v[i] = from_python(t, ndim - 1, value, path, copy)
             else:
-                v[i] = self._put(v[i], t, ndim - 1, ops[1:], value, path)
+                v[i] = self._put(v[i], t, ndim - 1, ops[1:], value, path, copy)
             return v
         # member
         if ndim:
@@ -488,9 +490,9 @@ class UDFManager:
         i = t.index(op[1])
         mem = t.members[i]
         if len(ops) == 1:
-            v[i] = from_python(mem.type, mem.ndim, value, path)
+            v[i] = from_python(mem.type, mem.ndim, value, path, copy)
         else:
-            v[i] = self._put(v[i], mem.type, mem.ndim, ops[1:], value, path)
+            v[i] = self._put(v[i], mem.type, mem.ndim, ops[1:], value, path, copy)
         return v
 
     # ------------------------------------------------------------------ units

@@ -221,14 +221,16 @@ def default(t, ndim: int):
     return [default(m.type, m.ndim) for m in t.members]
 
 
-def from_python(t, ndim: int, v, path: str):
-    """Convert a user value (lists, numbers, strings, numpy) to storage, checking types."""
+def from_python(t, ndim: int, v, path: str, copy: bool = True):
+    """Convert a user value (lists, numbers, strings, numpy) to storage, checking types.
+    ``copy`` False: a numpy array of the storage's dtype is kept as it is (the caller hands
+    it over and does not change it afterwards)."""
     if ndim:
         lc = leaf_count(t)
         if lc is not None:
             try:
                 arr = np.array(v, dtype=_dtype(t)) if not isinstance(v, np.ndarray) \
-                    else v.astype(_dtype(t), copy=True)
+                    else v.astype(_dtype(t), copy=copy)
             except (TypeError, ValueError):
                 raise UDFError(f"{path}: expected a numeric array, got {type(v).__name__}",
                                path=path) from None

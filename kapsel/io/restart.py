@@ -197,8 +197,8 @@ def write_restart(path: str, define, input_doc: UDFManager, kind: str, step: int
         if saved_type.index(name) is None:
             unplaced[name] = value      # an older define.udf (v3.x has no GR_masses[])
             continue
-        if isinstance(value, np.ndarray):
-            doc.put(value, f"{base}.{name}[]")
+        if isinstance(value, np.ndarray):      # not copied: the document is written and
+            doc.put(value, f"{base}.{name}[]", copy=False)      # dropped here (issue 25)
             arrays[name] = value
         else:
             doc.put(value, f"{base}.{name}")
