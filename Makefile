@@ -42,7 +42,7 @@ run: $(VENV)/.installed-plot
 	@$(BIN)/kapsel-py analyze show samples
 
 # strace (Debian's package) injects kills and ENOSPC at exact system calls
-# (tests/test_kill_points.py; skipped where it cannot be installed)
+# (tests/integration/test_kill_points.py; skipped where it cannot be installed)
 test: $(VENV)/.installed-test
 	@command -v strace > /dev/null 2>&1 || { echo "Installing strace (apt-get) for the kill-point tests"; \
 	  { apt-get update -qq && apt-get install -y -qq strace; } > $(VENV)/apt-strace.log 2>&1 \

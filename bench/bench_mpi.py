@@ -34,9 +34,9 @@ sys.path.insert(0, ROOT)
 
 def sample_input(d, eq, n):
     """The manual's sample in ``d`` as ``eq`` on an n^3 mesh (n a power of 2): the tests'
-    tests/runs.py sample_input, a UDFManager the caller finishes and writes."""
+    tests/builders.py sample_input, a UDFManager the caller finishes and writes."""
     sys.path.insert(0, os.path.join(ROOT, "tests"))
-    from runs import sample_input as sample
+    from builders import sample_input as sample
     return sample(d, eq, npx=n.bit_length() - 1)            # N = 2^NP
 
 

@@ -1,5 +1,5 @@
 """Electrophoresis of one weakly charged sphere against Henry's function: the runs behind
-tests/test_electrolyte_mobility.py and the numbers of docs/physics-electrolyte.md, at any size.
+tests/validation/test_electrolyte_mobility.py and the numbers of docs/physics-electrolyte.md, at any size.
 
     PYTHONPATH=. .venv/bin/python bench/electrophoresis.py --npx 5 --A 4 --debye 8 --Z -10 \
         [--E 0.01] [--T 150] [--every 10] [--ratio 1.0266]
@@ -8,8 +8,8 @@ ex01/colloid_1.udf shrunk to 2^npx cells per side (1:1 salt, Poisson-Boltzmann s
 DC field E along x, FIX_CELL, auto dt), one sphere at the centre.  Prints every ``every``
 time units t, V_x, V_x / v_Henry(A) and V_x / (C v_Henry(a_h)), where a_h is the
 hydrodynamic radius for a measured Hasimoto drag ratio V / V_Hasimoto(A) = ``ratio``
-(1.0266 for A = 4, 32^3, dt = 0.0715; tests/test_spm_validation.terminal_velocity) and C
-the periodic correction (tests/test_electrolyte_mobility.py's docstring).
+(1.0266 for A = 4, 32^3, dt = 0.0715; tests/builders.py terminal_velocity) and C
+the periodic correction (tests/validation/test_electrolyte_mobility.py's docstring).
 
 Measured (h16, 2026-11-29, shared 2-core machine):
     --npx 5 --A 4 --debye 8 --Z -10 --T 190          0.892 of Henry(A); / C(a_h) 0.991

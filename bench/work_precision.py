@@ -9,7 +9,7 @@ step factor, the resolution (A/DX, xi, points per wavelength) and the scheme var
   drag          sphere A under a constant force in a periodic cubic array, FIX_CELL on:
                 steady V_x against Hasimoto's periodic drag (Sangani-Acrivos series),
                 run until V changes by < 5e-4 relatively over one slowest-mode decay time
-                L^2/(4 pi^2 nu) (the criterion of tests/test_spm_validation.py);
+                L^2/(4 pi^2 nu) (the criterion of tests/validation/test_spm_validation.py);
   rotation      constant torque on the same sphere: steady Omega_z against the periodic
                 rotlet result (1 - c - 1.95708 c^(10/3)) T / (8 pi eta A^3);
   taylor_green  2D Taylor-Green vortex (Re = U / (nu k) = 1) in a 3D box, no particles:

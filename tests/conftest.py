@@ -1,5 +1,11 @@
-"""Test-session settings: single-threaded BLAS, as the kapsel-py command runs."""
+"""Test-session settings: single-threaded BLAS, as the kapsel-py command runs; tests/ on
+sys.path, so that every tier (tests/unit, tests/integration, tests/validation,
+tests/distributed) imports the shared helpers (builders.py, kill_points.py) and no test module
+imports another."""
 import os
+import sys
+
+import pytest
 
 for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
@@ -7,7 +13,10 @@ for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
 # Subprocesses (``python -m kapsel.cli`` under mpiexec, strace, the CLI tests) import the code
 # of this checkout, not whichever copy the environment installed (a git worktree beside an
 # editable install of another one).
-_ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+_TESTS = os.path.dirname(os.path.abspath(__file__))
+_ROOT = os.path.dirname(_TESTS)
+if _TESTS not in sys.path:
+    sys.path.insert(0, _TESTS)
 os.environ["PYTHONPATH"] = os.pathsep.join(
     [_ROOT] + [p for p in os.environ.get("PYTHONPATH", "").split(os.pathsep) if p])
 
@@ -39,8 +48,42 @@ SLOW_VARIANTS = {
 }
 
 
+class CompiledKernels:
+    """The compiled kernels (kapsel.fluid.compiled) switched on or off inside a test."""
+
+    def __init__(self, compiled):
+        self._compiled = compiled
+
+    def on(self):
+        """Load them; the test is skipped where numba is missing."""
+        if not self._compiled.enable():
+            pytest.skip("numba not installed")
+
+    def off(self):
+        """Back to the numpy passes."""
+        self._compiled.disable()
+
+    def both(self, compute):
+        """``compute()`` with the compiled kernels, then with the numpy passes: the two
+        results, to compare bit for bit."""
+        self.on()
+        first = compute()
+        self.off()
+        return first, compute()
+
+
+@pytest.fixture
+def compiled_kernels():
+    """The compiled on / off switch of the tests that compare the compiled kernels with the
+    numpy passes: off at the start and again after the test, whatever it did."""
+    from kapsel.fluid import compiled
+    compiled.disable()
+    yield CompiledKernels(compiled)
+    compiled.disable()
+
+
 def pytest_collection_modifyitems(config, items):
-    import pytest
     for item in items:
-        if item.nodeid.split("tests/", 1)[-1] in SLOW_VARIANTS:
+        path, _, name = item.nodeid.partition("::")          # tests/<tier>/test_x.py
+        if f"{os.path.basename(path)}::{name}" in SLOW_VARIANTS:
             item.add_marker(pytest.mark.slow)

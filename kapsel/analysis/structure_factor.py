@@ -12,7 +12,7 @@ frequencies): a quarter of the independent modes, and for an anisotropic pattern
 domains, lamellae off the axes) a biased average.  kapsel-py averages over every wave
 vector of the shell by default; ``octant=True`` (``analyze sq --octant``) reproduces the
 script's numbers exactly.  For isotropic domains the two agree within the sampling noise
-of the shells (a few % at late times on 32^3, tests/test_sq_analysis.py).
+of the shells (a few % at late times on 32^3, tests/integration/test_sq_analysis.py).
 """
 from __future__ import annotations
 

@@ -43,7 +43,7 @@ Choices, measured on this 2-core machine (shared, so +-30 %; ms, min of repeats)
 
 Advection is the original's non-conservative (u·∇)u ((u*·∇)u^{n+1/2} in the implicit scheme)
 with central differences at the nodes, and so is the variable-viscosity term: total momentum
-changes by their grid sums only (tests/test_mac.py), the other terms sum to zero.
+changes by their grid sums only (tests/unit/test_mac.py), the other terms sum to zero.
 """
 import numpy as np
 import scipy.sparse as sp

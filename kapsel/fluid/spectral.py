@@ -24,7 +24,7 @@ State: u_hat (3, NX, NY, NZ//2+1), the unnormalised rfftn of u (``kapsel.grid``)
    dt phi1 = (1 - e^{-nu k^2 dt})/(nu k^2), and dt at k = 0.  Both integrate the viscous
    decay exactly for any dt and a constant force exactly.  ETD1 is the default
    (``scheme='etd1'``, the original's slaved Euler); ETD2 is second order for the nonlinear
-   term (tests/test_spectral.py measures the orders); its first step, and a step after
+   term (tests/unit/test_spectral.py measures the orders); its first step, and a step after
    ``set_velocity``, is ETD1.  The stability of the advection term is bounded by the usual
    CFL-type limit.
 

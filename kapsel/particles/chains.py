@@ -15,7 +15,7 @@ spring diverges at R0, so a bond can never stretch to 1.5 sigma: a run whose bon
 ``BOND_BREAK`` R0 stops (FloatingPointError) instead of continuing with a broken chain.
 Chains therefore need EPSILON > 0 and LJ_truncate ON or OFF (config.py refuses the rest).
 Tolerance: for kBT <= EPSILON the bonds stay within 0.9 .. 1.1 sigma (measured 0.933 ..
-1.016 sigma over 500 steps at kBT = EPSILON = 1, A = 4; tests/test_chains.py).
+1.016 sigma over 500 steps at kBT = EPSILON = 1, A = 4; tests/unit/test_chains.py).
 
 Initial placement: every chain a self-avoiding random walk of bond length sigma (beads closer
 than sigma to any placed bead are rejected), in the periodic box; or the user_specify

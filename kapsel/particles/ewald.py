@@ -21,7 +21,7 @@ image within r_cut, found by a k-d tree) and the reciprocal terms (direct sum ov
 vectorised) take the same time, alpha = sqrt(pi) (c N / V^2)^(1/6) with c = COST_RATIO: both
 then scale as N^1.5 at fixed density (bench/bench_ewald.py).  Accuracy: the neglected terms
 of both sums are of relative size s^3 exp(-s^2) with s = alpha r_cut = k_cut / (2 alpha) from
-``splitting_s(tol)``; tests/test_ewald.py measures the energy, field and force errors against
+``splitting_s(tol)``; tests/unit/test_ewald.py measures the energy, field and force errors against
 a sum converged to 1e-15: they stay below ``tol`` (relative to |U|, the RMS field and the RMS
 force) for tol = 1e-6 ... 1e-10.
 
@@ -72,7 +72,7 @@ def splitting_s(tol: float) -> float:
     """s = alpha r_cut = k_cut / (2 alpha) for a relative error ``tol``: the neglected terms
     are about s^3 exp(-s^2) (the Gaussian times the polynomial growth of the dipolar kernels
     and of the number of k shells), so s^2 = -ln tol + 3 ln s + 3 (fixed point; the margin
-    3 is calibrated by tests/test_ewald.py)."""
+    3 is calibrated by tests/unit/test_ewald.py)."""
     s = np.sqrt(-np.log(tol))
     for _ in range(20):
         s = np.sqrt(-np.log(tol) + 3 * np.log(s) + 3)

@@ -4,7 +4,7 @@
 
 Every corpus file is the sample input (samples/input.udf) shrunk to a 16^3 mesh, 2 particles
 and one step (``tiny_sample``) with one thing broken.  What each file is and the message it
-must give are in tests/test_bad_input.py (CORPUS); this script only writes the files.
+must give are in tests/integration/test_bad_input.py (CORPUS); this script only writes the files.
 """
 from __future__ import annotations
 

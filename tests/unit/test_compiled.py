@@ -1,0 +1,53 @@
+"""The compiled kernels (kapsel.fluid.compiled) change no bit of a run: a run that switches to them
+mid-way (as the time loop does at step 10) ends in the same state as one on numpy passes."""
+import numpy as np
+import pytest
+
+from kapsel import config
+from kapsel.fluid import compiled
+from kapsel.simulation import SOLVERS
+from udf import UDFManager
+
+from builders import Args, fdm_sample
+
+
+def _run(path, kernels, switch_at, steps=4):
+    """The state after ``steps`` steps on numpy passes, the compiled kernels switched on
+    (``kernels``: the compiled_kernels fixture) before step ``switch_at``."""
+    import kapsel.models  # noqa: F401  (registers the types)
+    doc = UDFManager(path)
+    cfg = config.from_document(doc, path)
+    kernels.off()
+    m = SOLVERS[cfg.type](cfg, Args(), doc)
+    for k in range(steps):
+        if k == switch_at:
+            kernels.on()
+        m.advance()
+    state = [m.velocity_field().copy(), m.particles.R.copy(), m.particles.omega.copy()]
+    if getattr(m, "psi", None) is not None:
+        state.append(m.psi.copy())
+    kernels.off()
+    return state
+
+
+@pytest.mark.parametrize("eq,ns", [("Navier_Stokes", "explicit_scheme"),
+                                   ("Navier_Stokes_FDM", "implicit_scheme"),
+                                   ("Navier_Stokes_Cahn_Hilliard_FDM", "explicit_scheme"),
+                                   ("Shear_Navier_Stokes_Lees_Edwards", "explicit_scheme")])
+def test_switching_to_compiled_kernels_is_bit_identical(tmp_path, eq, ns, compiled_kernels):
+    path = fdm_sample(tmp_path, eq=eq, ns=ns)
+    a = _run(path, compiled_kernels, switch_at=None)
+    b = _run(path, compiled_kernels, switch_at=2)
+    for x, y in zip(a, b):
+        assert np.array_equal(x, y)
+
+
+def test_want_policy(monkeypatch):
+    monkeypatch.setenv("KAPSEL_PY_COMPILED", "auto")
+    assert not compiled.want(compiled.AFTER_STEPS - 1, 1000)
+    assert not compiled.want(compiled.AFTER_STEPS, compiled.MIN_REMAINING - 1)
+    assert compiled.want(compiled.AFTER_STEPS, compiled.MIN_REMAINING)
+    monkeypatch.setenv("KAPSEL_PY_COMPILED", "0")
+    assert not compiled.want(10 ** 6, 10 ** 6) and not compiled.enable()
+    monkeypatch.setenv("KAPSEL_PY_COMPILED", "1")
+    assert compiled.want(0, 0)

@@ -1,0 +1,320 @@
+"""Pseudo-spectral NS solver (kapsel.fluid.spectral) and grid (kapsel.grid): fast tests."""
+import numpy as np
+import pytest
+
+from kapsel.fluid.spectral import SpectralNS, phi1, phi2
+from kapsel.grid import Grid
+from kapsel.timestep import auto_dt
+
+from builders import TESTS
+
+
+def measured_dt(factor, rho, eta, dx):
+    """The time step these measurements were made at: factor RHO / (ETA (pi / DX)^2).  (Not
+    the automatic time step of a run, kapsel.timestep.auto_dt; a fixed dt keeps the tables
+    in the comments valid.)"""
+    return factor * rho / (eta * (np.pi / dx) ** 2)
+
+
+def taylor_green(grid, U=0.1):
+    x, y, z = grid.coordinates()
+    k = 2 * np.pi / grid.box[0]
+    u = np.zeros((3,) + grid.shape)
+    u[0] = U * np.sin(k * x) * np.cos(k * y) + 0 * z
+    u[1] = -U * np.cos(k * x) * np.sin(k * y) + 0 * z
+    return u, k
+
+
+def random_solenoidal(grid, kmax=3, amp=0.05, seed=0):
+    rng = np.random.default_rng(seed)
+    uh = grid.empty_complex()
+    uh[...] = 0
+    m = [np.fft.fftfreq(n, 1.0 / n) for n in grid.shape]
+    sel = ((np.abs(m[0])[:, None, None] <= kmax) & (np.abs(m[1])[None, :, None] <= kmax)
+           & (np.arange(grid.cshape[2])[None, None, :] <= kmax))
+    noise = rng.normal(size=(3,) + grid.cshape) + 1j * rng.normal(size=(3,) + grid.cshape)
+    uh[:, sel] = noise[:, sel]
+    grid.project(uh)
+    u = np.fft.irfftn(uh, s=grid.shape, axes=(1, 2, 3))
+    return amp * u / np.abs(u).max()
+
+
+@pytest.mark.parametrize("threads", [1, 2])
+def test_grid_transforms_roundtrip_and_normalisation(threads):
+    g = Grid((16, 8, 12), dx=0.5, threads=threads)
+    u = np.random.default_rng(0).normal(size=(3,) + g.shape)
+    u0 = u.copy()
+    uh = g.rfft(u)
+    np.testing.assert_array_equal(u, u0)  # input preserved
+    np.testing.assert_allclose(uh, np.fft.rfftn(u, axes=(1, 2, 3)), atol=1e-12)
+    np.testing.assert_allclose(g.irfft(uh), u, atol=1e-13)
+    np.testing.assert_allclose(g.irfft(uh, out=np.zeros_like(u)), u, atol=1e-13)
+    before = uh.copy()
+    g.irfft(uh)
+    np.testing.assert_array_equal(uh, before)  # preserved
+    assert uh[0, 0, 0, 0].real == pytest.approx(u[0].sum())
+    # non-contiguous input / out
+    o = np.zeros((3,) + g.cshape, complex)
+    g.rfft(np.ascontiguousarray(u[:, ::-1])[:, ::-1], out=o)
+    np.testing.assert_allclose(o, uh, atol=1e-12)
+    # scalars
+    f = u[1]
+    fh = g.rfft_scalar(f)
+    np.testing.assert_allclose(fh, np.fft.rfftn(f), atol=1e-12)
+    np.testing.assert_allclose(g.irfft_scalar(fh), f, atol=1e-13)
+    np.testing.assert_array_equal(fh, g.rfft_scalar(f, out=np.empty(g.cshape, complex)))
+    np.testing.assert_allclose(g.irfft_scalar(fh, out=np.empty(g.shape)), f, atol=1e-13)
+
+
+def test_grid_wavenumbers_dealias_volume():
+    g = Grid((32, 32, 32), dx=1.0)
+    assert g.cshape == (32, 32, 17)
+    assert g.trunc == (10, 10, 10)
+    assert g.k_trunc == pytest.approx(2 * np.pi * 10 / 32)
+    assert g.dealias.dtype == bool and g.dealias.sum() == 21 * 21 * 11
+    g2 = Grid((64, 32, 16), dx=2.0)
+    assert g2.volume == pytest.approx(128 * 64 * 32)
+    assert g2.kx.shape == (64, 1, 1) and g2.ky.shape == (1, 32, 1) and g2.kz.shape == (1, 1, 9)
+    assert g2.kx[1, 0, 0] == pytest.approx(2 * np.pi / 128)
+    assert g2.kz[0, 0, -1] == pytest.approx(np.pi / 2.0)  # Nyquist
+    np.testing.assert_allclose(g2.k2, g2.kx ** 2 + g2.ky ** 2 + g2.kz ** 2)
+
+
+def test_auto_dt_is_the_originals():
+    """FORMAT.md: dt = factor / (NU KMAX2), KMAX2 = sum_d (2 pi TRN_d / (N_d DX))^2,
+    TRN_d = floor((N_d + 2) / 3): 0.0714552 for a 32^3 mesh at factor 1 (the original's
+    figure); 64 x 32 x 16: TRN = 22, 11, 6, KMAX2 = 2 (2 pi 11/32)^2 + (2 pi 6/16)^2."""
+    assert auto_dt(1.0, 1.0, 1.0, 1.0, (32, 32, 32)) == pytest.approx(0.0714552, abs=5e-8)
+    k2 = 2 * (2 * np.pi * 11 / 32) ** 2 + (2 * np.pi * 6 / 16) ** 2
+    assert auto_dt(1.0, 1.0, 1.0, 1.0, (64, 32, 16)) == pytest.approx(1 / k2, rel=1e-12)
+    assert auto_dt(1.0, 1.0, 1.0, 1.0, (64, 32, 16)) == pytest.approx(0.0671975, abs=5e-8)
+    # factor, NU = ETA / RHO and DX enter as factor RHO DX^2 / ETA
+    assert auto_dt(0.5, 2.0, 4.0, 0.5, (32, 32, 32)) == pytest.approx(
+        0.0714551598 * 0.5 * 2.0 * 0.25 / 4.0, rel=1e-9)
+    g = Grid((16, 16, 16), dx=0.5)
+    assert g.auto_dt(0.3, 1.2, 0.7) == auto_dt(0.3, 1.2, 0.7, 0.5, (16, 16, 16))
+
+
+def test_projection_solenoidal():
+    g = Grid((16, 12, 10), dx=0.7)
+    rng = np.random.default_rng(3)
+    u = rng.normal(size=(3,) + g.shape) + np.array([1.0, 2.0, 3.0])[:, None, None, None]
+    uh = g.rfft(u)
+    k0 = uh[:, 0, 0, 0].copy()
+    g.project(uh)
+    div = g.kx * uh[0] + g.ky * uh[1] + g.kz * uh[2]
+    scale = np.sqrt(g.k2).max() * np.abs(uh).max()
+    assert np.abs(div).max() < 1e-13 * scale
+    np.testing.assert_array_equal(uh[:, 0, 0, 0], k0)  # k = 0 untouched
+    p2 = uh.copy()
+    g.project(p2)
+    np.testing.assert_allclose(p2, uh, atol=1e-12 * np.abs(uh).max())  # idempotent
+
+
+def test_phi_functions_series_continuity():
+    z = np.array([-1e-12, -1e-5, -0.0999999, -0.1, -0.1000001, -1.0, -50.0, 0.0])
+    p1, p2 = phi1(z), phi2(z)
+    exact2 = np.array([0.5 + zz / 6 + zz * zz / 24 if abs(zz) < 1e-3 else
+                       (np.expm1(zz) - zz) / zz ** 2 for zz in z])
+    np.testing.assert_allclose(p2, exact2, rtol=1e-13)
+    np.testing.assert_allclose(p1[:-1], np.expm1(z[:-1]) / z[:-1], rtol=1e-15)
+    assert p1[-1] == 1.0 and p2[-1] == 0.5
+
+
+@pytest.mark.parametrize("scheme", ["etd1", "etd2"])
+def test_taylor_green_decay(scheme):
+    """2D Taylor-Green in 3D: u x omega is a gradient, so u decays as exp(-2 nu k^2 t)."""
+    g = Grid((16, 16, 8), dx=1.0)
+    nu, rho = 0.7, 1.3
+    dt = measured_dt(1.0, rho, rho * nu, g.dx)
+    ns = SpectralNS(g, rho, rho * nu, dt, scheme=scheme)
+    u0, k = taylor_green(g)
+    ns.set_velocity(u0)
+    nsteps = 100
+    ns.run(nsteps)
+    t = nsteps * dt
+    expect = u0 * np.exp(-2 * nu * k * k * t)
+    assert np.exp(-2 * nu * k * k * t) < 0.5  # a real decay
+    err = np.abs(ns.velocity() - expect).max() / np.abs(expect).max()
+    assert err < 1e-6, err
+    assert ns.kinetic_energy() == pytest.approx(
+        0.5 * rho * np.sum(expect ** 2), rel=1e-10)
+
+
+def test_taylor_green_3d_momentum_energy():
+    """3D Taylor-Green at small Re: zero momentum kept, energy decays monotonically."""
+    g = Grid((16, 16, 16), dx=1.0)
+    x, y, z = g.coordinates()
+    k = 2 * np.pi / 16
+    U = 0.05
+    u = np.zeros((3,) + g.shape)
+    u[0] = U * np.sin(k * x) * np.cos(k * y) * np.cos(k * z)
+    u[1] = -U * np.cos(k * x) * np.sin(k * y) * np.cos(k * z)
+    rho, eta = 1.0, 0.5
+    ns = SpectralNS(g, rho, eta, measured_dt(1.0, rho, eta, 1.0))
+    ns.set_velocity(u)
+    np.testing.assert_allclose(ns.velocity(), u, atol=1e-15)  # already solenoidal
+    assert ns.kinetic_energy() == pytest.approx(0.5 * rho * np.sum(u ** 2), rel=1e-12)
+    e = [ns.kinetic_energy()]
+    for _ in range(60):
+        ns.step()
+        e.append(ns.kinetic_energy())
+        assert np.abs(ns.momentum()).max() < 1e-15
+    e = np.array(e)
+    assert np.all(np.diff(e) < 0)
+    # nonlinear term active but weak: close to the Stokes decay exp(-2 nu 3 k^2 t)
+    t = 60 * ns.dt
+    assert e[-1] / e[0] == pytest.approx(np.exp(-2 * 0.5 * 3 * k * k * t), rel=1e-3)
+    assert ns.divergence_max() < 1e-14
+
+
+def test_step_force_kolmogorov_steady_state():
+    """f = F sin(k y) x: ETD1 has the exact steady state u = F/(nu k^2) sin(k y) x."""
+    g = Grid((8, 16, 8), dx=1.0)
+    _, y, _ = g.coordinates()
+    k = 2 * np.pi / 16
+    F = 1e-3
+    f = np.zeros((3,) + g.shape)
+    f[0] = F * np.sin(k * y)
+    nu = 2.0
+    ns = SpectralNS(g, 1.0, nu, 1.0)  # large dt: exact integration stays stable
+    for _ in range(200):
+        ns.step(f)
+    expect = np.zeros_like(f)
+    expect[0] = F / (nu * k * k) * np.sin(k * y)
+    np.testing.assert_allclose(ns.velocity(), expect, atol=1e-12 * F / (nu * k * k))
+    # a uniform force: momentum rises by RHO V f dt per step
+    p0 = ns.momentum()
+    fu = np.zeros_like(f)
+    fu[2] = 0.01
+    ns.step(fu)
+    np.testing.assert_allclose(ns.momentum() - p0, [0, 0, 0.01 * g.volume * 1.0], atol=1e-12)
+
+
+def test_add_solenoidal_gradient_only_changes_mean():
+    g = Grid((16, 16, 12), dx=0.5)
+    ns = SpectralNS(g, 2.0, 1.0, 0.01)
+    ns.set_velocity(random_solenoidal(g, kmax=3, amp=0.1))
+    before = ns.u_hat.copy()
+    x, y, z = g.coordinates()
+    L = g.box
+    a, b, c = 2 * np.pi / L[0], 4 * np.pi / L[1], 2 * np.pi / L[2]
+    # grad of sin(a x) cos(b y) + cos(c z) + mean
+    du = np.zeros((3,) + g.shape)
+    du[0] = a * np.cos(a * x) * np.cos(b * y) + 0 * z
+    du[1] = -b * np.sin(a * x) * np.sin(b * y) + 0 * z
+    du[2] = -c * np.sin(c * z) + 0 * x
+    mean = np.array([0.1, -0.2, 0.3])
+    du += mean[:, None, None, None]
+    p0 = ns.momentum()
+    ns.add_solenoidal(du)
+    d = ns.u_hat - before
+    d0 = d[:, 0, 0, 0].copy()
+    d[:, 0, 0, 0] = 0
+    assert np.abs(d).max() < 1e-12 * np.abs(before).max()
+    np.testing.assert_allclose(d0.real, mean * g.size, rtol=1e-12)
+    np.testing.assert_allclose(ns.momentum() - p0, 2.0 * g.volume * mean, rtol=1e-12)
+
+
+def test_projection_and_fix_cell():
+    g = Grid((16, 16, 16))
+    rng = np.random.default_rng(1)
+    ns = SpectralNS(g, 1.0, 1.0, measured_dt(1, 1, 1, g.dx), fix_cell=(True, False, True))
+    du = rng.normal(size=(3,) + g.shape) + np.array([0.3, -0.2, 0.1])[:, None, None, None]
+    ns.add_solenoidal(du)
+    assert ns.divergence_max() < 1e-12 * np.abs(du).max()
+    np.testing.assert_allclose(ns.mean_velocity(), du.reshape(3, -1).mean(1), atol=1e-14)
+    np.testing.assert_allclose(ns.momentum(), du.reshape(3, -1).sum(1), atol=1e-12)
+    ns.step()
+    m = ns.mean_velocity()
+    assert m[0] == 0.0 and m[2] == 0.0 and m[1] == pytest.approx(du[1].mean(), rel=1e-12)
+    assert ns.divergence_max() < 1e-12
+
+
+def test_momentum_conserved_and_force_integrated():
+    g = Grid((16, 16, 16))
+    ns = SpectralNS(g, 1.5, 1.0, 0.2)
+    ns.set_velocity(random_solenoidal(g, kmax=7, amp=0.3) + 0.05)
+    p0 = ns.momentum()
+    ns.run(20)
+    np.testing.assert_allclose(ns.momentum(), p0, rtol=0, atol=1e-14 * np.abs(p0).max())
+    f = np.array([1e-3, 0, -2e-3])
+    ns.set_force(f)
+    ns.run(10)
+    np.testing.assert_allclose(ns.momentum(), p0 + 1.5 * g.size * f * 10 * 0.2,
+                               rtol=1e-12)
+
+
+def _error(scheme, dt, nsteps, g, u0, ref):
+    ns = SpectralNS(g, 1.0, 0.05, dt, scheme=scheme)
+    ns.set_velocity(u0)
+    ns.run(nsteps)
+    return np.abs(ns.velocity() - ref).max()
+
+
+def test_time_order_etd1_etd2():
+    """Nonlinear 3D flow at Re ~ 10: ETD1 first order, ETD2 second order in dt."""
+    g = Grid((16, 16, 16))
+    u0 = random_solenoidal(g, kmax=2, amp=0.5)
+    T = 4.0
+    ns = SpectralNS(g, 1.0, 0.05, T / 512, scheme="etd2")
+    ns.set_velocity(u0)
+    ns.run(512)
+    ref = ns.velocity()
+    for scheme, order in (("etd1", 1), ("etd2", 2)):
+        e = [_error(scheme, T / n, n, g, u0, ref) for n in (16, 32)]
+        rate = np.log2(e[0] / e[1])
+        assert abs(rate - order) < 0.3, (scheme, e, rate)
+
+
+def test_deterministic_across_processes():
+    """Default planner ('auto' = ESTIMATE at this size): bitwise equal in two processes."""
+    import subprocess
+    import sys
+    code = (
+        "import sys, hashlib, numpy as np\n"
+        "from kapsel.grid import Grid\n"
+        "from kapsel.fluid.spectral import SpectralNS\n"
+        "g = Grid((32, 32, 32), 1.0)\n"
+        "ns = SpectralNS(g, 1.0, 1.0, 0.1)\n"
+        "ns.set_velocity(np.random.default_rng(0).normal(size=(3,) + g.shape) * 0.1)\n"
+        "ns.step(); ns.step()\n"
+        "print(g.planner, hashlib.md5(ns.u_hat.tobytes()).hexdigest())\n")
+    root = str(__import__("pathlib").Path(TESTS).resolve().parent)
+    out = [subprocess.run([sys.executable, "-c", code], cwd=root, capture_output=True,
+                          text=True, check=True).stdout for _ in range(2)]
+    assert out[0].startswith("FFTW_ESTIMATE") and out[0] == out[1]
+
+
+@pytest.mark.parametrize("scheme", ["etd1", "etd2"])
+def test_compiled_step_bit_identical_to_numpy_passes(scheme, compiled_kernels):
+    """The fused compiled passes (kapsel.fluid.spectral_kernels) give the same u_hat, bit for
+    bit, as the numpy passes they replace: steps with a constant and a per-step force and
+    solenoidal increments (the SPM path)."""
+    g = Grid((16, 12, 10), 1.0)
+    rng = np.random.default_rng(3)
+    u0 = rng.normal(size=(3,) + g.shape) * 0.3
+    f = rng.normal(size=(3,) + g.shape) * 0.01
+    du = rng.normal(size=(3,) + g.shape) * 0.01
+
+    def steps():
+        ns = SpectralNS(g, 1.0, 0.7, 0.05, scheme=scheme, force=[0.01, 0.0, -0.02])
+        ns.set_velocity(u0)
+        for _ in range(4):
+            ns.step(force=f)
+            ns.add_solenoidal(du)
+        return ns.u_hat.copy()
+    out = compiled_kernels.both(steps)
+    assert np.array_equal(out[0], out[1])
+
+
+def test_auto_planner_measures_threaded_plans():
+    """FFTW_ESTIMATE's threaded plans were 2x slower than one thread at 64^3 (so --threads 2
+    was slower than 1): with threads the 'auto' planner measures, with one thread it keeps
+    the deterministic ESTIMATE up to 64^3 (kapsel.grid.auto_planner)."""
+    from kapsel.grid import Grid, auto_planner
+    assert auto_planner(64 ** 3, 1) == "FFTW_ESTIMATE"
+    assert auto_planner(64 ** 3, 2) == "FFTW_MEASURE"
+    assert auto_planner(128 ** 3, 1) == "FFTW_MEASURE"
+    assert Grid((16, 16, 16), threads=2).planner == "FFTW_MEASURE"
+    assert Grid((16, 16, 16), threads=1).planner == "FFTW_ESTIMATE"
