@@ -82,8 +82,15 @@ def compiled_kernels():
     compiled.disable()
 
 
+# The tiers, one directory each: a test is marked with its tier's name too (``-m unit``).
+TIERS = ("unit", "integration", "validation", "distributed")
+
+
 def pytest_collection_modifyitems(config, items):
     for item in items:
         path, _, name = item.nodeid.partition("::")          # tests/<tier>/test_x.py
         if f"{os.path.basename(path)}::{name}" in SLOW_VARIANTS:
             item.add_marker(pytest.mark.slow)
+        tier = os.path.basename(os.path.dirname(path))
+        if tier in TIERS:
+            item.add_marker(getattr(pytest.mark, tier))
