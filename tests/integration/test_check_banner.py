@@ -1,7 +1,6 @@
 """`kapsel-py --check` reads and checks an input as a run would and prints what the run will
 be (exit 0) or the problems (exit 2), writing nothing; a run starts with the same lines on
 stderr (the banner), which --quiet suppresses."""
-import importlib.util
 import os
 import shutil
 import subprocess
@@ -11,7 +10,7 @@ import pytest
 
 from kapsel import cli, models  # noqa: F401  (models register their types)
 
-from builders import TESTS
+from builders import bad_input_command, bad_input_dir, CORPUS, TESTS
 
 
 HERE = TESTS
@@ -79,17 +78,13 @@ def test_check_refuses_a_bad_input_and_writes_nothing(tmp_path, monkeypatch, cap
 
 def test_check_refuses_every_corpus_input(tmp_path, monkeypatch, capsys):
     """The bad-input corpus (tests/bad_inputs) is refused by --check as by a run."""
-    spec = importlib.util.spec_from_file_location("bad_input_cases",
-                                                  os.path.join(HERE, "test_bad_input.py"))
-    cases = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(cases)
-    for name in sorted(cases.CORPUS):
+    for name in sorted(CORPUS):
         d = tmp_path / name.replace(".udf", "")
         d.mkdir()
-        cases.setup_dir(d, name)
+        bad_input_dir(d, name)
         before = listing(d)
         monkeypatch.chdir(d)
-        code = cli.main(cases.command_line(name) + ["--check"])
+        code = cli.main(bad_input_command(name) + ["--check"])
         out, err = capsys.readouterr()
         assert code == cli.EXIT_BAD_INPUT, (name, err)
         assert out == "" and err.startswith("kapsel-py: error: "), (name, err)
