@@ -30,13 +30,19 @@ TESTS = os.path.dirname(os.path.abspath(__file__))
 SAMPLES = os.path.join(TESTS, "..", "samples")
 
 
+def copy_schema(d, src=SAMPLES):
+    """define.udf and kapsel_unit.udf of the directory ``src`` (the manual's sample) copied
+    to the run directory ``d``: what every input beside them needs."""
+    for f in ("define.udf", "kapsel_unit.udf"):
+        shutil.copy(os.path.join(src, f), os.path.join(d, f))
+
+
 def sample_input(d, eq, npx=4):
     """The manual's sample in directory ``d`` (its define.udf and kapsel_unit.udf copied
     there) as a UDFManager, with constitutive_eq.type ``eq`` and 2^npx cells per side; the
     caller puts the rest and writes it."""
     os.makedirs(d, exist_ok=True)
-    for f in ("define.udf", "kapsel_unit.udf"):
-        shutil.copy(os.path.join(SAMPLES, f), os.path.join(d, f))
+    copy_schema(d)
     u = UDFManager(os.path.join(SAMPLES, "input.udf"))
     u.put(eq, "constitutive_eq.type")
     for k in ("NPX", "NPY", "NPZ"):
@@ -48,8 +54,7 @@ def sample_copy(tmp_path, *pairs, text=None):
     """The manual's sample input (or ``text``) in ``tmp_path`` with its define.udf and
     kapsel_unit.udf, each (old, new) of ``pairs`` replaced once (old must be there); returns
     the input's path."""
-    for f in ("define.udf", "kapsel_unit.udf"):
-        shutil.copy(os.path.join(SAMPLES, f), tmp_path / f)
+    copy_schema(tmp_path)
     text = text if text is not None else open(os.path.join(SAMPLES, "input.udf")).read()
     for old, new in pairs:
         assert old in text, old
@@ -215,8 +220,7 @@ def shear_input(d, particles=1, kind="DC", rate=0.02, freq=0.0, gts=10, nsnap=2,
                obl="linear", eq="Shear_Navier_Stokes_Lees_Edwards"):
     from udf import UDFManager
     os.makedirs(d, exist_ok=True)
-    for f in ("define.udf", "kapsel_unit.udf"):
-        shutil.copy(os.path.join(SAMPLES, f), os.path.join(d, f))
+    copy_schema(d)
     u = UDFManager(os.path.join(SAMPLES, "input.udf"))
     u.put(eq, "constitutive_eq.type")
     base = f"constitutive_eq.{eq}"
@@ -376,8 +380,7 @@ def run_dt(d):
 def fdm_sample(tmp_path, gts=5, nsnap=2, ns="explicit_scheme", ch="implicit_scheme",
            particles=8, manual_dt=None, eq="Navier_Stokes_Cahn_Hilliard_FDM"):
     """The manual's sample input with a few settings changed through the UDF API."""
-    for f in ("define.udf", "kapsel_unit.udf"):
-        shutil.copy(os.path.join(SAMPLES, f), tmp_path / f)
+    copy_schema(tmp_path)
     u = UDFManager(os.path.join(SAMPLES, "input.udf"))
     u.put(eq, "constitutive_eq.type")
     u.put(ns, f"{NS_CH}.NS_solver.type")
@@ -527,8 +530,7 @@ def sample_el_input(d):
     """The manual's sample as a salt-free Electrolyte run, 16^3, two particles of Z = -10,
     EXTENDED output with every print switch on."""
     os.makedirs(d, exist_ok=True)
-    for f in ("define.udf", "kapsel_unit.udf"):
-        shutil.copy(os.path.join(SAMPLES, f), os.path.join(d, f))
+    copy_schema(d)
     u = UDFManager(os.path.join(SAMPLES, "input.udf"))
     u.put("Electrolyte", "constitutive_eq.type")
     for k, v in (("DX", 1.0), ("RHO", 1.0), ("ETA", 1.0), ("kBT", 1.0), ("alpha_v", 1.0),
@@ -557,8 +559,7 @@ def sample_el_input(d):
 
 # ---------------------------------------------------------------- from test_rigid.py
 def rigid_input(tmp_path, specs, eq="Navier_Stokes", name="rigid.udf", raw=None, **puts):
-    for f in ("define.udf", "kapsel_unit.udf"):
-        shutil.copy(os.path.join(SAMPLES, f), tmp_path / f)
+    copy_schema(tmp_path)
     u = UDFManager(os.path.join(SAMPLES, "input.udf"))
     u.put(eq, "constitutive_eq.type")
     u.put("rigid", "object_type.type")
@@ -592,8 +593,7 @@ def wall_run_input(tmp_path, eq, n=2, steps=(5, 2)):
 
 # ---------------------------------------------------------------- from test_chains.py
 def chain_input(tmp_path, specs=((6, 2),), eq="Navier_Stokes", **puts):
-    for f in ("define.udf", "kapsel_unit.udf"):
-        shutil.copy(os.path.join(SAMPLES, f), tmp_path / f)
+    copy_schema(tmp_path)
     u = UDFManager(os.path.join(SAMPLES, "input.udf"))
     u.put(eq, "constitutive_eq.type")
     u.put("chain", "object_type.type")
@@ -612,8 +612,7 @@ EX12_DATA = os.path.join(TESTS, "data", "ex12")
 
 
 def nowall_input(tmp_path, name="in.udf", **puts):
-    for f in ("define.udf", "kapsel_unit.udf"):
-        shutil.copy(os.path.join(EX12_DATA, f), tmp_path / f)
+    copy_schema(tmp_path, EX12_DATA)
     u = UDFManager(os.path.join(EX12_DATA, "nowall.udf"))
     for path, value in puts.items():
         u.put(value, path.replace("__", "."))
@@ -624,8 +623,7 @@ def nowall_input(tmp_path, name="in.udf", **puts):
 
 # ---------------------------------------------------------------- from test_janus.py
 def _sample(tmp_path, old, new):
-    for f in ("define.udf", "kapsel_unit.udf"):
-        shutil.copy(os.path.join(SAMPLES, f), tmp_path / f)
+    copy_schema(tmp_path)
     text = open(os.path.join(SAMPLES, "input.udf")).read()
     for o, n in zip(old, new):
         assert o in text, o
@@ -1044,8 +1042,7 @@ def bad_input_dir(d, name):
     if CORPUS_DIR not in sys.path:
         sys.path.insert(0, CORPUS_DIR)
     import make_corpus
-    for f in ("define.udf", "kapsel_unit.udf"):
-        shutil.copy(os.path.join(SAMPLES, f), d / f)
+    copy_schema(d)
     for f in make_corpus.SUPPORT:
         shutil.copy(os.path.join(CORPUS_DIR, f), d / f)
     shutil.copy(os.path.join(CORPUS_DIR, name), d / name)

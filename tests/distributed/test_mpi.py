@@ -10,7 +10,6 @@ agree``): max |distributed - serial| is 0 (bit-identical) with 1 rank; with 2 ra
 1.1e-16 in R_raw; with 4 ranks (2 x 2 pencils) 3.1e-14, 1.9e-14, 1.1e-16.
 """
 import os
-import shutil
 import subprocess
 import sys
 
@@ -19,8 +18,8 @@ import pytest
 
 from udf import UDFManager
 
-from builders import (agree_with_serial, cli, continue_distributed, differences, make_input,
-                      MPIEXEC, mpirun, saved_data)
+from builders import (agree_with_serial, cli, continue_distributed, copy_schema, differences,
+                      make_input, MPIEXEC, mpirun, saved_data)
 
 
 @pytest.fixture(autouse=True)
@@ -187,8 +186,7 @@ def test_sheared_types_distributed(tmp_path, eq, rate, ranks):
 def test_walls_are_refused_with_more_than_one_rank(tmp_path):
     """Flat walls (ex14's input with Navier_Stokes) are not distributed: refused by name."""
     from builders import EX14, wall_run_input
-    for f in ("define.udf", "kapsel_unit.udf"):
-        shutil.copy(os.path.join(EX14, f), tmp_path / f)
+    copy_schema(tmp_path, EX14)
     (tmp_path / "in.udf").write_text(wall_run_input(tmp_path, "Navier_Stokes"))
     r = mpirun(tmp_path, 2, "in.udf", check=False)
     assert r.returncode == 2
@@ -204,8 +202,7 @@ def test_walls_on_one_rank_run_as_a_plain_run(tmp_path):
     for name in ("plain", "one"):
         d = tmp_path / name
         d.mkdir()
-        for f in ("define.udf", "kapsel_unit.udf"):
-            shutil.copy(os.path.join(EX14, f), d / f)
+        copy_schema(d, EX14)
         (d / "in.udf").write_text(wall_run_input(d, "Navier_Stokes"))
     assert cli(tmp_path / "plain", "in.udf") == 0
     r = mpirun(tmp_path / "one", 1, "in.udf", check=False)

@@ -5,7 +5,6 @@ a non-zero exit, no traceback, and nothing written: no output.udf, restart.udf, 
 The corpus files are the manual's sample shrunk to a 16^3 mesh, 2 particles and one step,
 each with one thing broken; tests/bad_inputs/make_corpus.py regenerates them."""
 import os
-import shutil
 import subprocess
 import sys
 
@@ -13,7 +12,8 @@ import pytest
 
 from kapsel import cli, models  # noqa: F401  (models register their types at import)
 
-from builders import bad_input_command, bad_input_dir, CORPUS, CORPUS_DIR, CORPUS_FLAGS, TESTS
+from builders import (bad_input_command, bad_input_dir, copy_schema, CORPUS, CORPUS_DIR,
+                      CORPUS_FLAGS, TESTS)
 
 
 HERE = TESTS
@@ -74,8 +74,7 @@ def test_bad_input_through_the_console_command(name, tmp_path):
 
 
 def run_ok(tmp_path, text, monkeypatch):
-    for f in ("define.udf", "kapsel_unit.udf"):
-        shutil.copy(os.path.join(SAMPLES, f), tmp_path / f)
+    copy_schema(tmp_path)
     (tmp_path / "input.udf").write_text(text)
     monkeypatch.chdir(tmp_path)
     return cli.main(["-Iinput.udf", *CORPUS_FLAGS, "--seed", "1", "--quiet"])

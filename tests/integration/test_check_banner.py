@@ -10,7 +10,7 @@ import pytest
 
 from kapsel import cli, models  # noqa: F401  (models register their types)
 
-from builders import bad_input_command, bad_input_dir, CORPUS, TESTS
+from builders import bad_input_command, bad_input_dir, copy_schema, CORPUS, TESTS
 
 
 HERE = TESTS
@@ -22,8 +22,7 @@ FLAGS = ["-Iinput.udf", "-Ooutput.udf", "-Ddefine.udf", "-Rrestart.udf"]
 
 
 def setup(d, text=None):
-    for f in ("define.udf", "kapsel_unit.udf"):
-        shutil.copy(os.path.join(SAMPLES, f), d / f)
+    copy_schema(d)
     (d / "input.udf").write_text(make_corpus.tiny_sample() if text is None else text)
 
 

@@ -12,7 +12,6 @@ import contextlib
 import io
 import os
 import re
-import shutil
 import signal
 import sys
 import tempfile
@@ -24,7 +23,7 @@ from hypothesis import HealthCheck, given, settings, strategies as st
 
 from kapsel import cli, config, models  # noqa: F401  (models register their types)
 
-from builders import TESTS
+from builders import copy_schema, TESTS
 
 
 HERE = TESTS
@@ -110,8 +109,7 @@ def on_alarm(signum, frame):
 
 
 def run_cli(text, d):
-    for f in ("define.udf", "kapsel_unit.udf"):
-        shutil.copy(os.path.join(SAMPLES, f), os.path.join(d, f))
+    copy_schema(d)
     with open(os.path.join(d, "input.udf"), "w", encoding="utf-8") as fh:
         fh.write(text)
     before = listing(d)

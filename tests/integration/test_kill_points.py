@@ -24,7 +24,7 @@ import pytest
 
 import kill_points as kp
 
-from builders import one_line
+from builders import copy_schema, one_line
 
 
 pytestmark = pytest.mark.skipif(not kp.have_strace(), reason="strace is not installed "
@@ -66,8 +66,7 @@ def _sheared_rigid_avs(d):
     from udf import UDFManager
     base = os.path.join(kp.ROOT, "samples", "kapsel-udf", "ex14")     # define.udf 4.1
     os.makedirs(d, exist_ok=True)
-    for f in ("define.udf", "kapsel_unit.udf"):
-        shutil.copy(os.path.join(base, f), os.path.join(d, f))
+    copy_schema(d, base)
     u = UDFManager(os.path.join(base, "input.udf"))
     edits = merge(common(LE, n=3, dt=0.05, gts=2, objects="rigid"),
                   rigid([row((2.0 + 2.0 * b, 4.0, 4.0)) for b in range(3)], 3, mass=1.0),

@@ -16,7 +16,7 @@ from kapsel.io.restart import read_restart, state_path, unpack_zeta
 from kapsel.simulation import SOLVERS
 from udf import UDFManager
 
-from builders import cli, make_input, run_cli, scene as make_scene, TESTS
+from builders import cli, copy_schema, make_input, run_cli, scene as make_scene, TESTS
 
 
 def original_k(n, dx):
@@ -257,8 +257,7 @@ ORIGINAL["fixed"]["cont"] = ORIGINAL["fixed"]["straight"]    # bit for bit, in t
 def _rigid_dir(d, restart):
     """``d`` holding ``restart`` as input.udf, next to the sample's define.udf."""
     os.makedirs(d, exist_ok=True)
-    for f in ("define.udf", "kapsel_unit.udf"):
-        shutil.copy(os.path.join(SAMPLES, f), d / f)
+    copy_schema(d)
     shutil.copy(restart, d / "input.udf")
     return d / "input.udf"
 

@@ -1,7 +1,6 @@
 """`kapsel-py analyze show RUN_DIR`: a PNG of a snapshot (a psi or |u| slice with the
 particles, and the records over time), checked pixel by pixel against the snapshot's data."""
 import os
-import shutil
 import subprocess
 import sys
 
@@ -9,7 +8,7 @@ import h5py
 import numpy as np
 import pytest
 
-from builders import TESTS
+from builders import copy_schema, TESTS
 
 
 matplotlib = pytest.importorskip("matplotlib")
@@ -30,8 +29,7 @@ FLAGS = ["-Iinput.udf", "-Ooutput.udf", "-Ddefine.udf", "-Rrestart.udf", "--seed
 
 def short_run(d, monkeypatch, eq=None, gts=2, nsnap=2):
     """The tiny sample (16^3, 2 particles) for gts * nsnap steps, in d."""
-    for f in ("define.udf", "kapsel_unit.udf"):
-        shutil.copy(os.path.join(SAMPLES, f), d / f)
+    copy_schema(d)
     (d / "tiny.udf").write_text(make_corpus.tiny_sample())
     u = UDFManager(str(d / "tiny.udf"))
     if eq:

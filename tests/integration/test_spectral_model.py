@@ -1,6 +1,5 @@
 """The Navier_Stokes type end to end: records, reproducibility with a seed, the summary."""
 import os
-import shutil
 import subprocess
 import sys
 
@@ -9,15 +8,14 @@ import pytest
 
 from udf import UDFManager
 
-from builders import TESTS
+from builders import copy_schema, TESTS
 
 
 SAMPLES = os.path.join(TESTS, "..", "samples")
 
 
 def ns_input(tmp_path, **puts):
-    for f in ("define.udf", "kapsel_unit.udf"):
-        shutil.copy(os.path.join(SAMPLES, f), tmp_path / f)
+    copy_schema(tmp_path)
     u = UDFManager(os.path.join(SAMPLES, "input.udf"))
     u.put("Navier_Stokes", "constitutive_eq.type")
     u.put(4, "output.GTS")

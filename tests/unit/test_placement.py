@@ -7,7 +7,7 @@ import pytest
 from kapsel.particles import placement as P
 from kapsel.particles import quaternion as Q
 
-from builders import TESTS
+from builders import copy_schema, TESTS
 
 
 BOX = np.array([40.0, 32.0, 48.0])
@@ -238,13 +238,11 @@ def test_user_specify_deep_overlap_check_is_vectorised(tmp_path, monkeypatch):
     """user_specify positions closer than A (half the contact distance) are refused, naming
     the first such pair (lowest index, then its closest partner); 8000 particles are checked
     by a pair search, not a loop over particles."""
-    import shutil
     import time
     from kapsel import cli
     from udf import UDFManager
     samples = os.path.join(TESTS, "..", "samples")
-    for f in ("define.udf", "kapsel_unit.udf"):
-        shutil.copy(os.path.join(samples, f), tmp_path / f)
+    copy_schema(tmp_path, samples)
     n, A = 8000, 2.0
     g = (np.arange(20) + 0.5) * 12.8                      # 20^3 sites, 12.8 apart in 256^3
     R = np.stack(np.meshgrid(g, g, g, indexing="ij"), -1).reshape(-1, 3)

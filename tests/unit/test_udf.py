@@ -2,14 +2,13 @@
 UDFManager API, and one clear message (file:line:col or path) for each error class."""
 import glob
 import os
-import shutil
 
 import numpy as np
 import pytest
 
 from udf import UDFError, UDFManager
 
-from builders import TESTS
+from builders import copy_schema, TESTS
 
 
 HERE = TESTS
@@ -174,8 +173,7 @@ def test_writing_nan_is_refused(tmp_path):
 
 # ---------------------------------------------------------------- error classes
 def broken_copy(tmp_path, old, new):
-    for f in ("define.udf", "kapsel_unit.udf"):
-        shutil.copy(os.path.join(SAMPLES, f), tmp_path / f)
+    copy_schema(tmp_path)
     text = open(os.path.join(SAMPLES, "input.udf")).read()
     assert old in text
     p = tmp_path / "input.udf"
@@ -198,8 +196,7 @@ def test_error_malformed_file(tmp_path):
 
 def test_error_truncated_file(tmp_path):
     p = tmp_path / "input.udf"
-    for f in ("define.udf", "kapsel_unit.udf"):
-        shutil.copy(os.path.join(SAMPLES, f), tmp_path / f)
+    copy_schema(tmp_path)
     p.write_text(open(os.path.join(SAMPLES, "input.udf")).read()[:1500])
     msg = error_of(str(p))
     assert "input.udf" in msg and ("end of file" in msg or "unexpected" in msg)
@@ -264,8 +261,7 @@ def test_get_of_an_absent_item_says_it_is_absent(tmp_path):
     """OCTA's UDFManager reads data the file holds; a file that is only the schema (an
     output.udf of \\include{"define.udf"}) has none: get() says so instead of returning a
     made-up default.  put() creates the item."""
-    for f in ("define.udf", "kapsel_unit.udf"):
-        shutil.copy(os.path.join(SAMPLES, f), tmp_path / f)
+    copy_schema(tmp_path)
     (tmp_path / "o.udf").write_text('\\include{"define.udf"}\n')
     u = UDFManager(str(tmp_path / "o.udf"))
     with pytest.raises(UDFError, match="'mesh' is absent"):

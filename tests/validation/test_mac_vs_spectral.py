@@ -8,7 +8,7 @@ from kapsel.fluid.spectral import SpectralNS
 from kapsel.grid import Grid
 from kapsel.timestep import auto_dt
 
-from builders import TESTS
+from builders import copy_schema, TESTS
 
 
 def measured_dt(factor, rho, eta, dx):
@@ -44,13 +44,11 @@ def test_shear_wave_mac_matches_spectral(scheme):
 
 def test_viscosity_change_runs(tmp_path):
     import os
-    import shutil
     from kapsel import config
     from kapsel.models.fdm import FDMModel
     from udf import UDFManager
     samples = os.path.join(TESTS, "..", "samples")
-    for f in ("define.udf", "kapsel_unit.udf"):
-        shutil.copy(os.path.join(samples, f), tmp_path / f)
+    copy_schema(tmp_path, samples)
     u = UDFManager(os.path.join(samples, "input.udf"))
     base = "constitutive_eq.Navier_Stokes_Cahn_Hilliard_FDM.NS_solver"
     u.put("implicit_scheme", f"{base}.type")

@@ -38,7 +38,7 @@ from kapsel.particles.spm import SPM
 from kapsel.particles.state import ParticleState
 from udf import UDFManager
 
-from builders import FREE3, rigid_input, run_model, scene, TESTS
+from builders import copy_schema, FREE3, rigid_input, run_model, scene, TESTS
 
 
 SAMPLES = os.path.join(TESTS, "..", "samples")
@@ -514,8 +514,7 @@ def test_unsupported_rigid_options_are_named(tmp_path, puts, path):
 def test_free_rigid_acts_on_rigid_bodies_only(tmp_path):
     """As the original (PHYSICS-EXTRA §1.2): switch.free_rigid is read for spheres too, and
     ignored: it only acts when object_type is rigid."""
-    for f in ("define.udf", "kapsel_unit.udf"):
-        shutil.copy(os.path.join(SAMPLES, f), tmp_path / f)
+    copy_schema(tmp_path)
     u = UDFManager(os.path.join(SAMPLES, "input.udf"))
     u.put("YES", "switch.free_rigid.type")
     u.write(str(tmp_path / "s.udf"))

@@ -9,7 +9,6 @@ gap h_eff = 28.16, i.e. the no-slip planes sit 0.08 DX inside the solid's interf
 """
 import math
 import os
-import shutil
 import types
 
 import numpy as np
@@ -27,7 +26,7 @@ from kapsel.particles.spm import SPM
 from kapsel.particles.state import ParticleState
 from kapsel.particles.walls import FlatWall
 
-from builders import EX14, wall_run_input
+from builders import copy_schema, EX14, wall_run_input
 
 
 def no_particles():
@@ -176,8 +175,7 @@ def test_wall_torque_adds_to_the_pair_torque_of_a_rigid_body():
 
 
 def _ex14(tmp_path, old=None, new=None, name="input.udf"):
-    for f in ("define.udf", "kapsel_unit.udf"):
-        shutil.copy(os.path.join(EX14, f), tmp_path / f)
+    copy_schema(tmp_path, EX14)
     text = open(os.path.join(EX14, "input.udf")).read()
     text = text.replace('"Navier_Stokes_Cahn_Hilliard_FDM"', '"Navier_Stokes_FDM"', 1)
     if old is not None:
@@ -222,8 +220,7 @@ def test_particles_settle_between_walls_in_a_run(tmp_path, eq):
     of max|u| after 10 steps (the original: up to 7 %; kapsel-py held it at round-off with a
     second, constrained projection before it took the original's algorithm)."""
     from kapsel import cli
-    for f in ("define.udf", "kapsel_unit.udf"):
-        shutil.copy(os.path.join(EX14, f), tmp_path / f)
+    copy_schema(tmp_path, EX14)
     (tmp_path / "in.udf").write_text(wall_run_input(tmp_path, eq))
     cfg = config.load(str(tmp_path / "in.udf"))
     args = types.SimpleNamespace(seed=3, quiet=True, threads=1)
