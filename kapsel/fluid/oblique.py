@@ -587,8 +587,8 @@ class ObliqueMAC(_ObliqueFrame, MACSolver):
     rectangular MACSolver: ``step(u)``, ``project(u)``); they are converted to contravariant
     components here.  The frame is re-mapped after a step when |g| > s/2: a row shift on the
     grid (exact for Nx a multiple of Ny, else ``interpolation`` = OBL_INT along x) of u,
-    u^{n-1} and the pressure; ``remap_fields`` tells the caller which scalar fields (psi,
-    psi_old) to shift alike (``shift_scalar``).
+    u^{n-1} and the pressure; ``take_remap()`` tells the caller (once) by how many frames,
+    so that it shifts its scalar fields (psi, psi_old) alike (``shift_scalar``).
 
     On a rank's block (``layout`` a PencilGrid; docs/distributed.md) the metric pieces run
     on the block widened by the halo (the variable-viscosity term, reach 2, by two layers:
@@ -780,6 +780,12 @@ class ObliqueMAC(_ObliqueFrame, MACSolver):
         self.remaps += n
         self.remap_count += 1
         self.remap_fields = n
+
+    def take_remap(self) -> int:
+        """The frames the last re-mapping dropped (0: none since the last call); the caller
+        shifts its scalar fields by as many (``shift_scalar``)."""
+        n, self.remap_fields = self.remap_fields, 0
+        return n
 
 
 def oblique_laplacian(f, dx, g, out, work=None):

@@ -347,16 +347,13 @@ class ShearFDMModel(FDMModel):
     def _make_ch(self, dt):
         from ..phase.oblique import make_oblique_cahn_hilliard
         mac = self.mac
-        ch = make_oblique_cahn_hilliard(lambda: mac.frame_strain, self.shape, self.dx,
-                                        self.cfg.phase, dt, layout=self.grid, **self.ch_kwargs)
-        g = mac.max_frame_strain
-        ch._k2 = ch._k2 * (1.0 + (4 * g * g + 2 * g) / 12.0)   # metric Laplacian bound
-        return ch
+        return make_oblique_cahn_hilliard(lambda: mac.frame_strain, mac.max_frame_strain,
+                                          self.shape, self.dx, self.cfg.phase, dt,
+                                          layout=self.grid, **self.ch_kwargs)
 
     def _after_fluid(self):
-        n = self.mac.remap_fields
+        n = self.mac.take_remap()
         if n:
-            self.mac.remap_fields = 0
             if self.psi is not None:
                 self.psi[...] = self.mac.shift_scalar(self.psi, n)
                 if self.ch.psi_old is not None:
