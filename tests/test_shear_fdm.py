@@ -83,8 +83,9 @@ def test_pure_fluid_zero_deviation_and_stress(tmp_path, eq, scheme):
         assert m.mac.remap_count >= 1
         assert np.abs(m.u).max() == 0.0
         rec = m.shear_record()
-        # the field stress uses gamma_dot at the end of each step
-        ends = [m.mac.shear.rate((k + 1) * m.dt) for k in range(40)]
+        # the field stress uses the frame's rate after each step: that of the step's
+        # strain increment, gamma_dot at the step's start (the original's Shear_rate_eff)
+        ends = [m.mac.shear.rate(k * m.dt) for k in range(40)]
         assert rec["Shear_stress"] == pytest.approx(m.cfg.fluid.ETA * np.mean(ends),
                                                     rel=1e-12, abs=1e-15)
 

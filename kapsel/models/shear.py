@@ -305,7 +305,7 @@ class ShearLEModel(SpectralModel):
         else:
             fl = self.fluid
             g_saved = float((fields.get("oblique") or [0.0])[0])
-            fl.set_time(self.time, int(round((fl.shear.strain(self.time) - g_saved) / fl.s)))
+            fl.set_time(self.time, int(round((fl.strain_at(self.time) - g_saved) / fl.s)))
             w = self._zeta_velocity(fields)           # covariant
             g = fl.frame_strain
             u = w.copy()                              # contravariant: G w
