@@ -6,7 +6,9 @@ Imposed flow and frame
 The imposed flow is U = gamma_dot(t) (y - y0) e_x with the shear origin y0 = Ly/2 (the box
 centre: a particle there does not translate).  ``ShearFlow``: DC gamma_dot(t) = Shear_rate;
 AC gamma_dot(t) = Shear_rate cos(2 pi Frequency t) (Frequency in cycles per tau).  The applied
-strain is Gamma(t) = int_0^t gamma_dot.
+strain is Gamma(t) = int_0^t gamma_dot for DC; for AC the original's discrete one, the left sum
+dt sum_{m<n} gamma_dot(m dt) after n steps, with the rate of a step's start for what follows it
+(``_ObliqueFrame.strain_at``, ``rate_at``).
 
 Oblique coordinates x^ = x - g (y - y0), y^ = y, z^ = z, with g the *frame strain*: Gamma(t)
 minus the re-mappings done so far (the frame moves with U).  A grid point (i, j, k) of the
@@ -35,7 +37,7 @@ pseudo-spectrally: u^j d^_j u^i in rotational form (physical u x omega, 2/3 rule
 oblique index space), the pressure by the metric projection
 P^G v = v - G k^ (k^.v) / (k^ G k^) (k^.v = K.v_cartesian: the projection is the Cartesian one
 with K), the viscous term integrated exactly over the step with the time-averaged
-|K(t)|^2 (Simpson's rule, exact for DC), the rest by the slaved Euler (ETD1) step of
+|K(t)|^2 (Simpson's rule, exact for DC; AC: |K|^2 of the step's start, as the original), the rest by the slaved Euler (ETD1) step of
 ``SpectralNS``.  Each step starts by truncating the state to the 2/3 band, as the
 original's (operate_omega.cxx Zeta_k2advection_k_OBL truncates zeta before the advection),
 so the high modes the particles' rigidity increment puts into u^ (add_solenoidal: projected,

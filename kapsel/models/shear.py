@@ -16,7 +16,7 @@ the viscous stress of the whole (periodic-deviation) flow plus the first moment 
 force density RHO du / dt the particles exert on the fluid (du the rigidity increment of a
 step, r = x - R_i; Batchelor's particle stress).  The value of a record is the mean over the
 steps since the previous record (the instantaneous ETA gamma_dot at step 0).  The Reynolds
-stress of the deviation is not included.  The applied strain is int gamma_dot dt.
+stress of the deviation is not included.  The applied strain is int gamma_dot dt (AC: the original's sum of gamma_dot dt over the steps).
 
 The define.udf of the original has no record item for these; they go into a record only
 when the define file declares record items ``Shear_stress`` / ``Shear_strain`` /
