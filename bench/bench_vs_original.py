@@ -60,6 +60,7 @@ SCENES = {
     "ns64": ("Navier_Stokes 64^3, 1 particle (A 4)", _ns(6, 1, 4.0), 200, 20),
     "ns64x100": ("Navier_Stokes 64^3, 100 particles (A 2)", _ns(6, 100, 2.0), 200, 20),
     "ns128x1000": ("Navier_Stokes 128^3, 1000 particles (A 2)", _ns(7, 1000, 2.0), 200, 20),
+    "ns256x8000": ("Navier_Stokes 256^3, 8000 particles (A 2)", _ns(8, 8000, 2.0), 20, 10),
     "fdm64e": ("Navier_Stokes_FDM explicit 64^3, 8 particles", dict(
         _ns(6, 8, 4.0, "Navier_Stokes_FDM"),
         **{"constitutive_eq.Navier_Stokes_FDM.NS_solver.type": "explicit_scheme"}), 200, 20),

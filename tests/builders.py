@@ -191,19 +191,40 @@ def records(path):
 
 
 # ---------------------------------------------------------------- from test_shear_le.py
-def shearing_wave(grid, shear, nu, t, m=(1, 2), a=1e-3, inplane=False, y0=None, frame=0.0):
+def original_ac_strains(shear, dt, n):
+    """The strains the original's AC frame holds after 0 .. n steps (sp_3d_ns.cxx: after
+    the fluid step of step ts, degree_oblique += Shear_rate cos(omega dt ts) dt), summed
+    step by step as it does."""
+    g, out = 0.0, [0.0]
+    for ts in range(n):
+        g += shear.rate0 * math.cos(shear.omega * dt * ts) * dt
+        out.append(g)
+    return out
+
+
+def shearing_wave(grid, shear, nu, t, m=(1, 2), a=1e-3, inplane=False, y0=None, frame=0.0,
+                  dt=None):
     """Exact linear solution advected by U = gamma_dot (y - y0) e_x on the rectangular grid:
     out of plane u_z = A(t) cos(K(t).x + phase), or in plane from the vorticity
     omega_z = A(t) cos(...) (u = curl psi, -lap psi = omega); A(t) = a exp(-nu int |K|^2).
-    ``frame`` g: on the oblique grid of strain g instead (x = i + g (j - y0))."""
+    ``frame`` g: on the oblique grid of strain g instead (x = i + g (j - y0)).
+    ``dt`` (AC): the solution of the original's discrete AC frame instead, strain Gamma_n
+    (``original_ac_strains``) and A = a exp(-nu dt sum_{m<n} |K(Gamma_m)|^2) (its metric of
+    each step's start)."""
     x, y, z = grid.coordinates()
     L = grid.box
     y0 = 0.5 * L[1] if y0 is None else y0
     x = x + frame * (y - y0)
     k1, k2 = 2 * np.pi * m[0] / L[0], 2 * np.pi * m[1] / L[1]
-    G = shear.strain(t)
+    if dt is not None and shear.kind == "AC":
+        gs = original_ac_strains(shear, dt, int(round(t / dt)))
+        G = gs[-1]
+        integral = dt * sum(k1 ** 2 + (k2 - k1 * gm) ** 2 for gm in gs[:-1])
+    else:
+        G = shear.strain(t)
+        integral = quad(lambda s: k1 ** 2 + (k2 - k1 * shear.strain(s)) ** 2, 0, t,
+                        limit=200)[0]
     Ky = k2 - k1 * G
-    integral = quad(lambda s: k1 ** 2 + (k2 - k1 * shear.strain(s)) ** 2, 0, t, limit=200)[0]
     amp = a * math.exp(-nu * integral)
     ph = k1 * x + Ky * y + k1 * G * y0 + 0 * z
     u = np.zeros((3,) + grid.shape)

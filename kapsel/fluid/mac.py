@@ -169,6 +169,23 @@ class MACSolver:
         self._u_old[...] = value
         self._have_old = True
 
+    @property
+    def has_u_old(self) -> bool:
+        """Whether u^{n-1} is set (a step was made, or a restart gave U_OLD)."""
+        return self._have_old
+
+    @property
+    def advection_old(self):
+        """The explicit scheme's AB2 history n^{n-1} = (u.grad)u - f of the last step, None
+        before the first step."""
+        return self._n_old if self._have_n_old else None
+
+    def restore_advection(self, n_old) -> None:
+        """Set the AB2 history n^{n-1} (a restart's exact state)."""
+        self._n_old = np.array(n_old)
+        self._wn = np.empty_like(self._n_old)
+        self._have_n_old = True
+
     def stable_dt(self, u=None, eta_field=None):
         """Largest stable dt: explicit diffusion (3D FTCS) DX^2 / (6 nu_max) and, when u is
         given, the advection-diffusion bound 2 nu / |u|^2_max; inf for implicit_scheme."""

@@ -6,7 +6,9 @@ Imposed flow and frame
 The imposed flow is U = gamma_dot(t) (y - y0) e_x with the shear origin y0 = Ly/2 (the box
 centre: a particle there does not translate).  ``ShearFlow``: DC gamma_dot(t) = Shear_rate;
 AC gamma_dot(t) = Shear_rate cos(2 pi Frequency t) (Frequency in cycles per tau).  The applied
-strain is Gamma(t) = int_0^t gamma_dot.
+strain is Gamma(t) = int_0^t gamma_dot for DC; for AC the original's discrete one, the left sum
+dt sum_{m<n} gamma_dot(m dt) after n steps, with the rate of a step's start for what follows it
+(``_ObliqueFrame.strain_at``, ``rate_at``).
 
 Oblique coordinates x^ = x - g (y - y0), y^ = y, z^ = z, with g the *frame strain*: Gamma(t)
 minus the re-mappings done so far (the frame moves with U).  A grid point (i, j, k) of the
@@ -35,7 +37,7 @@ pseudo-spectrally: u^j d^_j u^i in rotational form (physical u x omega, 2/3 rule
 oblique index space), the pressure by the metric projection
 P^G v = v - G k^ (k^.v) / (k^ G k^) (k^.v = K.v_cartesian: the projection is the Cartesian one
 with K), the viscous term integrated exactly over the step with the time-averaged
-|K(t)|^2 (Simpson's rule, exact for DC), the rest by the slaved Euler (ETD1) step of
+|K(t)|^2 (Simpson's rule, exact for DC; AC: |K|^2 of the step's start, as the original), the rest by the slaved Euler (ETD1) step of
 ``SpectralNS``.  Each step starts by truncating the state to the 2/3 band, as the
 original's (operate_omega.cxx Zeta_k2advection_k_OBL truncates zeta before the advection),
 so the high modes the particles' rigidity increment puts into u^ (add_solenoidal: projected,
@@ -210,13 +212,14 @@ class _ObliqueFrame:
     def _init_frame(self, shear, box, dt, t0=0.0, frame_strain0=None):
         self.shear = shear
         self.time = float(t0)
+        self.frame_dt = float(dt)
         Lx, Ly = float(box[0]), float(box[1])
         self.s = Lx / Ly                       # strain of one re-mapping
         self.y0 = 0.5 * Ly
         self.Ly = Ly
         self.frame_box = np.array(box, dtype=float)
         self.max_frame_strain = 0.5 * self.s + abs(shear.rate0) * dt * 2 + 1e-12
-        g = shear.strain(self.time)
+        g = self.strain_at(self.time)
         if frame_strain0 is None:
             frame_strain0 = g - self.s * math.floor(g / self.s + 0.5)
         if abs(frame_strain0) > self.max_frame_strain:
@@ -228,22 +231,54 @@ class _ObliqueFrame:
         """Continue at time t (a restart): the frame of t as a run from 0 reaches it."""
         self.time = float(t)
         if remaps is None:
-            g = self.shear.strain(self.time)
+            g = self.strain_at(self.time)
             remaps = int(math.floor(g / self.s + 0.5))
         self.remaps = int(remaps)
+
+    # The strain and rate of the frame.  DC: Gamma(t) = gamma_dot t.  AC: the original's
+    # discrete strain (sp_3d_ns.cxx Time_evolution_hydro_OBL[_fdm]: after the fluid step of
+    # step ts it sets Shear_rate_eff = Shear_rate cos(omega dt ts) and adds Shear_rate_eff dt
+    # to degree_oblique), so after n steps Gamma_n = dt sum_{m<n} gamma_dot(m dt), the left
+    # sum, not the integral; the rate of the frame after step m (the particles' images and
+    # wrap, the imposed flow, and the next fluid step's Coriolis term and metric) is
+    # gamma_dot(m dt), the rate at the start of that step.
+    def _steps(self, t) -> int:
+        return int(round(t / self.frame_dt))
+
+    def strain_at(self, t) -> float:
+        """Applied strain of the frame at time t (DC: Gamma(t); AC: the original's sum
+        Gamma_n = Shear_rate dt sum_{m=0}^{n-1} cos(omega m dt), n = t / dt, in the closed
+        form sin(n a/2) cos((n - 1) a/2) / sin(a/2), a = omega dt)."""
+        sh = self.shear
+        if sh.kind != "AC":
+            return sh.strain(t)
+        n = self._steps(t)
+        h = 0.5 * sh.omega * self.frame_dt
+        sh_ = math.sin(h)
+        total = float(n) if sh_ == 0.0 else math.sin(n * h) * math.cos((n - 1) * h) / sh_
+        return sh.rate0 * self.frame_dt * total
+
+    def rate_at(self, t) -> float:
+        """Shear rate of the frame at time t (DC: gamma_dot; AC: that of the last step's
+        strain increment, gamma_dot(t - dt), and gamma_dot(0) at the start)."""
+        sh = self.shear
+        if sh.kind != "AC":
+            return sh.rate(t)
+        n = max(self._steps(t) - 1, 0)
+        return sh.rate(n * self.frame_dt)
 
     @property
     def frame_strain(self) -> float:
         """g of the current oblique grid (the restart's oblique.degree_oblique)."""
-        return self.shear.strain(self.time) - self.remaps * self.s
+        return self.strain_at(self.time) - self.remaps * self.s
 
     @property
     def applied_strain(self) -> float:
-        return self.shear.strain(self.time)
+        return self.strain_at(self.time)
 
     @property
     def shear_rate_now(self) -> float:
-        return self.shear.rate(self.time)
+        return self.rate_at(self.time)
 
     @property
     def image_offset(self) -> float:
@@ -398,14 +433,20 @@ class ObliqueSpectralNS(_ObliqueFrame, SpectralNS):
         if its strain left [-s/2, s/2]."""
         t0, dt = self.time, self.dt
         g0 = self.frame_strain
-        rate = self.shear.rate(t0)
+        rate = self.rate_at(t0)
         self.truncate()
         nl = self._nonlinear_oblique(g0, rate)
-        # frame strains at t0, t0 + dt/2, t0 + dt (same re-mapping count): Simpson means
-        off = self.remaps * self.s
-        gs = [self.shear.strain(t0 + a * dt) - off for a in (0.0, 0.5, 1.0)]
-        gm = (gs[0] + 4 * gs[1] + gs[2]) / 6.0
-        g2m = (gs[0] ** 2 + 4 * gs[1] ** 2 + gs[2] ** 2) / 6.0
+        if self.shear.kind == "AC":
+            # the original's metric of the step's start (Update_K2_OBL after the last
+            # step's strain increment) with its discrete strain (_ObliqueFrame.strain_at):
+            # first order in dt for the viscous factor, as the original
+            gm, g2m = g0, g0 * g0
+        else:
+            # frame strains at t0, t0 + dt/2, t0 + dt (same re-mapping count): Simpson means
+            off = self.remaps * self.s
+            gs = [self.shear.strain(t0 + a * dt) - off for a in (0.0, 0.5, 1.0)]
+            gm = (gs[0] + 4 * gs[1] + gs[2]) / 6.0
+            g2m = (gs[0] ** 2 + 4 * gs[1] ** 2 + gs[2] ** 2) / 6.0
         K2 = np.multiply(self._k11, 1.0 + g2m, out=np.empty(self.grid.local_cshape))
         K2 -= (2.0 * gm) * self._k12
         K2 += self._k22
@@ -587,8 +628,8 @@ class ObliqueMAC(_ObliqueFrame, MACSolver):
     rectangular MACSolver: ``step(u)``, ``project(u)``); they are converted to contravariant
     components here.  The frame is re-mapped after a step when |g| > s/2: a row shift on the
     grid (exact for Nx a multiple of Ny, else ``interpolation`` = OBL_INT along x) of u,
-    u^{n-1} and the pressure; ``remap_fields`` tells the caller which scalar fields (psi,
-    psi_old) to shift alike (``shift_scalar``).
+    u^{n-1} and the pressure; ``take_remap()`` tells the caller (once) by how many frames,
+    so that it shifts its scalar fields (psi, psi_old) alike (``shift_scalar``).
 
     On a rank's block (``layout`` a PencilGrid; docs/distributed.md) the metric pieces run
     on the block widened by the halo (the variable-viscosity term, reach 2, by two layers:
@@ -718,7 +759,7 @@ class ObliqueMAC(_ObliqueFrame, MACSolver):
         """Advance the Cartesian deviation u (on the oblique grid) by dt in place."""
         t0, dt = self.time, self.dt
         g0 = self.frame_strain
-        rate = self.shear.rate(t0)
+        rate = self.rate_at(t0)
         w = contravariant(u, g0, out=self._w)
         if eta_field is not None and rate:
             # the imposed flow is not force-free where eta varies: div(eta (grad U + grad U^T))
@@ -732,7 +773,7 @@ class ObliqueMAC(_ObliqueFrame, MACSolver):
         f = np.zeros_like(w) if force is None else contravariant(force, g0)
         f[0] -= 2.0 * rate * w[1]
         if self.scheme == "implicit_scheme":
-            self._g_op = self.shear.strain(t0 + 0.5 * dt) - self.remaps * self.s
+            self._g_op = self.mid_step_strain(t0)
         else:
             self._g_op = g0
         MACSolver.step(self, w, f, eta_field)
@@ -742,6 +783,14 @@ class ObliqueMAC(_ObliqueFrame, MACSolver):
         if n:
             self._remap(u, n)
         return u
+
+    def mid_step_strain(self, t0):
+        """The frame strain of the implicit step's operators from t0 (the original's
+        gt = degree_oblique + Shear_rate_eff dt / 2, fdm.cxx / fdm_matrix_solver.cxx):
+        DC Gamma(t0 + dt/2); AC the discrete strain plus half a step at the frame's rate."""
+        if self.shear.kind == "AC":
+            return self.frame_strain + self.rate_at(t0) * (0.5 * self.dt)
+        return self.shear.strain(t0 + 0.5 * self.dt) - self.remaps * self.s
 
     def _gradient(self, f, g):
         """The physical central gradient of a node field (``oblique_gradient``)."""
@@ -780,6 +829,12 @@ class ObliqueMAC(_ObliqueFrame, MACSolver):
         self.remaps += n
         self.remap_count += 1
         self.remap_fields = n
+
+    def take_remap(self) -> int:
+        """The frames the last re-mapping dropped (0: none since the last call); the caller
+        shifts its scalar fields by as many (``shift_scalar``)."""
+        n, self.remap_fields = self.remap_fields, 0
+        return n
 
 
 def oblique_laplacian(f, dx, g, out, work=None):

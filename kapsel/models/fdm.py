@@ -32,12 +32,10 @@ class _ModelH_SPM(SPM):
     """SPM whose MAC fluid step takes the capillary force and the viscosity field (eq 15),
     followed, as in the original, by switch.FIX_CELL: the mean (k = 0) velocity of each
     flagged direction is removed right after the fluid step."""
-    fluid_force = None
-    eta_field = None
     fix_cell = (False, False, False)
 
-    def _fluid_step(self):
-        self.fluid.step(self.u, force=self.fluid_force, eta_field=self.eta_field)
+    def _fluid_step(self, force=None, eta_field=None):
+        self.fluid.step(self.u, force=force, eta_field=eta_field)
         for c, on in enumerate(self.fix_cell):
             if on:
                 self.u[c] -= self.fluid.mean(self.u[c])
@@ -218,9 +216,8 @@ class FDMModel(Model):
         force = None
         if self.ch is not None:
             force = self._capillary_force()
-        self.spm.fluid_force, self.spm.eta_field = force, self.eta_field
         phi = self.phi.copy() if self.phi is not None else None
-        self.spm.step()
+        self.spm.step(force=force, eta_field=self.eta_field)
         self._phi_prev = phi
         self._after_fluid()
         if self.particles.n:
@@ -280,7 +277,7 @@ class FDMModel(Model):
         if name == "PHI_PREV":
             return self._phi_prev
         if name == "N_OLD":             # the explicit scheme's last advection (AB2)
-            return self.mac._n_old
+            return self.mac.advection_old
         if name == "STRESS_OLD":     # the original's sign: +psi grad mu / RHO
             return -self.last_force if self.last_force is not None else np.zeros_like(self.u)
         raise KeyError(name)
@@ -309,8 +306,8 @@ class FDMModel(Model):
         return fields
 
     def exact_state(self) -> dict:
-        st = {"have_u_old": bool(self.mac._have_old)}
-        if self.mac.scheme == "explicit_scheme" and self.mac._have_n_old:
+        st = {"have_u_old": bool(self.mac.has_u_old)}
+        if self.mac.scheme == "explicit_scheme" and self.mac.advection_old is not None:
             st["n_old"] = np.array(self._whole("N_OLD"))   # AB2 history of the advection
         if self.ch is not None:
             st.update(have_psi_old=self.ch.psi_old is not None, substeps=self.substeps,
@@ -338,9 +335,7 @@ class FDMModel(Model):
         # recomputed from the restored velocity)
         self.mac.step_count = self.step_index
         if "n_old" in exact and self.mac.scheme == "explicit_scheme":
-            self.mac._n_old = np.array(local(exact["n_old"]))
-            self.mac._wn = np.empty_like(self.u)
-            self.mac._have_n_old = True
+            self.mac.restore_advection(local(exact["n_old"]))
         if self.particles.n:
             self.spm.refresh()
             self.phi = self.spm.phi()
@@ -406,7 +401,7 @@ class FDMModel(Model):
         """Order-parameter flux psi u - kappa grad mu of the current state (eq 16)."""
         mu = self.ch.chemical_potential(self.psi, self.phi)
         flux = np.empty((3,) + self.psi.shape)
-        self.ch._grad(mu, flux)
+        self.ch.gradient(mu, flux)
         flux *= -self.ch.kappa
         flux += self.psi * self.u
         return flux

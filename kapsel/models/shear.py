@@ -16,7 +16,7 @@ the viscous stress of the whole (periodic-deviation) flow plus the first moment 
 force density RHO du / dt the particles exert on the fluid (du the rigidity increment of a
 step, r = x - R_i; Batchelor's particle stress).  The value of a record is the mean over the
 steps since the previous record (the instantaneous ETA gamma_dot at step 0).  The Reynolds
-stress of the deviation is not included.  The applied strain is int gamma_dot dt.
+stress of the deviation is not included.  The applied strain is int gamma_dot dt (AC: the original's sum of gamma_dot dt over the steps).
 
 The define.udf of the original has no record item for these; they go into a record only
 when the define file declares record items ``Shear_stress`` / ``Shear_strain`` /
@@ -273,7 +273,7 @@ class ShearLEModel(SpectralModel):
         else:
             fl = self.fluid
             g_saved = float((fields.get("oblique") or [0.0])[0])
-            fl.set_time(self.time, int(round((fl.shear.strain(self.time) - g_saved) / fl.s)))
+            fl.set_time(self.time, int(round((fl.strain_at(self.time) - g_saved) / fl.s)))
             w = self._zeta_velocity(fields)           # covariant
             g = fl.frame_strain
             u = w.copy()                              # contravariant: G w
@@ -347,16 +347,78 @@ class ShearFDMModel(FDMModel):
     def _make_ch(self, dt):
         from ..phase.oblique import make_oblique_cahn_hilliard
         mac = self.mac
-        ch = make_oblique_cahn_hilliard(lambda: mac.frame_strain, self.shape, self.dx,
-                                        self.cfg.phase, dt, layout=self.grid, **self.ch_kwargs)
-        g = mac.max_frame_strain
-        ch._k2 = ch._k2 * (1.0 + (4 * g * g + 2 * g) / 12.0)   # metric Laplacian bound
-        return ch
+        return make_oblique_cahn_hilliard(lambda: mac.frame_strain, mac.max_frame_strain,
+                                          self.shape, self.dx, self.cfg.phase, dt,
+                                          layout=self.grid, **self.ch_kwargs)
+
+    # ------------------------------------------------------------------ the implicit step's
+    # capillary force: the original's NS_solver_slavedEuler_Shear_OBL_implicit (fdm.cxx)
+    # evaluates mu and the force psi* G grad mu* / RHO with the frame of the step's middle,
+    # gt = degree_oblique + Shear_rate_eff dt / 2 (Calc_cp_OBL, Cp2stress_OBL with gt), of
+    # psi* = (3 psi^n - psi^(n-1)) / 2 and phi* its Make_phi_s_OBL (fdm.h): the particles
+    # at the extrapolated positions R^n + (R^n - R^(n-1)) / 2 on the rectangular grid
+    # (wrapped by PBC_OBL_half with gt, the stencil's images across y by the frame's own
+    # degree_oblique, min(phi_sum, 1)), then to the oblique grid (A2a_oblique, linear).
+    def _implicit(self):
+        return self.ch is not None and self.cfg.fluid.ns_solver == "implicit_scheme"
+
+    def _capillary_force(self):
+        if not self._implicit():
+            return super()._capillary_force()
+        mac, ch = self.mac, self.ch
+        g0, gt = mac.frame_strain, mac.mid_step_strain(mac.time)
+        frame = ch.frame
+        ch.frame = lambda: gt
+        try:
+            raw = super()._capillary_force()
+        finally:
+            ch.frame = frame
+        # the MAC step takes a Cartesian force to contravariant components in its frame g0;
+        # the original's are those of the frame gt: F^1 = F_x - gt F_y
+        raw[0] -= (gt - g0) * raw[1]
+        return raw
+
+    def _extrapolated_phi(self):
+        """phi* (above) on a rect-coupled run (SPM.rect); a run coupling on the oblique grid
+        (distributed, or KAPSEL_LE_COUPLING=oblique) takes phi^n.  The step's displacement
+        is that of the unwrapped positions (the original's (3 x - x_previous) / 2 of the
+        wrapped ones lands half a box away in the step after a particle crosses a
+        boundary); the first step, and the first after a restart without the exact state,
+        take R^n (the original's ts 0 and its restart's x_previous = x)."""
+        spm = self.spm
+        if self.phi is None or not spm.rect:
+            return self.phi
+        from ..particles.profile import lees_edwards_profiles, total_phi
+        mac = self.mac
+        p = spm.p
+        xp = np.array(p.R, dtype=float)
+        if self._dR is not None and self.step_index > 0:
+            xp += 0.5 * self._dR
+        L = spm.box
+        gt = mac.mid_step_strain(mac.time)
+        n = np.floor(xp[:, 1] / L[1])                # PBC_OBL_half
+        xp[:, 1] -= n * L[1]
+        xp[:, 0] -= n * gt * L[1]
+        np.mod(xp, L, out=xp)
+        xp[xp >= L] = 0.0
+        idx, phi_i, _ = lees_edwards_profiles(xp, spm.stencil, spm.shape, spm.dx,
+                                              mac.image_offset)
+        phi = total_phi(idx, phi_i, spm.fsize).reshape(spm.fshape)
+        np.minimum(phi, 1.0, out=phi)
+        return spm._to_oblique(phi, "linear")
+
+    _dR = None      # the particles' displacement over the last step (rect phi*)
+
+    def advance(self):
+        keep = self._implicit() and self.particles.n and self.spm.rect
+        before = np.array(self.spm.p.R_raw, dtype=float) if keep else None
+        super().advance()
+        if keep:
+            self._dR = self.spm.p.R_raw - before
 
     def _after_fluid(self):
-        n = self.mac.remap_fields
+        n = self.mac.take_remap()
         if n:
-            self.mac.remap_fields = 0
             if self.psi is not None:
                 self.psi[...] = self.mac.shift_scalar(self.psi, n)
                 if self.ch.psi_old is not None:
@@ -505,6 +567,8 @@ class ShearFDMModel(FDMModel):
         st = super().exact_state()
         st["remaps"] = int(self.mac.remaps)
         st["fluid_time"] = float(self.mac.time)     # the frame's clock (ShearLEModel)
+        if self._dR is not None:
+            st["dR_last"] = np.array(self._dR)          # phi* of the implicit step
         return st
 
     def accumulators(self) -> dict:
@@ -520,6 +584,8 @@ class ShearFDMModel(FDMModel):
         exact = exact or {}
         self.mac.set_time(exact.get("fluid_time", self.time), exact.get("remaps"))
         super().load_fields(fields, exact)
+        dR = exact.get("dR_last")
+        self._dR = None if dR is None else np.array(dR, dtype=float).reshape(-1, 3)
 
 
 @register("Shear_Navier_Stokes_Lees_Edwards_FDM")

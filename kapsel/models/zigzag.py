@@ -174,7 +174,7 @@ class ZigzagStress:
         if not self.heavy or not spm.p.n:
             return 0.0, 0.0
         p = spm.p
-        drho = spm._sub(self.drho_species[p.species])
+        drho = spm.of_rows(self.drho_species[p.species])
         idx = spm.idx
         ny_l, nz = field.shape[1], field.shape[2]
         f = np.take(field.reshape(-1), idx)

@@ -257,13 +257,13 @@ class Janus:
         whole = getattr(self, "_whole", self)       # the run's Janus (counters)
         p = spm.p
         n, q = o.n_own, spm.p_own
-        T = spm._T                                  # the table rows of the stencil arrays
+        T = spm.rows                                # the table rows of the stencil arrays
         is_sq = np.zeros(p.n, dtype=bool)
         is_sq[self.squirmers] = True
         st = np.flatnonzero(is_sq[T])               # stencil rows of the squirmers
         rows = T[st]                                # their table rows
         own_sq = self.squirmers[self.squirmers < n]
-        total, spread, to_table = o.reverse_sum, o.refresh, spm._full
+        total, spread, to_table = o.reverse_sum, o.refresh, spm.to_table
         worst = lambda e: -o.allmin(-e)[0]          # noqa: E731  (the largest of the ranks)
         F_s, T_s = self.self_force(p.q)
         F_s, T_s = F_s[:n], T_s[:n]
@@ -275,7 +275,7 @@ class Janus:
         idx, phi = spm.idx[st], spm.phi_i[st]
         r = np.ascontiguousarray(spm.r[st])                       # (M, S, 3)
         ws = self.shell_weight(r, phi, a, xi)
-        ws = ws * spm._on[st]                       # this block's points only (x 1 exact)
+        ws = ws * spm.on_block[st]                  # this block's points only (x 1 exact)
         us = self.slip_velocity(r, p.q, rows)
         uf = spm.u.reshape(3, -1)
         ul = np.stack([uf[c][idx] for c in range(3)], axis=-1)    # u at the stencil points

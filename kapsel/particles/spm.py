@@ -238,6 +238,26 @@ class SPM:
         return s
 
     # ------------------------------------------------------------------ the rank's block
+    @property
+    def rows(self):
+        """The table rows of the stencil arrays (idx, phi_i, r, w): the particles this rank
+        couples (every row on one process)."""
+        return self._T
+
+    @property
+    def on_block(self):
+        """(rows, S): 1 where a stencil point lies on this rank's block (all 1 on one
+        process)."""
+        return self._on
+
+    def of_rows(self, a):
+        """``a``'s rows of the particles this rank couples (``rows``)."""
+        return self._sub(a)
+
+    def to_table(self, a):
+        """A per-row array of the coupled particles as a whole-table array (0 elsewhere)."""
+        return self._full(a)
+
     def _sub(self, a):
         """The rows of the particles this rank couples (all of them on one process)."""
         return a[self._T]
@@ -540,9 +560,11 @@ class SPM:
         self._exchange()
 
     # ------------------------------------------------------------------ step
-    def step(self):
-        """Advance fluid and particles by dt (steps 1-6 of the module docstring)."""
-        self._fluid_step()
+    def step(self, **fluid):
+        """Advance fluid and particles by dt (steps 1-6 of the module docstring); ``fluid``:
+        what this step's fluid solve takes besides u (a subclass's ``_fluid_step``: the
+        Model-H force and viscosity field of kapsel.models.fdm)."""
+        self._fluid_step(**fluid)
         if self.n_global:
             first = self.step_index == 0
             self._move(first)

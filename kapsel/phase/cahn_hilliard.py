@@ -452,6 +452,11 @@ class CahnHilliard:
         G = _grad(h.pad(f, key="ch"), self.dx, h.target(out, (3,), "chgrad"))
         return h.keep(G, out)
 
+    def gradient(self, f, out):
+        """The central gradient of ``f`` (the frame's: physical components in an oblique
+        one) into ``out`` (3, ...)."""
+        return self._grad(f, out)
+
     def _grad_sq(self, f):
         g = self._grad(f, np.empty((3,) + f.shape))
         return np.einsum("i...,i...->...", g, g)

@@ -61,11 +61,14 @@ class _ObliqueCH(ObliqueCahnHilliard, CahnHilliard):
     """The Cahn-Hilliard solver with the oblique operators (``make_oblique_cahn_hilliard``)."""
 
 
-def make_oblique_cahn_hilliard(frame, *args, **kwargs):
+def make_oblique_cahn_hilliard(frame, max_strain, *args, **kwargs):
     """A CahnHilliard (kapsel.phase.cahn_hilliard; its arguments, ``layout`` too) with the
-    oblique operators; its stability estimate uses the largest metric Laplacian of the
-    frame (|g| <= s/2)."""
+    oblique operators, ``frame()`` the frame strain g; its |k|^2 (the stability estimate and
+    the implicit scheme's Fourier symbol) bounds the metric Laplacian of the largest strain
+    |g| <= ``max_strain``: |k|^2 (1 + (4 g^2 + 2 g) / 12)."""
     ch = _ObliqueCH(*args, **kwargs)
     ch.halo2 = None
     ch.frame = frame
+    g = max_strain
+    ch._k2 = ch._k2 * (1.0 + (4 * g * g + 2 * g) / 12.0)
     return ch

@@ -62,8 +62,9 @@ def test_pure_fluid_zero_deviation_and_stress(tmp_path, eq, scheme):
         assert m.mac.remap_count >= 1
         assert np.abs(m.u).max() == 0.0
         rec = m.shear_record()
-        # the field stress uses gamma_dot at the end of each step
-        ends = [m.mac.shear.rate((k + 1) * m.dt) for k in range(40)]
+        # the field stress uses the frame's rate after each step: that of the step's
+        # strain increment, gamma_dot at the step's start (the original's Shear_rate_eff)
+        ends = [m.mac.shear.rate(k * m.dt) for k in range(40)]
         assert rec["Shear_stress"] == pytest.approx(m.cfg.fluid.ETA * np.mean(ends),
                                                     rel=1e-12, abs=1e-15)
 
@@ -280,3 +281,85 @@ def test_z_term_runs_in_the_sheared_ch_type(tmp_path):
     from scipy.ndimage import maximum_filter
     far = maximum_filter(m.phi, size=3, mode="wrap") < 1e-12     # phi = 0 on the stencil
     assert far.any() and diff[far].max() < 1e-12      # only where the solids' profile varies
+
+
+def _phi_star_reference(m, xp):
+    """The original's Make_phi_s_OBL by brute force: positions xp wrapped by PBC_OBL_half
+    with the mid-step strain gt, on every rectangular grid point the profile of each
+    particle and of its images across y displaced by the frame's own degree_oblique g0
+    (Relative_coord_check_stepover_Y), min(sum, 1), then to the oblique grid (A2a_oblique,
+    linear)."""
+    from kapsel.fluid.oblique import to_oblique
+    from kapsel.particles.profile import g as profile
+    mac, spm = m.mac, m.spm
+    L = spm.box
+    g0, gt = mac.frame_strain, mac.mid_step_strain(mac.time)
+    xp = np.array(xp, dtype=float)
+    n = np.floor(xp[:, 1] / L[1])
+    xp[:, 1] -= n * L[1]
+    xp[:, 0] = np.mod(xp[:, 0] - n * gt * L[1], L[0])
+    xp[:, 2] = np.mod(xp[:, 2], L[2])
+    X = np.stack(np.meshgrid(*[np.arange(s) * m.dx for s in m.shape], indexing="ij"))
+    phi = np.zeros(m.shape)
+    for c in xp:
+        for ny in (-1, 0, 1):
+            im = c + ny * np.array([g0 * L[1], L[1], 0.0])
+            d = X - im[:, None, None, None]
+            for a in (0, 2):
+                d[a] -= np.round(d[a] / L[a]) * L[a]
+            r = np.sqrt((d * d).sum(axis=0))
+            phi += profile(r, spm.stencil.A, spm.stencil.xi, m.dx)
+    return to_oblique(np.minimum(phi, 1.0), g0, "linear", mac.y0 / m.dx)
+
+
+def test_implicit_step_phi_star_and_frame(tmp_path):
+    """The implicit oblique step's capillary force (fdm.cxx NS_solver_slavedEuler_Shear_OBL
+    _implicit): phi* is the profile at the extrapolated positions R^n + (R^n - R^(n-1)) / 2
+    on the rectangular grid (Make_phi_s_OBL: wrapped with gt, images with degree_oblique,
+    A2a_oblique), also for a position extrapolated across the y boundary; mu and the force
+    take the frame of the step's middle gt (Calc_cp_OBL / Cp2stress_OBL with gt): the
+    contravariant force in the MAC's frame g0 is that of the frame gt."""
+    inp = fdm_input(tmp_path, eq=LE_CH, ns="implicit_scheme", ch="implicit_scheme",
+                    particles=2, rate=0.5)
+    m = build(inp)
+    assert m.spm.rect
+    p = m.particles
+    p.R[:] = [[4.3, 13.6, 8.2], [11.7, 5.1, 7.6]]
+    p.R_raw[:] = p.R
+    p.v[:] = [[0.4, 0.3, -0.2], [-0.3, 0.1, 0.2]]
+    p.v_old[:] = p.v
+    m.spm.refresh()
+    m.phi = m.spm.phi()
+    for _ in range(2):
+        R0 = p.R_raw.copy()
+        m.advance()
+    dR = p.R_raw - R0
+    assert np.abs(dR).max() > 1e-3
+    got = m._extrapolated_phi()
+    ref = _phi_star_reference(m, p.R + 0.5 * dR)
+    assert np.abs(ref - m.phi).max() > 1e-3          # phi^n is not phi*
+    assert np.abs(got - ref).max() < 1e-12
+    np.testing.assert_allclose(m._dR, dR, rtol=0, atol=1e-15)
+    # extrapolated across the top y boundary (by 0.7): wrapped with gt
+    m._dR = np.array([[0.2, 2 * (16.0 - p.R[0, 1]) + 1.4, 0.0], [0.0, 0.0, 0.0]])
+    xp = p.R + 0.5 * m._dR
+    assert xp[0, 1] > 16.0
+    got = m._extrapolated_phi()
+    assert np.abs(got - _phi_star_reference(m, xp)).max() < 1e-12
+    # the frame of mu and of the force
+    mac, ch = m.mac, m.ch
+    g0, gt = mac.frame_strain, mac.mid_step_strain(mac.time)
+    assert gt == pytest.approx(g0 + 0.5 * 0.5 * m.dt, abs=1e-14)
+    psi_s = 1.5 * m.psi - 0.5 * ch.psi_old
+    phi_s = m._extrapolated_phi()
+    raw = m._capillary_force()
+    frame = ch.frame
+    ch.frame = lambda: gt
+    try:
+        F = ch.capillary_force(psi_s, ch.chemical_potential(psi_s, phi_s), m.rho)
+    finally:
+        ch.frame = frame
+    assert np.abs(F).max() > 0
+    np.testing.assert_allclose(raw[0] - g0 * raw[1], F[0] - gt * F[1], rtol=0,
+                               atol=1e-14 * np.abs(F).max())
+    np.testing.assert_allclose(raw[1:], F[1:], rtol=0, atol=0)
