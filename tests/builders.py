@@ -305,7 +305,7 @@ def fdm_input(d, eq=LE_FDM, ns="explicit_scheme", ch="implicit_scheme", particle
               viscosity=None, dt=None, **kw):
     """``dt``: a manual time step (default: the automatic one)."""
     from udf import UDFManager
-    inp = make_input(d, particles=particles, eq=eq, **kw)
+    inp = shear_input(d, particles=particles, eq=eq, **kw)
     u = UDFManager(inp)
     base = f"constitutive_eq.{eq}"
     if dt is not None:

@@ -38,18 +38,11 @@ from kapsel.particles.spm import SPM
 from kapsel.particles.state import ParticleState
 from udf import UDFManager
 
-from builders import copy_schema, FREE3, rigid_input, run_model, scene, TESTS
+from builders import copy_schema, FREE3, measured_dt, rigid_input, run_model, scene, TESTS
 
 
 SAMPLES = os.path.join(TESTS, "..", "samples")
 A, XI = 4.0, 2.0
-
-
-def measured_dt(factor, rho, eta, dx):
-    """The time step these measurements were made at: factor RHO / (ETA (pi / DX)^2).  (Not
-    the automatic time step of a run, kapsel.timestep.auto_dt; a fixed dt keeps the tables
-    in the comments valid.)"""
-    return factor * rho / (eta * (np.pi / dx) ** 2)
 
 
 def beads(nb, mass_ratio=1.0):
