@@ -343,25 +343,24 @@ class SPM:
 
     def phi_rectangular(self):
         """phi on the rectangular grid (a rect-coupled run: the profiles' own grid)."""
-        from ..fluid.oblique import to_rectangular
         if self.rect or not self.p.n:
             return total_phi(self.idx, self.phi_i, self.fsize).reshape(self.fshape) \
                 if self.p.n else np.zeros(self.fshape)
-        f = self.fluid
-        return to_rectangular(self.phi(), f.frame_strain, self.interpolation, f.y0 / self.dx)
+        return self._to_rect(self.phi())
 
     # ------------------------------------------------------------------ frames (rect)
     def _to_rect(self, u):
         """u* (Cartesian deviation, oblique grid) -> the rectangular grid (Transform_obl_u
-        oblique2cartesian without the mean flow: the coupling uses deviations)."""
-        from ..fluid.oblique import to_rectangular
+        oblique2cartesian without the mean flow: the coupling uses deviations); the
+        layout's re-gridding of this process's block (a collective when distributed)."""
         f = self.fluid
-        return to_rectangular(u, f.frame_strain, self.interpolation, f.y0 / self.dx)
+        return self.layout.to_rectangular(u, f.frame_strain, self.interpolation,
+                                          f.y0 / self.dx)
 
     def _to_oblique(self, a, method=None):
-        from ..fluid.oblique import to_oblique
         f = self.fluid
-        return to_oblique(a, f.frame_strain, method or self.interpolation, f.y0 / self.dx)
+        return self.layout.to_oblique(a, f.frame_strain, method or self.interpolation,
+                                      f.y0 / self.dx)
 
     def _coupling_u(self):
         """The field the particles couple to: u* (rect: on the rectangular grid)."""
