@@ -529,8 +529,7 @@ class Grid:
         """Sums over the ranks of per-particle arrays: ``arrays``."""
         return arrays
 
-    def owned_table(self, offsets, dx, cutoff=0.0, frame=None, strain_max=0.0, bodies=None,
-                    extra_width=0):
+    def owned_table(self, offsets, dx, cutoff=0.0, images=None, bodies=None, extra_width=0):
         """The particles' layout (kapsel.parallel.particles.Owned on the ranks' blocks): on
         one process a ``WholeTable``, every row owned here."""
         return WholeTable()

@@ -35,13 +35,6 @@ pytestmark = pytest.mark.skipif(MPIEXEC is None, reason="the mpi extra is not in
 PROBE = os.path.join(os.path.dirname(__file__), "mpi_particles_probe.py")
 
 
-@pytest.fixture(autouse=True)
-def _oblique_coupling(monkeypatch):
-    """Distributed Lees-Edwards runs couple the particles on the oblique grid; the plain
-    runs they are compared with do the same here (kapsel.particles.spm.SPM.rect)."""
-    monkeypatch.setenv("KAPSEL_LE_COUPLING", "oblique")
-
-
 def test_owned_particles_agree_with_the_serial_run(tmp_path):
     """32^3, 12 particles (A = 4) with thermal noise and the full LJ attraction (LJ_truncate
     OFF: range min(2.5 sigma, half the box) = 16, so pairs interact across the block

@@ -445,12 +445,11 @@ class PencilGrid(Grid):
         self.comm.Allgather(v, buf)
         return [float(sum(col)) for col in buf.T.tolist()]
 
-    def owned_table(self, offsets, dx, cutoff=0.0, frame=None, strain_max=0.0, bodies=None,
-                    extra_width=0):
+    def owned_table(self, offsets, dx, cutoff=0.0, images=None, bodies=None, extra_width=0):
         """The particles owned by the ranks of this layout, with their ghosts
         (kapsel.parallel.particles.Owned)."""
         from .particles import Owned
-        return Owned(self, offsets, dx, cutoff, frame, strain_max, bodies=bodies,
+        return Owned(self, offsets, dx, cutoff, images, bodies=bodies,
                      extra_width=extra_width)
 
     def near_rows(self, R, offsets, dx, strain=0.0, origin=0.0, images=0.0):
