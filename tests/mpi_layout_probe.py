@@ -10,6 +10,10 @@ Checks on every rank (failures raise, which ends every rank):
 * ``near_rows`` with Lees-Edwards images holds every particle with a point of its
   rectangular-grid profile stencil (kapsel.particles.profile.lees_edwards_profiles) on the
   block, and only particles whose stencil box meets it;
+* the particle table's halos under Lees-Edwards images (kapsel.parallel.particles.Owned
+  ``destinations``): every particle whose profile stencil has a point on a rank's block,
+  and every pair partner (Lees-Edwards minimum image within the cutoff) of a particle the
+  rank owns, goes to that rank;
 writes ok.txt (rank 0) when all passed.
 """
 import sys
@@ -47,7 +51,7 @@ def main():
     R[: n // 4, 1] = rng.uniform(0.0, 2.5, n // 4)            # near y = 0 and y = Ly
     R[n // 4: n // 2, 1] = L[1] - rng.uniform(1e-9, 2.5, n // 4)
     R[:8, 0] = L[0] - 1e-12                                    # at the x boundary
-    excluded = 0
+    excluded = pairs = 0
     for offset in (0.0, 1.3, -4.75, 7.0, 0.5 * L[0], 13.1):
         T = grid.near_rows(R, st.offsets, dx, images=offset) if offset else None
         if offset == 0.0:
@@ -75,7 +79,26 @@ def main():
         assert set(T.tolist()) <= set(np.flatnonzero(bon.any(axis=1)).tolist()), \
             ("a row whose stencil box misses the block", offset)
         excluded += n - len(T)
-    assert excluded > 0
+        # the halos of the particle table: every rank's stencils and pair partners
+        from kapsel.fluid.oblique import lees_edwards_displacement
+        from kapsel.parallel.particles import Owned
+        me = comm.Get_rank()
+        for cutoff in (0.0, 2.7):
+            o = Owned(grid, st.offsets, dx, cutoff, images=lambda: offset)
+            b = o.base(R)
+            dest = o.destinations(b, R)
+            assert set(meets.tolist()) <= set(np.flatnonzero(dest[:, me]).tolist()), \
+                ("a stencil on the block has no copy here", offset, cutoff)
+            if cutoff:
+                mine = np.flatnonzero(o.owners(b) == me)
+                dr = lees_edwards_displacement(R[None, :, :] - R[mine][:, None, :], L,
+                                               offset)
+                close = np.sqrt((dr * dr).sum(axis=-1)) < cutoff
+                need = np.flatnonzero(close.any(axis=0))
+                assert set(need.tolist()) <= set(np.flatnonzero(dest[:, me]).tolist()), \
+                    ("a pair partner has no copy here", offset)
+                pairs += int(close.sum())
+    assert excluded > 0 and pairs > 0
     total = comm.allreduce(checked)
     if comm.Get_rank() == 0:
         with open("ok.txt", "w") as fh:

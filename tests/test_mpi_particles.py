@@ -163,7 +163,8 @@ def test_lees_edwards_particles_owned_by_ranks(tmp_path):
     WCA, noise), 50 steps at shear rate 0.25 (the frame re-maps once): ownership follows the
     base point on the rectangular grid (where the profiles are built), halos cover the
     Lees-Edwards images of the stencils and of the pair partners (the probe, after every
-    step), and the run ends where the 1-rank run does."""
+    step), and the run ends where the 1-rank run does.  (Every rank holds all 10 particles
+    here; the halo geometry under the images is tested in tests/test_mpi_layout.py.)"""
     from test_shear_le import make_input as shear_input
     got = {}
     for name, n, grid in (("one", 1, ()), ("four", 4, ("-X2", "-Y2"))):
