@@ -53,6 +53,9 @@ first moment sum_x w_i r of the profiles (``total_momentum``).
 Distributed runs (kapsel.parallel.particles): every rank moves the particles it owns, sends
 them to the ranks that hold them after the move, builds the profiles of its table's
 particles on its block, and sums the coupling of the ghosts to their owners; the same step.
+A Lees-Edwards run couples on the rectangular grid there too: the layout re-grids the
+rank's block (``to_rectangular`` / ``to_oblique`` on the x rows of its column), the table
+holds the particles whose stencil images reach the block.
 """
 from __future__ import annotations
 
