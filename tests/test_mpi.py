@@ -24,13 +24,6 @@ sys.path.insert(0, os.path.dirname(__file__))
 from test_restart import cli, make_input, records, saved_data  # noqa: E402
 
 
-@pytest.fixture(autouse=True)
-def _oblique_coupling(monkeypatch):
-    """Distributed Lees-Edwards runs couple the particles on the oblique grid; the plain
-    runs they are compared with do the same here (kapsel.particles.spm.SPM.rect)."""
-    monkeypatch.setenv("KAPSEL_LE_COUPLING", "oblique")
-
-
 def _mpiexec():
     try:
         import mpi4py  # noqa: F401

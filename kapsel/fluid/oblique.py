@@ -114,22 +114,23 @@ def cartesian(u, g, out=None):
 
 
 # ---------------------------------------------------------------------------- interpolation
-def shift_rows(f, shift, method="linear"):
+def shift_rows(f, shift, method="linear", rows=None):
     """g[i, j, ...] = f(x_i - shift_j) along axis 0, periodic; ``shift`` (NY,) in grid points.
 
     f: (NX, NY, ...) or (c, NX, NY, ...) with a leading component axis (then ``f.ndim == 4``).
-    Integer shifts are exact permutations for both methods.
+    Integer shifts are exact permutations for both methods.  ``rows`` (a slice of x): only
+    those rows of g (the same values as those rows of the whole g).
     """
     if method not in INTERPOLATIONS:
         raise ValueError(f"OBL_INT must be one of {INTERPOLATIONS}, got {method!r}")
     f = np.asarray(f, dtype=float)
     if f.ndim == 4:
-        return np.stack([shift_rows(c, shift, method) for c in f])
+        return np.stack([shift_rows(c, shift, method, rows) for c in f])
     nx, ny = f.shape[0], f.shape[1]
     shift = np.asarray(shift, dtype=float).reshape(ny)
     base = np.floor(shift)
     frac = shift - base                      # g_i = f(i - base - frac)
-    i = np.arange(nx)[:, None]
+    i = np.arange(nx)[:, None] if rows is None else np.arange(nx)[rows][:, None]
     j = np.arange(ny)[None, :]
     b = base.astype(np.int64)[None, :]
     w = frac[None, :]
