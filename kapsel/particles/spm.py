@@ -363,6 +363,19 @@ class SPM:
             return self._to_oblique(phi, "linear")     # (A2a_oblique: always linear)
         return phi
 
+    def phi_at(self, R):
+        """min(sum_i phi_i, 1) of the profiles at positions ``R`` (one per row of the table)
+        made on the rectangular grid under the Lees-Edwards images of the frame now,
+        re-gridded to the fluid's oblique grid (linear): the original's Make_phi_s_OBL and
+        A2a_oblique (a rect-coupled run; on a rank's block, a collective)."""
+        off = self.fluid.image_offset
+        T = self.layout.near_rows(R, self.stencil.offsets, self.dx, images=off)
+        idx, phi_i, _ = lees_edwards_profiles(R[T], self.stencil, self.shape, self.dx, off)
+        idx, phi_i, _ = self.layout.cut_stencils(idx, phi_i)
+        phi = total_phi(idx, phi_i, self.fsize).reshape(self.fshape)
+        np.minimum(phi, 1.0, out=phi)
+        return self._to_oblique(phi, "linear")
+
     def phi_rectangular(self):
         """phi on the rectangular grid (a rect-coupled run: the profiles' own grid)."""
         if self.rect or not self.p.n:
