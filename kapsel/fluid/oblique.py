@@ -37,7 +37,7 @@ pseudo-spectrally: u^j d^_j u^i in rotational form (physical u x omega, 2/3 rule
 oblique index space), the pressure by the metric projection
 P^G v = v - G k^ (k^.v) / (k^ G k^) (k^.v = K.v_cartesian: the projection is the Cartesian one
 with K), the viscous term integrated exactly over the step with the time-averaged
-|K(t)|^2 (Simpson's rule, exact for DC; AC: |K|^2 of the step's start, as the original), the rest by the slaved Euler (ETD1) step of
+|K|^2 of the step's start (as the original: first order in dt), the rest by the slaved Euler (ETD1) step of
 ``SpectralNS``.  Each step starts by truncating the state to the 2/3 band, as the
 original's (operate_omega.cxx Zeta_k2advection_k_OBL truncates zeta before the advection),
 so the high modes the particles' rigidity increment puts into u^ (add_solenoidal: projected,
@@ -437,19 +437,11 @@ class ObliqueSpectralNS(_ObliqueFrame, SpectralNS):
         rate = self.rate_at(t0)
         self.truncate()
         nl = self._nonlinear_oblique(g0, rate)
-        if self.shear.kind == "AC":
-            # the original's metric of the step's start (Update_K2_OBL after the last
-            # step's strain increment) with its discrete strain (_ObliqueFrame.strain_at):
-            # first order in dt for the viscous factor, as the original
-            gm, g2m = g0, g0 * g0
-        else:
-            # frame strains at t0, t0 + dt/2, t0 + dt (same re-mapping count): Simpson means
-            off = self.remaps * self.s
-            gs = [self.shear.strain(t0 + a * dt) - off for a in (0.0, 0.5, 1.0)]
-            gm = (gs[0] + 4 * gs[1] + gs[2]) / 6.0
-            g2m = (gs[0] ** 2 + 4 * gs[1] ** 2 + gs[2] ** 2) / 6.0
-        K2 = np.multiply(self._k11, 1.0 + g2m, out=np.empty(self.grid.local_cshape))
-        K2 -= (2.0 * gm) * self._k12
+        # the original's metric of the step's start (Update_K2_OBL after the last step's
+        # strain increment; AC with its discrete strain, _ObliqueFrame.strain_at): the
+        # viscous factor is first order in dt, as the original's
+        K2 = np.multiply(self._k11, 1.0 + g0 * g0, out=np.empty(self.grid.local_cshape))
+        K2 -= (2.0 * g0) * self._k12
         K2 += self._k22
         z = K2
         z *= -self.nu * dt
