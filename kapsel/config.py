@@ -959,18 +959,17 @@ def _field_output(r: _Reader, mesh: Mesh, eq_type: str = "") -> FieldOutput:
 # ---------------------------------------------------------------------------------------
 # Checks of the whole input, before anything is built or written.
 
-# Peak memory of a run (fields, solver work arrays, restart writing), measured with
-# /usr/bin/time on Navier_Stokes runs of ex02's input at 128 x 128 x 256 (2026-11-29, after the
-# UDF writer formats large arrays in blocks): 1.54 GiB without particles (394 B per mesh
-# point), 2.14 GiB with 400 particles of A = 5 DX (stencils of 1256 points): the dense fields
-# of a run with particles add about 140 B per point; each particle about 120 B per stencil
-# point (its profile, offsets, sampled velocities: 1600 particles measured 0.18 GB more
-# than 400 before).  With a margin of about 10 %; the phase types as measured earlier on
-# 64^3 and 128^3 runs.
-BYTES_PER_POINT = {"phase": 1200, "fluid": 430}
-BYTES_PER_POINT_WITH_PARTICLES = 160
-BYTES_PER_STENCIL_POINT = 130
-BYTES_PER_PARTICLE = 4000           # state and records, besides the stencil
+# Peak memory of a run (fields, solver work arrays, restart writing): per mesh point by type
+# (kapsel.typespec TypeSpec.bytes_per_point, bytes_per_point_particles), per particle and
+# per point of its stencil below, plus the program itself (the interpreter and libraries).
+# Measured 2026-12-02 with /usr/bin/time on 20-step runs of samples/input.udf (a restart
+# written): Navier_Stokes 128^3 431 MB without particles, 494 / 597 MB with 1000 / 4000
+# particles of A = 2 DX (184-point stencils), 586 MB with 1000 of A = 4 (720 points): each
+# stencil point about 172 B, each particle 2.7 kB besides, the dense fields 14 B per point;
+# an 8^3 run 92 MB (the program).  With a margin of about 10 %.
+BYTES_PER_STENCIL_POINT = 190
+BYTES_PER_PARTICLE = 3000           # state and records, besides the stencil
+PROGRAM_BYTES = 100 * 2 ** 20       # the interpreter, numpy, scipy, h5py, pyFFTW (RSS)
 MEMORY_ENV = "KAPSEL_PY_MEMORY_LIMIT_GB"
 
 
@@ -1044,14 +1043,15 @@ def _size(nbytes: float) -> str:
     return f"{nbytes / 2 ** 10:.3g} kB"
 
 
-def memory_estimate(mesh: Mesh, eq_type: str, n_particles: int, A=None, xi=None) -> float:
-    """Peak bytes of a run (BYTES_PER_POINT and the per-particle figures above); ``A``,
-    ``xi``: the particles' radius and interface width (lengths), for their stencil size."""
+def memory_estimate(mesh: Mesh, eq_type: str, n_particles: int, A=None, xi=None,
+                    program: bool = True) -> float:
+    """Peak bytes of a run (the type's bytes per point and the per-particle figures above),
+    with the program's own (``program``; without: the arrays alone); ``A``, ``xi``: the
+    particles' radius and interface width (lengths), for their stencil size."""
     points = float(np.prod(mesh.shape, dtype=float))
-    per_point = BYTES_PER_POINT["phase" if spec(eq_type).phase else "fluid"]
-    if n_particles:
-        per_point += BYTES_PER_POINT_WITH_PARTICLES
-    return points * per_point + float(n_particles) * (
+    t = spec(eq_type)
+    per_point = t.bytes_per_point + (t.bytes_per_point_particles if n_particles else 0)
+    return (PROGRAM_BYTES if program else 0.0) + points * per_point + float(n_particles) * (
         BYTES_PER_PARTICLE + BYTES_PER_STENCIL_POINT * _stencil_points(A, xi, mesh.DX))
 
 

@@ -529,13 +529,12 @@ class Grid:
         """Sums over the ranks of per-particle arrays: ``arrays``."""
         return arrays
 
-    def owned_table(self, offsets, dx, cutoff=0.0, frame=None, strain_max=0.0, bodies=None,
-                    extra_width=0):
+    def owned_table(self, offsets, dx, cutoff=0.0, images=None, bodies=None, extra_width=0):
         """The particles' layout (kapsel.parallel.particles.Owned on the ranks' blocks): on
         one process a ``WholeTable``, every row owned here."""
         return WholeTable()
 
-    def near_rows(self, R, offsets, dx, strain=0.0, origin=0.0):
+    def near_rows(self, R, offsets, dx, strain=0.0, origin=0.0, images=0.0):
         """The rows of the particles at ``R`` whose stencil (``offsets``, (S, 3) grid
         steps) meets this process's block: all of them."""
         n = len(R)
@@ -564,6 +563,17 @@ class Grid:
 
     def gather_complex(self, a, root=0):
         return a
+
+    def to_rectangular(self, f, g, method="linear", origin=0.0):
+        """This process's block of a field (c, NX, NY, NZ) of the oblique grid of strain g,
+        re-gridded onto the rectangular grid (kapsel.fluid.oblique.to_rectangular)."""
+        from .fluid.oblique import to_rectangular
+        return to_rectangular(f, g, method, origin)
+
+    def to_oblique(self, f, g, method="linear", origin=0.0):
+        """The inverse re-gridding, rectangular -> oblique (kapsel.fluid.oblique.to_oblique)."""
+        from .fluid.oblique import to_oblique
+        return to_oblique(f, g, method, origin)
 
     def gather_rows(self, f):
         """The whole x rows of the blocks of ``f`` (..., nx, ny, nz) along the x split: ``f``."""

@@ -363,7 +363,8 @@ def describe_setup(cfg) -> str:
         kind = "chains" if p.object_type == "chain" else "rigid bodies"
         what = f" with {n} beads in {sum(s.number for s in p.species)} {kind}"
     return (f"{cfg.type} on a {nx} x {ny} x {nz} mesh{what}, about "
-            f"{_size(memory_estimate(cfg.mesh, cfg.type, n, p.A, p.A_XI))} of memory")
+            f"{_size(memory_estimate(cfg.mesh, cfg.type, n, p.A, p.A_XI, program=False))} of "
+            f"memory")
 
 
 def build_model(cfg, args, doc, resumed: bool, origin: dict | None = None):
@@ -606,7 +607,8 @@ def check_address_limit(cfg) -> str | None:
         return None
     from .config import _size, memory_estimate
     need = BASE_ADDRESS_SPACE + memory_estimate(cfg.mesh, cfg.type, cfg.particles.count,
-                                                cfg.particles.A, cfg.particles.A_XI)
+                                                cfg.particles.A, cfg.particles.A_XI,
+                                                program=False)
     if need > limit:
         return (f"the address space is limited to {_size(limit)} (ulimit -v), this run "
                 f"needs about {_size(need)} ({describe_setup(cfg)} plus "

@@ -27,6 +27,12 @@ class TypeSpec:
     surface_z: bool = False       # the Cahn-Hilliard surface term z is read (PHYSICS-EXTRA §1.3)
     psi_file: str | None = None   # the dataset of psi in orderparam_<n>.h5 (FDM CH types)
     flux_file: bool = False       # flux_<n>.h5 and flux_field.xmf (the original's CH flux)
+    # peak memory per mesh point (bytes; the run's peak RSS less the program's own, measured
+    # with /usr/bin/time on 64^3 and 128^3 runs of samples/input.udf 2026-12-02, ~10 % added),
+    # and what particles add per point (their dense fields) besides their stencils
+    # (kapsel.config.memory_estimate)
+    bytes_per_point: int = 180
+    bytes_per_point_particles: int = 16
 
     @property
     def fdm(self) -> bool:
@@ -35,15 +41,20 @@ class TypeSpec:
 
 TYPES = {s.name: s for s in (
     TypeSpec("Navier_Stokes", "spectral", walls=True, self_propelled=True),
-    TypeSpec("Shear_Navier_Stokes", "spectral", sheared=True, self_propelled=True),
-    TypeSpec("Shear_Navier_Stokes_Lees_Edwards", "spectral", sheared=True),
-    TypeSpec("Electrolyte", "spectral", ions=True, distributed=False),
-    TypeSpec("Navier_Stokes_FDM", "fdm", walls=True),
+    TypeSpec("Shear_Navier_Stokes", "spectral", sheared=True, self_propelled=True,
+             bytes_per_point=200),
+    TypeSpec("Shear_Navier_Stokes_Lees_Edwards", "spectral", sheared=True,
+             bytes_per_point=350),
+    TypeSpec("Electrolyte", "spectral", ions=True, distributed=False, bytes_per_point=640),
+    TypeSpec("Navier_Stokes_FDM", "fdm", walls=True, bytes_per_point=400,
+             bytes_per_point_particles=64),
     TypeSpec("Navier_Stokes_Cahn_Hilliard_FDM", "fdm", phase=True, walls=True, surface_z=True,
-             psi_file="PSI_ALL", flux_file=True),
-    TypeSpec("Shear_Navier_Stokes_Lees_Edwards_FDM", "fdm", sheared=True),
+             psi_file="PSI_ALL", flux_file=True, bytes_per_point=800,
+             bytes_per_point_particles=64),
+    TypeSpec("Shear_Navier_Stokes_Lees_Edwards_FDM", "fdm", sheared=True,
+             bytes_per_point=540, bytes_per_point_particles=64),
     TypeSpec("Shear_NS_LE_CH_FDM", "fdm", phase=True, sheared=True, surface_z=True,
-             psi_file="PSI"),
+             psi_file="PSI", bytes_per_point=950, bytes_per_point_particles=64),
 )}
 
 

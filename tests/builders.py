@@ -216,7 +216,7 @@ def shearing_wave(grid, shear, nu, t, m=(1, 2), a=1e-3, inplane=False, y0=None, 
     y0 = 0.5 * L[1] if y0 is None else y0
     x = x + frame * (y - y0)
     k1, k2 = 2 * np.pi * m[0] / L[0], 2 * np.pi * m[1] / L[1]
-    if dt is not None and shear.kind == "AC":
+    if dt is not None:
         gs = original_ac_strains(shear, dt, int(round(t / dt)))
         G = gs[-1]
         integral = dt * sum(k1 ** 2 + (k2 - k1 * gm) ** 2 for gm in gs[:-1])

@@ -37,7 +37,7 @@ pseudo-spectrally: u^j d^_j u^i in rotational form (physical u x omega, 2/3 rule
 oblique index space), the pressure by the metric projection
 P^G v = v - G k^ (k^.v) / (k^ G k^) (k^.v = K.v_cartesian: the projection is the Cartesian one
 with K), the viscous term integrated exactly over the step with the time-averaged
-|K(t)|^2 (Simpson's rule, exact for DC; AC: |K|^2 of the step's start, as the original), the rest by the slaved Euler (ETD1) step of
+|K|^2 of the step's start (as the original: first order in dt), the rest by the slaved Euler (ETD1) step of
 ``SpectralNS``.  Each step starts by truncating the state to the 2/3 band, as the
 original's (operate_omega.cxx Zeta_k2advection_k_OBL truncates zeta before the advection),
 so the high modes the particles' rigidity increment puts into u^ (add_solenoidal: projected,
@@ -114,22 +114,23 @@ def cartesian(u, g, out=None):
 
 
 # ---------------------------------------------------------------------------- interpolation
-def shift_rows(f, shift, method="linear"):
+def shift_rows(f, shift, method="linear", rows=None):
     """g[i, j, ...] = f(x_i - shift_j) along axis 0, periodic; ``shift`` (NY,) in grid points.
 
     f: (NX, NY, ...) or (c, NX, NY, ...) with a leading component axis (then ``f.ndim == 4``).
-    Integer shifts are exact permutations for both methods.
+    Integer shifts are exact permutations for both methods.  ``rows`` (a slice of x): only
+    those rows of g (the same values as those rows of the whole g).
     """
     if method not in INTERPOLATIONS:
         raise ValueError(f"OBL_INT must be one of {INTERPOLATIONS}, got {method!r}")
     f = np.asarray(f, dtype=float)
     if f.ndim == 4:
-        return np.stack([shift_rows(c, shift, method) for c in f])
+        return np.stack([shift_rows(c, shift, method, rows) for c in f])
     nx, ny = f.shape[0], f.shape[1]
     shift = np.asarray(shift, dtype=float).reshape(ny)
     base = np.floor(shift)
     frac = shift - base                      # g_i = f(i - base - frac)
-    i = np.arange(nx)[:, None]
+    i = np.arange(nx)[:, None] if rows is None else np.arange(nx)[rows][:, None]
     j = np.arange(ny)[None, :]
     b = base.astype(np.int64)[None, :]
     w = frac[None, :]
@@ -436,19 +437,11 @@ class ObliqueSpectralNS(_ObliqueFrame, SpectralNS):
         rate = self.rate_at(t0)
         self.truncate()
         nl = self._nonlinear_oblique(g0, rate)
-        if self.shear.kind == "AC":
-            # the original's metric of the step's start (Update_K2_OBL after the last
-            # step's strain increment) with its discrete strain (_ObliqueFrame.strain_at):
-            # first order in dt for the viscous factor, as the original
-            gm, g2m = g0, g0 * g0
-        else:
-            # frame strains at t0, t0 + dt/2, t0 + dt (same re-mapping count): Simpson means
-            off = self.remaps * self.s
-            gs = [self.shear.strain(t0 + a * dt) - off for a in (0.0, 0.5, 1.0)]
-            gm = (gs[0] + 4 * gs[1] + gs[2]) / 6.0
-            g2m = (gs[0] ** 2 + 4 * gs[1] ** 2 + gs[2] ** 2) / 6.0
-        K2 = np.multiply(self._k11, 1.0 + g2m, out=np.empty(self.grid.local_cshape))
-        K2 -= (2.0 * gm) * self._k12
+        # the original's metric of the step's start (Update_K2_OBL after the last step's
+        # strain increment; AC with its discrete strain, _ObliqueFrame.strain_at): the
+        # viscous factor is first order in dt, as the original's
+        K2 = np.multiply(self._k11, 1.0 + g0 * g0, out=np.empty(self.grid.local_cshape))
+        K2 -= (2.0 * g0) * self._k12
         K2 += self._k22
         z = K2
         z *= -self.nu * dt

@@ -388,12 +388,11 @@ class ShearFDMModel(FDMModel):
         spm = self.spm
         if self.phi is None or not spm.rect:
             return self.phi
-        from ..particles.profile import lees_edwards_profiles, total_phi
         mac = self.mac
         p = spm.p
         xp = np.array(p.R, dtype=float)
         if self._dR is not None and self.step_index > 0:
-            xp += 0.5 * self._dR
+            xp += 0.5 * self._dR[spm.owned.gid[:p.n]]     # the table's rows (their ids)
         L = spm.box
         gt = mac.mid_step_strain(mac.time)
         n = np.floor(xp[:, 1] / L[1])                # PBC_OBL_half
@@ -401,20 +400,28 @@ class ShearFDMModel(FDMModel):
         xp[:, 0] -= n * gt * L[1]
         np.mod(xp, L, out=xp)
         xp[xp >= L] = 0.0
-        idx, phi_i, _ = lees_edwards_profiles(xp, spm.stencil, spm.shape, spm.dx,
-                                              mac.image_offset)
-        phi = total_phi(idx, phi_i, spm.fsize).reshape(spm.fshape)
-        np.minimum(phi, 1.0, out=phi)
-        return spm._to_oblique(phi, "linear")
+        return spm.phi_at(xp)
 
-    _dR = None      # the particles' displacement over the last step (rect phi*)
+    _dR = None      # the particles' displacement over the last step, by particle id
+    #                 (n_global, 3; rect phi*)
+
+    def _unwrapped_positions(self):
+        """R_raw of every particle by its id (n_global, 3), the same on every rank: the
+        owned rows' positions summed over the ranks (the table's rows change as particles
+        migrate between blocks)."""
+        spm = self.spm
+        o, p = spm.owned, spm.p
+        R = np.zeros((spm.n_global, 3))
+        R[o.gid[:o.n_own]] = p.R_raw[:o.n_own]
+        (R,) = self.grid.reduce(R)
+        return np.asarray(R, dtype=float).reshape(-1, 3)
 
     def advance(self):
         keep = self._implicit() and self.particles.n and self.spm.rect
-        before = np.array(self.spm.p.R_raw, dtype=float) if keep else None
+        before = self._unwrapped_positions() if keep else None
         super().advance()
         if keep:
-            self._dR = self.spm.p.R_raw - before
+            self._dR = self._unwrapped_positions() - before
 
     def _after_fluid(self):
         n = self.mac.take_remap()

@@ -1,17 +1,20 @@
 """Particles owned by ranks: ownership, halos, migration, reverse sums, gather.
 
 A particle is *owned* by the rank whose real-space block (kapsel.parallel.pencil: x split
-over PX, y over PY, z whole) holds the base point of its profile stencil, floor(R / DX) (in
-the oblique coordinates (x - g (y - y0)) / DX of a sheared frame, as kapsel.particles.spm
-builds the stencil), so ownership is unambiguous.  Each rank holds its owned particles and
-*ghosts*: copies of particles owned elsewhere whose stencil, widened by the pair-force
-cutoff, meets its block.  The test is made for every rank, not only the neighbours, so
-blocks thinner than the halo work (a particle goes to every rank whose widened block holds
-it).  With lo..hi the stencil's offsets and h = ceil(r_c / DX) + 1 cells (r_c the pair
-cutoff, times 1 + |g_max| along x in a sheared frame), a particle goes to the ranks whose
-block meets [b + lo - h, b + hi + h] along x and y (b its base point): this holds every
-particle whose profile meets the block and every pair partner (|b_i - b_j| <= ceil(r_c /
-DX)) of every owned particle.
+over PX, y over PY, z whole) holds the base point of its profile stencil, floor(R / DX) (the
+particles couple on the rectangular grid, the Lees-Edwards types too: kapsel.particles.spm),
+so ownership is unambiguous.  Each rank holds its owned particles and *ghosts*: copies of
+particles owned elsewhere whose stencil, widened by the pair-force cutoff, meets its block.
+The test is made for every rank, not only the neighbours, so blocks thinner than the halo
+work (a particle goes to every rank whose widened block holds it).  With lo..hi the
+stencil's offsets and h = ceil(r_c / DX) + 1 cells (r_c the pair cutoff), a particle goes to
+the ranks whose block meets [b + lo - h, b + hi + h] along x and y (b its base point): this
+holds every particle whose profile meets the block and every pair partner (|b_i - b_j| <=
+ceil(r_c / DX)) of every owned particle.  Under Lees-Edwards images (``images``: the x
+displacement g Ly of the image across y = Ly) the part of that box beyond the y boundary
+lies displaced along x, at the base floor((R_x -+ g Ly) / DX) (pencil.stencil_meets), where
+kapsel.particles.profile.lees_edwards_profiles puts the stencil's points there and where the
+pair partners across the boundary are (their minimum-image displacement is x-shifted alike).
 
 Rigid bodies (``bodies``: the body of every bead, the first bead of every body) are owned
 whole: all the beads of a body by the owner of its first bead's base point (one point per
@@ -48,7 +51,7 @@ import math
 import numpy as np
 
 from ..particles.state import VECTOR_FIELDS, ParticleState
-from .pencil import block
+from .pencil import block, stencil_meets
 
 __all__ = ["Owned", "COLUMNS", "pack", "unpack", "release", "restore"]
 
@@ -131,13 +134,13 @@ def _meets(b, lo, width, blocks, n):
 class Owned:
     """Ownership and halos of the particles on the blocks of ``grid`` (a PencilGrid or any
     object with ``comm``, ``shape``, ``px``, ``py``), for a stencil ``offsets`` (S, 3) in
-    cells, a pair cutoff ``cutoff`` (DX units of length), ``frame()`` -> (strain, origin)
-    of an oblique grid (None: rectangular) whose strain never exceeds ``strain_max``."""
+    cells, a pair cutoff ``cutoff`` (DX units of length), ``images()`` -> the x
+    displacement g Ly of the Lees-Edwards image across y = Ly (None: periodic)."""
 
     partial = True          # a rank's part of the run's table (its sums over the ranks)
 
-    def __init__(self, grid, offsets, dx, cutoff=0.0, frame=None, strain_max=0.0,
-                 bodies=None, extra_width=0):
+    def __init__(self, grid, offsets, dx, cutoff=0.0, images=None, bodies=None,
+                 extra_width=0):
         from mpi4py import MPI
         # rigid bodies: (body of every bead, first bead of every body) (global ids); a body
         # and all its beads are owned by the owner of its first bead's base point
@@ -150,14 +153,13 @@ class Owned:
         self.shape = tuple(grid.shape)
         self.px, self.py = int(grid.px), int(grid.py)
         self.dx = float(dx)
-        self.frame = frame
+        self.images = images
         self.blocks = [np.array([block(self.shape[a], parts, i) for i in range(parts)])
                        for a, parts in ((0, self.px), (1, self.py))]
         self.lo, self.width = [], []
         for axis in (0, 1):
             o = np.asarray(offsets)[:, axis]
-            reach = cutoff * (1.0 + abs(strain_max) if axis == 0 else 1.0)
-            h = int(math.ceil(reach / self.dx)) + 1 if cutoff > 0 else 0
+            h = int(math.ceil(cutoff / self.dx)) + 1 if cutoff > 0 else 0
             lo, hi = int(o.min()), int(o.max())
             self.lo.append(lo - h)
             self.width.append(hi - lo + 1 + 2 * h)
@@ -170,10 +172,6 @@ class Owned:
     def base(self, R):
         """Base points (N, 2) (x, y cells, in [0, n)) of the stencils at R."""
         s = np.asarray(R, dtype=float)[:, :2] / self.dx
-        if self.frame is not None:
-            g, y0 = self.frame()
-            if g:
-                s[:, 0] = (R[:, 0] - g * (R[:, 1] - y0)) / self.dx
         with np.errstate(invalid="ignore"):
             b = np.floor(s).astype(np.int64)
         b[:, 0] = np.mod(b[:, 0], self.shape[0])
@@ -192,8 +190,14 @@ class Owned:
             return owner
         return owner[np.searchsorted(gid, self.lead[self.group[gid]])]
 
-    def destinations(self, b):
-        """(N, P) bool: the ranks whose widened block holds each particle."""
+    def destinations(self, b, R):
+        """(N, P) bool: the ranks whose widened block holds each particle (base points
+        ``b`` of the positions ``R``); under Lees-Edwards images the parts of the widened
+        box beyond the y boundary at their x-shifted places (``stencil_meets``)."""
+        if self.images is not None:
+            return stencil_meets(np.asarray(R, dtype=float)[:, :2] / self.dx, self.lo,
+                                 self.width, self.blocks[0], self.blocks[1], self.shape,
+                                 float(self.images()) / self.dx).reshape(len(b), self.P)
         mx = _meets(b[:, 0], self.lo[0], self.width[0], self.blocks[0], self.shape[0])
         my = _meets(b[:, 1], self.lo[1], self.width[1], self.blocks[1], self.shape[1])
         return (mx[:, :, None] & my[:, None, :]).reshape(len(b), self.P)
@@ -211,7 +215,7 @@ class Owned:
         self.n_own = int(np.count_nonzero(owner == self.me))
         n = self.n_own
         # where the owned rows are ghosts (the senders computed the same from the same bits)
-        dest = self.destinations(self.base(p.R[:n]))
+        dest = self.destinations(self.base(p.R[:n]), p.R[:n])
         dest[:, self.me] = False
         r, i = np.nonzero(dest.T)                     # by rank, then row (global id)
         self.send_rows = i
@@ -235,7 +239,7 @@ class Owned:
         (``extra`` (N, extra_width): the further columns of every row, kept in ``extra``)."""
         b = self.base(whole.R)
         owner = self._body_owners(self.owners(b), np.arange(whole.n))
-        dest = self.destinations(b)
+        dest = self.destinations(b, whole.R)
         dest[np.arange(whole.n), owner] = True
         rows = np.flatnonzero(dest[:, self.me])
         ex = None if extra is None else np.asarray(extra)[rows]
@@ -259,7 +263,7 @@ class Owned:
         n = self.n_own
         b = self.base(p.R[:n])
         owner = self._body_owners(self.owners(b), self.gid[:n])
-        dest = self.destinations(b)
+        dest = self.destinations(b, p.R[:n])
         dest[np.arange(n), owner] = True
         r, i = np.nonzero(dest.T)
         rec = pack(p, i, self.gid[i], owner[i], None if extra is None else extra[i])

@@ -35,7 +35,8 @@ import pyfftw
 
 from ..grid import Grid, auto_planner
 
-__all__ = ["Gathered", "PencilDiagonal", "PencilGrid", "PencilScalarSolve", "block"]
+__all__ = ["Gathered", "PencilDiagonal", "PencilGrid", "PencilScalarSolve", "block",
+           "stencil_meets"]
 
 
 class Gathered:
@@ -50,6 +51,45 @@ def block(n: int, parts: int, i: int) -> tuple[int, int]:
     q, r = divmod(n, parts)
     start = i * q + min(i, r)
     return start, start + q + (1 if i < r else 0)
+
+
+def _meets(start, width, blocks, n):
+    """(N, len(blocks)) bool: the periodic interval [start, start + width) (N starts and
+    widths) meets block [a0, a1) of ``blocks`` (k, 2)."""
+    start = np.mod(start, n)[:, None]
+    width = np.broadcast_to(width, start.shape[:1])[:, None]
+    a0, a1 = blocks[None, :, 0], blocks[None, :, 1]
+    return (width >= n) | (np.mod(a0 - start, n) < width) | (np.mod(start - a0, n) < a1 - a0)
+
+
+def stencil_meets(s, lo, width, xblocks, yblocks, shape, image):
+    """(N, kx, ky) bool: the stencil boxes of the particles at grid coordinates ``s``
+    (N, >= 2: R / DX) on the rectangular grid under Lees-Edwards images meet the blocks
+    xblocks (kx, 2) x yblocks (ky, 2).  A box spans [b + lo, b + lo + width) along x and y
+    (b = floor(s)); its part beyond the y boundary (image k = +-1, ...: the floor division
+    of the unwrapped y index by NY) lies at the x base floor(s_x - k image), ``image`` the
+    x displacement of the image across y = Ly in grid units (g Ly / DX), as
+    kapsel.particles.profile.lees_edwards_profiles places the points."""
+    nx, ny = int(shape[0]), int(shape[1])
+    s = np.asarray(s, dtype=float)
+    with np.errstate(invalid="ignore"):
+        by = np.floor(s[:, 1]).astype(np.int64)
+    start = by + int(lo[1])
+    end = start + int(width[1])
+    out = np.zeros((len(s), len(xblocks), len(yblocks)), dtype=bool)
+    ok = np.isfinite(s[:, 0]) & np.isfinite(s[:, 1])    # (NaN: caught by the run's checks)
+    if not ok.any():
+        return out
+    for k in range(int(np.floor_divide(start[ok], ny).min()),
+                   int(np.floor_divide(end[ok] - 1, ny).max()) + 1):
+        a = np.maximum(start, k * ny)
+        w = np.minimum(end, (k + 1) * ny) - a
+        my = _meets(a, w, yblocks, ny) & (w > 0)[:, None]
+        with np.errstate(invalid="ignore"):
+            bq = np.floor(s[:, 0] - k * float(image)).astype(np.int64)
+        mx = _meets(bq + int(lo[0]), int(width[0]), xblocks, nx)
+        out |= mx[:, :, None] & my[:, None, :]
+    return out
 
 
 class _Transfer:
@@ -405,19 +445,26 @@ class PencilGrid(Grid):
         self.comm.Allgather(v, buf)
         return [float(sum(col)) for col in buf.T.tolist()]
 
-    def owned_table(self, offsets, dx, cutoff=0.0, frame=None, strain_max=0.0, bodies=None,
-                    extra_width=0):
+    def owned_table(self, offsets, dx, cutoff=0.0, images=None, bodies=None, extra_width=0):
         """The particles owned by the ranks of this layout, with their ghosts
         (kapsel.parallel.particles.Owned)."""
         from .particles import Owned
-        return Owned(self, offsets, dx, cutoff, frame, strain_max, bodies=bodies,
+        return Owned(self, offsets, dx, cutoff, images, bodies=bodies,
                      extra_width=extra_width)
 
-    def near_rows(self, R, offsets, dx, strain=0.0, origin=0.0):
+    def near_rows(self, R, offsets, dx, strain=0.0, origin=0.0, images=0.0):
         """The rows of the particles at ``R`` whose stencil (``offsets``, (S, 3) grid
         steps) meets this rank's block (x and y are split; an oblique frame of ``strain``
-        about the height ``origin`` shears x)."""
+        about the height ``origin`` shears x; ``images`` != 0: the rectangular grid under
+        Lees-Edwards images displaced by ``images`` along x, ``stencil_meets``)."""
         s = np.asarray(R, dtype=float) / dx
+        if images:
+            lo = offsets[:, :2].min(axis=0)
+            width = offsets[:, :2].max(axis=0) - lo + 1
+            blocks = [np.array([r]) for r in self.real_range[:2]]
+            near = stencil_meets(s, lo, width, blocks[0], blocks[1], self.shape,
+                                 float(images) / dx)
+            return np.flatnonzero(near[:, 0, 0])
         if strain:
             s[:, 0] = (R[:, 0] - strain * (R[:, 1] - origin)) / dx
         with np.errstate(invalid="ignore"):
@@ -507,6 +554,47 @@ class PencilGrid(Grid):
         of the ranks of this column (comm_x), joined along x."""
         parts = self.comm_x.allgather(np.ascontiguousarray(f))
         return np.concatenate(parts, axis=f.ndim - 3)
+
+    def to_rectangular(self, f, g, method="linear", origin=0.0):
+        """This rank's block of a field (c, NX, NY, NZ) of the oblique grid of strain g
+        re-gridded onto the rectangular grid: kapsel.fluid.oblique.to_rectangular of the
+        whole field, cut to the block (the same bits).  The x shift of a row needs the whole
+        row: each component's blocks of this rank's column (comm_x) are gathered along x
+        (one (NX, NY / py, NZ) slab at a time), shifted and cut to the block again."""
+        return self._shift_rows(f, g * (np.arange(self.shape[1]) - origin), method)
+
+    def to_oblique(self, f, g, method="linear", origin=0.0):
+        """The inverse re-gridding, rectangular -> oblique (kapsel.fluid.oblique.to_oblique),
+        as ``to_rectangular``."""
+        return self._shift_rows(f, -g * (np.arange(self.shape[1]) - origin), method)
+
+    def _shift_rows(self, f, shift, method):
+        from ..fluid.oblique import shift_rows
+        f = np.asarray(f, dtype=float)
+        if f.ndim == 4:
+            return np.stack([self._shift_rows(c, shift, method) for c in f])
+        (x0, x1), (y0, y1), _ = self.real_range
+        return shift_rows(self._x_rows(f), shift[y0:y1], method, rows=slice(x0, x1))
+
+    def _x_rows(self, f):
+        """The whole x rows (NX, NY / py, NZ) of this rank's column of a scalar block ``f``:
+        x is the leading axis, so the column's blocks in rank (x) order are one contiguous
+        array, filled by one MPI_Allgatherv (``gather_rows`` without the pickling)."""
+        from mpi4py import MPI
+        c = self.comm_x
+        if c.Get_size() == 1:
+            return f
+        if self._rows_layout is None:
+            plane = f.shape[1] * f.shape[2]
+            counts = [(b - a) * plane for a, b in
+                      (block(self.shape[0], self.px, j) for j in range(self.px))]
+            displ = np.concatenate([[0], np.cumsum(counts)[:-1]]).astype(int).tolist()
+            self._rows_layout = (counts, displ)
+        rows = np.empty((self.shape[0],) + f.shape[1:])
+        c.Allgatherv(np.ascontiguousarray(f), [rows, self._rows_layout, MPI.DOUBLE])
+        return rows
+
+    _rows_layout = None
 
     def local_complex(self, a):
         """This rank's block of a global Fourier field (every rank holds ``a``)."""

@@ -53,10 +53,11 @@ first moment sum_x w_i r of the profiles (``total_momentum``).
 Distributed runs (kapsel.parallel.particles): every rank moves the particles it owns, sends
 them to the ranks that hold them after the move, builds the profiles of its table's
 particles on its block, and sums the coupling of the ghosts to their owners; the same step.
+A Lees-Edwards run couples on the rectangular grid there too: the layout re-grids the
+rank's block (``to_rectangular`` / ``to_oblique`` on the x rows of its column), the table
+holds the particles whose stencil images reach the block.
 """
 from __future__ import annotations
-
-import os
 
 import numpy as np
 
@@ -138,15 +139,13 @@ class SPM:
         # oblique fluid (kapsel.fluid.oblique, Lees-Edwards): profiles on the sheared grid,
         # velocities relative to the imposed shear flow, Lees-Edwards images
         self.oblique = getattr(fluid, "oblique", False)
-        # a plain (one-process) oblique run couples on the rectangular grid as the original
-        # (sp_3d_ns.cxx Time_evolution_hydro_OBL[_fdm]): u interpolated from the oblique grid
+        # an oblique run couples on the rectangular grid as the original (sp_3d_ns.cxx
+        # Time_evolution_hydro_OBL[_fdm]): u interpolated from the oblique grid
         # (Transform_obl_u), the profiles there with Lees-Edwards images, the increment
-        # interpolated back; a distributed run couples on the oblique grid
-        # (interpolated fields that a distributed run does not gather); the environment's
-        # KAPSEL_LE_COUPLING=oblique makes a plain run couple as a distributed one (the
-        # tests comparing the two)
-        self.rect = bool(self.oblique and self.layout.whole_mesh and wall is None
-                         and os.environ.get("KAPSEL_LE_COUPLING", "rect") != "oblique")
+        # interpolated back; the layout re-grids a rank's block (its x rows gathered) and
+        # holds the particles whose images reach the block, so a distributed run is the
+        # same algorithm.  With walls (one process only) the coupling is on the oblique grid.
+        self.rect = bool(self.oblique and wall is None)
         self.interpolation = "linear"       # the original's OBL_INT (models set it)
         smax = fluid.max_frame_strain if self.oblique else 0.0
         self.stencil = (Stencil(A, xi, dx, strain_max=0.0 if self.rect else smax)
@@ -174,7 +173,7 @@ class SPM:
         self.n_global = particles.n
         self._janus_whole = self.janus
         if particles.n:
-            self._own(particles, smax)
+            self._own(particles)
         if particles.n and not dry:
             self._profiles()
         if (particles.n or wall is not None) and not dry and impose:
@@ -196,7 +195,11 @@ class SPM:
         p = self.p
         g, y0 = (self.fluid.frame_strain, self.fluid.y0) if self.oblique else (0.0, 0.0)
         # the rows whose stencil meets the block (owned first; all on one process)
-        T = self.layout.near_rows(p.R, self.stencil.offsets, self.dx, g, y0)
+        if self.rect:                    # the rectangular grid under Lees-Edwards images
+            T = self.layout.near_rows(p.R, self.stencil.offsets, self.dx,
+                                      images=self.fluid.image_offset)
+        else:
+            T = self.layout.near_rows(p.R, self.stencil.offsets, self.dx, g, y0)
         n = self.owned.n_own
         if self._bodies is not None:     # every owned bead (a body's may lie elsewhere)
             T = np.concatenate([np.arange(n), T[T >= n]])
@@ -272,15 +275,15 @@ class SPM:
         return self.layout.reduce(*arrays)
 
     # ------------------------------------------------------------------ owned particles
-    def _own(self, whole, strain_max):
+    def _own(self, whole):
         """Keep this rank's owned particles and ghosts of the whole table ``whole`` (the
         model's, the same on every rank at the start; kapsel.parallel.particles; on one
         process all of it).  ``self.p`` is then the local table, owned rows first."""
         from .rigid import RigidBodies
         f = self.forces
         cutoff = float(getattr(f, "cutoff", 0.0) or 0.0) if f is not None else 0.0
-        frame = ((lambda: (self.fluid.frame_strain, self.fluid.y0)) if self.oblique
-                 else None)
+        # the Lees-Edwards images of the rectangular grid the profiles are built on
+        images = (lambda: self.fluid.image_offset) if self.rect else None
         c = getattr(whole, "constraints", None)
         self._bodies = c if isinstance(c, RigidBodies) else None   # global bodies
         self._pins = None if self._bodies is not None else c       # motion.Pinned or None
@@ -292,8 +295,8 @@ class SPM:
             bodies, width, extra = (b.body, b.first_beads()), b.RECORD_WIDTH, b.bead_records()
             if cutoff > 0:
                 cutoff += b.span()
-        self.owned = self.layout.owned_table(self.stencil.offsets, self.dx, cutoff, frame,
-                                             strain_max, bodies=bodies, extra_width=width)
+        self.owned = self.layout.owned_table(self.stencil.offsets, self.dx, cutoff, images,
+                                             bodies=bodies, extra_width=width)
         self.whole = whole
         self.n_global = whole.n
         self._janus_whole = getattr(whole, "janus", None)   # janus.Janus of all, or None
@@ -352,34 +355,47 @@ class SPM:
     # ------------------------------------------------------------------ fields
     def phi(self):
         """Total profile phi = sum_i phi_i (eq 4), (NX, NY, NZ), walls not included."""
-        if not self.p.n:
+        if not self.n_global:
             return np.zeros(self.fshape)
         phi = total_phi(self.idx, self.phi_i, self.fsize).reshape(self.fshape)
-        if self.rect:       # on the fluid's oblique grid, as the original's phi_obl
+        if self.rect:       # on the fluid's oblique grid, as the original's phi_obl (a
+            #                 collective when distributed: every rank re-grids its block)
             return self._to_oblique(phi, "linear")     # (A2a_oblique: always linear)
         return phi
 
+    def phi_at(self, R):
+        """min(sum_i phi_i, 1) of the profiles at positions ``R`` (one per row of the table)
+        made on the rectangular grid under the Lees-Edwards images of the frame now,
+        re-gridded to the fluid's oblique grid (linear): the original's Make_phi_s_OBL and
+        A2a_oblique (a rect-coupled run; on a rank's block, a collective)."""
+        off = self.fluid.image_offset
+        T = self.layout.near_rows(R, self.stencil.offsets, self.dx, images=off)
+        idx, phi_i, _ = lees_edwards_profiles(R[T], self.stencil, self.shape, self.dx, off)
+        idx, phi_i, _ = self.layout.cut_stencils(idx, phi_i)
+        phi = total_phi(idx, phi_i, self.fsize).reshape(self.fshape)
+        np.minimum(phi, 1.0, out=phi)
+        return self._to_oblique(phi, "linear")
+
     def phi_rectangular(self):
         """phi on the rectangular grid (a rect-coupled run: the profiles' own grid)."""
-        from ..fluid.oblique import to_rectangular
         if self.rect or not self.p.n:
             return total_phi(self.idx, self.phi_i, self.fsize).reshape(self.fshape) \
                 if self.p.n else np.zeros(self.fshape)
-        f = self.fluid
-        return to_rectangular(self.phi(), f.frame_strain, self.interpolation, f.y0 / self.dx)
+        return self._to_rect(self.phi())
 
     # ------------------------------------------------------------------ frames (rect)
     def _to_rect(self, u):
         """u* (Cartesian deviation, oblique grid) -> the rectangular grid (Transform_obl_u
-        oblique2cartesian without the mean flow: the coupling uses deviations)."""
-        from ..fluid.oblique import to_rectangular
+        oblique2cartesian without the mean flow: the coupling uses deviations); the
+        layout's re-gridding of this process's block (a collective when distributed)."""
         f = self.fluid
-        return to_rectangular(u, f.frame_strain, self.interpolation, f.y0 / self.dx)
+        return self.layout.to_rectangular(u, f.frame_strain, self.interpolation,
+                                          f.y0 / self.dx)
 
     def _to_oblique(self, a, method=None):
-        from ..fluid.oblique import to_oblique
         f = self.fluid
-        return to_oblique(a, f.frame_strain, method or self.interpolation, f.y0 / self.dx)
+        return self.layout.to_oblique(a, f.frame_strain, method or self.interpolation,
+                                      f.y0 / self.dx)
 
     def _coupling_u(self):
         """The field the particles couple to: u* (rect: on the rectangular grid)."""
@@ -449,10 +465,10 @@ class SPM:
         u = self.fluid.velocity(out=self.u) if self.mode == "spectral" else self.u
         self._deviation = bool(deviation)
         try:
-            du = self._rigidity(self._coupling_u() if self.rect and self.p.n else u)
+            du = self._rigidity(self._coupling_u() if self.rect and self.n_global else u)
         finally:
             self._deviation = False
-        self._add_solenoidal(self._to_oblique(du) if self.rect and self.p.n else du,
+        self._add_solenoidal(self._to_oblique(du) if self.rect and self.n_global else du,
                              start=True)
         if self.p.n and self.wall is None:
             clear_points(du, self.idx)
@@ -472,7 +488,7 @@ class SPM:
         rest start at rest with the shear flow in them.  Not for a continued run (the
         original zeroes them there too, a bug: the restart's velocities are kept).  Rigid
         bodies keep their velocities (their beads' follow the bodies)."""
-        if impose and (self.p.n or self.wall is not None):
+        if impose and (self.n_global or self.wall is not None):
             self.impose_particle_velocity(deviation=self.oblique)
         from .rigid import RigidBodies
         if isinstance(getattr(self.p_own, "constraints", None), RigidBodies) or (
@@ -518,8 +534,10 @@ class SPM:
                                     self._sub(p.omega), self.fsize, out=du, shear=shear,
                                     moment=self.moment if self.oblique else None,
                                     sampled=sampled, zeroed=True)
-            if self.oblique:
-                self.moment[...] = self._reduce(self.moment)[0]
+        elif self.oblique:
+            self.moment[...] = 0.0            # (no particle on this rank's block)
+        if self.oblique and self.n_global:    # (a collective when distributed)
+            self.moment[...] = self._reduce(self.moment)[0]
         if self.wall is not None:
             self._wall_increment(du, u)
         return du

@@ -21,12 +21,11 @@ import numpy as np
 
 
 
-def _base_here(spm, R, g, y0):
-    """Whether the stencil's base point floor(R / DX) (oblique x - g (y - y0) in a sheared
-    frame) of each particle lies in this rank's block: who must own it."""
+def _base_here(spm, R):
+    """Whether the stencil's base point floor(R / DX) (on the rectangular grid, where the
+    profiles are built, sheared runs too) of each particle lies in this rank's block: who
+    must own it."""
     s = np.asarray(R, dtype=float) / spm.dx
-    if g:
-        s[:, 0] = (R[:, 0] - g * (R[:, 1] - y0)) / spm.dx
     b = np.floor(s).astype(np.int64)
     here = np.ones(len(s), dtype=bool)
     for axis in (0, 1):
@@ -70,14 +69,15 @@ def main():
             "a particle is owned by no rank or by two"
         R = np.empty((N, 3))
         R[all_gid] = all_R
-        g, y0 = ((spm.fluid.frame_strain, spm.fluid.y0) if spm.oblique else (0.0, 0.0))
-        T = spm.layout.near_rows(R, spm.stencil.offsets, spm.dx, g, y0)
-        own = _base_here(spm, R[T], g, y0)
+        # the profiles' grid: rectangular, under Lees-Edwards images in a sheared run
+        images = spm.fluid.image_offset if spm.oblique else 0.0
+        T = spm.layout.near_rows(R, spm.stencil.offsets, spm.dx, images=images)
+        own = _base_here(spm, R[T])
         assert set(T.tolist()) <= set(gid.tolist()), "a particle meeting the block is missing"
         bodies = spm._bodies
         if bodies is not None:           # owned with their first bead, whole
             lead = bodies.first_beads()
-            mine_b = np.flatnonzero(_base_here(spm, R[lead], g, y0))
+            mine_b = np.flatnonzero(_base_here(spm, R[lead]))
             assert set(mine_b.tolist()) == set(bodies.body[gid[:n]].tolist()), \
                 "a body is not owned by the owner of its first bead"
             assert np.array_equal(np.sort(np.flatnonzero(np.isin(bodies.body, mine_b))),
@@ -87,10 +87,15 @@ def main():
         else:
             assert set(T[own].tolist()) == set(gid[:n].tolist()), \
                 "owner is not the base point's"
-        if cutoff > 0:      # pairs as kapsel.particles.forces finds them (oblique x - g y)
+        if cutoff > 0:      # pairs as kapsel.particles.forces finds them (oblique x - g y),
+            gs = spm.fluid.frame_strain if spm.oblique else 0.0   # within the cutoff
             Ro = R.copy()
-            Ro[:, 0] = np.mod(R[:, 0] - g * R[:, 1], spm.box[0])
-            i, j, _ = pairs_within(Ro, spm.box, cutoff * (1.0 + abs(g)))
+            Ro[:, 0] = np.mod(R[:, 0] - gs * R[:, 1], spm.box[0])
+            i, j, dr = pairs_within(Ro, spm.box, cutoff * (1.0 + abs(gs)))
+            dr = np.array(dr, dtype=float).reshape(-1, 3)
+            dr[:, 0] += gs * dr[:, 1]
+            keep = np.sqrt((dr * dr).sum(axis=1)) < cutoff
+            i, j = i[keep], j[keep]
             if bodies is not None:                 # no pair forces within a body
                 keep = bodies.body[i] != bodies.body[j]
                 i, j = i[keep], j[keep]

@@ -22,13 +22,6 @@ from builders import (agree_with_serial, cli, continue_distributed, copy_schema,
                       make_input, MPIEXEC, mpirun, saved_data)
 
 
-@pytest.fixture(autouse=True)
-def _oblique_coupling(monkeypatch):
-    """Distributed Lees-Edwards runs couple the particles on the oblique grid; the plain
-    runs they are compared with do the same here (kapsel.particles.spm.SPM.rect)."""
-    monkeypatch.setenv("KAPSEL_LE_COUPLING", "oblique")
-
-
 pytestmark = pytest.mark.skipif(
     MPIEXEC is None, reason="the mpi extra (mpi4py + an MPI library with mpiexec) is not "
                             "installed: pip install 'kapsel-py[mpi]'")

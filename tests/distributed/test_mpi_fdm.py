@@ -30,13 +30,6 @@ NS, NSCH = "Navier_Stokes_FDM", "Navier_Stokes_Cahn_Hilliard_FDM"
 VC = f"constitutive_eq.{NSCH}.NS_solver.implicit_scheme"
 
 
-@pytest.fixture(autouse=True)
-def _oblique_coupling(monkeypatch):
-    """Distributed Lees-Edwards runs couple the particles on the oblique grid; the plain
-    runs they are compared with do the same here (kapsel.particles.spm.SPM.rect)."""
-    monkeypatch.setenv("KAPSEL_LE_COUPLING", "oblique")
-
-
 def fdm_input(d, eq, ns, ch="explicit_scheme", viscosity_change=False, **kw):
     kw = {"particles": 4, "gts": 10, "nsnap": 5, **kw}
     path = make_input(d, eq, ns=ns, ch=ch, **kw)

@@ -8,12 +8,14 @@ Measured (2026-11-29, ``pytest -s tests/distributed/test_mpi_particles.py``): 32
 particles, max |distributed - serial| 7.1e-14 (particle table) / 4.1e-14 (u_hat) on 2
 ranks, 5.7e-14 / 4.6e-14 on 2 x 2, 0 on 1 rank; particles migrating through 4 slabs:
 |4 ranks - 1 rank| 0 in R, 1.1e-16 in v, 1.8e-14 in F_H; chains on 4 slabs 8.9e-16 in R,
-2.7e-14 in F_H; Lees-Edwards on 2 x 2 with a frame re-mapping 0 in R, 5.0e-14 in F_H.
+2.7e-14 in F_H; Lees-Edwards on 2 x 2 with a frame re-mapping 2.2e-16 in R, 2.2e-14 in F_H
+(2026-12-02: the particles coupled on the rectangular grid, distributed and plain alike).
 Rigid bodies (owned whole by the owner of their first bead), 50 steps, 2 / 2 x 2 ranks:
 5.7e-14 / 5.9e-14 (Navier_Stokes), 8.5e-14 / 7.1e-14 (Shear_Navier_Stokes), 5.7e-14 /
-2.5e-13 (Lees-Edwards), 0 on 1 rank; falling through 4 slabs 2.1e-14 in F_H, 0 in the
-bodies' R; restarts interchanged 6.4e-14 / 3.3e-13; dipoles (distributed Ewald): Quincke
-rollers 1.4e-14 / 7.1e-15, FIXED dipoles under Lees-Edwards 9.9e-15 / 7.8e-15;
+1.7e-13 (Lees-Edwards), 0 on 1 rank; falling through 4 slabs 2.1e-14 in F_H, 0 in the
+bodies' R; restarts interchanged 6.4e-14 (Navier_Stokes) / 1.2e-13
+(Lees-Edwards); dipoles (distributed Ewald): Quincke
+rollers 1.4e-14 / 7.1e-15, FIXED dipoles under Lees-Edwards 1.1e-14 / 1.4e-14;
 self-propelled (squirmers, tumbler, obstacle) 6.4e-14 / 2.1e-13 (Navier_Stokes), 1.4e-13 /
 1.6e-13 (Shear_Navier_Stokes).
 Each test takes 5-25 s on the busy 2-core machine.
@@ -31,13 +33,6 @@ from builders import agree_with_serial, cli, differences, make_input, MPIEXEC, m
 
 pytestmark = pytest.mark.skipif(MPIEXEC is None, reason="the mpi extra is not installed")
 PROBE = os.path.join(os.path.dirname(os.path.abspath(__file__)), "mpi_particles_probe.py")
-
-
-@pytest.fixture(autouse=True)
-def _oblique_coupling(monkeypatch):
-    """Distributed Lees-Edwards runs couple the particles on the oblique grid; the plain
-    runs they are compared with do the same here (kapsel.particles.spm.SPM.rect)."""
-    monkeypatch.setenv("KAPSEL_LE_COUPLING", "oblique")
 
 
 def test_owned_particles_agree_with_the_serial_run(tmp_path):
@@ -164,8 +159,10 @@ def test_chains_owned_by_ranks(tmp_path):
 def test_lees_edwards_particles_owned_by_ranks(tmp_path):
     """Shear_Navier_Stokes_Lees_Edwards, 32^3 on 2 x 2 ranks, 10 particles (A = 2, XI = 1,
     WCA, noise), 50 steps at shear rate 0.25 (the frame re-maps once): ownership follows the
-    base point in the oblique frame, halos cover the Lees-Edwards images (the probe, after
-    every step), and the run ends where the 1-rank run does."""
+    base point on the rectangular grid (where the profiles are built), halos cover the
+    Lees-Edwards images of the stencils and of the pair partners (the probe, after every
+    step), and the run ends where the 1-rank run does.  (Every rank holds all 10 particles
+    here; the halo geometry under the images is tested in tests/distributed/test_mpi_layout.py.)"""
     from builders import shear_input
     got = {}
     for name, n, grid in (("one", 1, ()), ("four", 4, ("-X2", "-Y2"))):
@@ -188,6 +185,38 @@ def test_lees_edwards_particles_owned_by_ranks(tmp_path):
         dev = float(np.abs(a[k] - b[k]).max())
         print(f"  max |4 ranks - 1 rank| {k}: {dev:.3g}")
         assert dev < 1e-10, k
+
+
+def test_lees_edwards_ranks_without_particles(tmp_path):
+    """Shear_Navier_Stokes_Lees_Edwards, 32^3 on 4 slabs (-X4, 8 planes each), one particle
+    (A = 2, XI = 1, no pair forces) in the middle: the outer ranks hold no particle, yet
+    take part in the coupling's collectives (the re-gridding of u* and of the increment
+    on the gathered x rows, the particle stress moment); the run ends where the 1-rank run
+    does."""
+    from builders import shear_input
+    got = {}
+    for name, n, grid in (("one", 1, ()), ("four", 4, ("-X4", "-Y1"))):
+        d = tmp_path / name
+        path = shear_input(d, particles=1, rate=0.25, gts=10, nsnap=1, npx=5)
+        u = UDFManager(path)
+        u.put(2.0, "A")
+        u.put(1.0, "A_XI")
+        u.put("NONE", "switch.LJ_truncate")
+        u.put("user_specify", "switch.INIT_distribution.type")
+        rows = np.zeros((1, 13))
+        rows[0, :3] = (16.3, 16.6, 16.1)
+        rows[0, 6] = 1.0
+        u.put(rows, "switch.INIT_distribution.user_specify.Particles[]")
+        u.write(path)
+        got[name] = _probe(d, n, 20, *grid)
+    a, b = got["one"], got["four"]
+    held = b["local"]                       # (steps + 1, ranks) rows held by each rank
+    print(f"one particle on 4 slabs: rows held per rank {held.min(axis=0)}..{held.max(axis=0)}")
+    assert held[:, 0].max() == 0 and held[:, 3].max() == 0
+    for k in ("R", "v", "omega", "R_raw", "f_hydro"):
+        dev = float(np.abs(a[k] - b[k]).max())
+        print(f"  max |4 ranks - 1 rank| {k}: {dev:.3g}")
+        assert dev < 1e-11, k
 
 
 def test_pinned_particles_owned_by_ranks(tmp_path):

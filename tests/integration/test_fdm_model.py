@@ -153,7 +153,7 @@ def test_capillary_force_explicit_enters_the_ab2_once(tmp_path):
     for n in range(4):
         m.advance()
         want = adv[n] - raw[n]
-        np.testing.assert_allclose(m.mac._n_old, want, rtol=0,
+        np.testing.assert_allclose(m.mac.advection_old, want, rtol=0,
                                    atol=1e-14 * np.abs(want).max())
     assert m.mac.step_count >= 3                                     # AB2 reached
     assert np.abs(raw[3] - raw[2]).max() > 1e-8 * np.abs(raw[3]).max()   # F changes

@@ -76,7 +76,7 @@ def test_real_input_unchanged_is_accepted_or_refused_for_unsupported_features_on
     name = name_of(path)
     inp = copy_example(path, tmp_path)
     monkeypatch.chdir(tmp_path)
-    # the inputs, not the test machine's memory: ex02 needs about 19 GB (a machine with less
+    # the inputs, not the test machine's memory: ex02 needs about 7 GB (a machine with less
     # refuses it, tests/integration/test_check_banner.py)
     monkeypatch.setenv("KAPSEL_PY_MEMORY_LIMIT_GB", "64")
     before = listing(tmp_path)

@@ -60,8 +60,8 @@ def test_particle_step_exchanges_the_balance(tmp_path, eq, ns, steps):
     after = {}
     fluid_step = spm._fluid_step
 
-    def hooked():
-        fluid_step()
+    def hooked(**fluid):
+        fluid_step(**fluid)
         after["P"] = spm.fluid_momentum()
     spm._fluid_step = hooked
     worst, moved = 0.0, 0.0

@@ -55,15 +55,16 @@ def test_pressure_driven_flow_between_walls_is_parabolic(solver, axis, steps):
         F[fa] = g
         fluid.set_force(F)
         spm = SPM(fluid, no_particles(), 4.0, 2.0, 1.0, 1.0, dt, wall=wall)
+        step_args = {}
     else:
         spm = _ModelH_SPM(MACSolver(shape, 1.0, 1.0, 1.0, dt), no_particles(), 4.0, 2.0, 1.0,
                           1.0, dt, wall=wall)
         f = np.zeros((3,) + shape)
         f[fa] = g
-        spm.fluid_force = f
+        step_args = {"force": f}
     solid = wall.solid()
     for k in range(steps):
-        spm.step()
+        spm.step(**step_args)
         if k % 500 == 0 and k:
             u = spm.velocity()
             assert np.abs(u[:, solid]).max() < 0.01 * np.abs(u).max()
