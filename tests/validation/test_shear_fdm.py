@@ -346,6 +346,18 @@ def test_implicit_step_phi_star_and_frame(tmp_path):
     assert xp[0, 1] > 16.0
     got = m._extrapolated_phi()
     assert np.abs(got - _phi_star_reference(m, xp)).max() < 1e-12
+    # a particle that crossed the bottom y boundary in the last step: phi* is drawn half a
+    # step on from where it is (the unwrapped displacement), not half a box away as the
+    # original's (3 x - x_previous) / 2 of the wrapped positions would put it
+    p.R[0] = p.R_raw[0] = [4.3, 0.3, 8.2]
+    m.spm.refresh()
+    m._dR = np.array([[0.0, 0.6, 0.0], [0.0, 0.0, 0.0]])
+    got = m._extrapolated_phi()
+    assert np.abs(got - _phi_star_reference(m, p.R + 0.5 * m._dR)).max() < 1e-12
+    wrapped_prev = p.R - m._dR
+    wrapped_prev[0, 1] += 16.0                           # x_previous, wrapped: y = 15.7
+    far = _phi_star_reference(m, (3 * p.R - wrapped_prev) / 2)
+    assert np.abs(got - far).max() > 0.5
     # the frame of mu and of the force
     mac, ch = m.mac, m.ch
     g0, gt = mac.frame_strain, mac.mid_step_strain(mac.time)
