@@ -566,13 +566,13 @@ class Grid:
 
     def to_rectangular(self, f, g, method="linear", origin=0.0):
         """This process's block of a field (c, NX, NY, NZ) of the oblique grid of strain g,
-        re-gridded onto the rectangular grid (kapsel.fluid.oblique.to_rectangular)."""
-        from .fluid.oblique import to_rectangular
+        re-gridded onto the rectangular grid (kapsel.regrid.to_rectangular)."""
+        from .regrid import to_rectangular
         return to_rectangular(f, g, method, origin)
 
     def to_oblique(self, f, g, method="linear", origin=0.0):
-        """The inverse re-gridding, rectangular -> oblique (kapsel.fluid.oblique.to_oblique)."""
-        from .fluid.oblique import to_oblique
+        """The inverse re-gridding, rectangular -> oblique (kapsel.regrid.to_oblique)."""
+        from .regrid import to_oblique
         return to_oblique(f, g, method, origin)
 
     def gather_rows(self, f):

@@ -58,6 +58,7 @@ import math
 import numpy as np
 
 from ..grid import Grid
+from ..regrid import INTERPOLATIONS, shift_rows, to_oblique, to_rectangular  # noqa: F401
 from ..parallel.halo import Halo
 from .mac import MACSolver
 from .spectral import SpectralNS, cross_in_place, phi1
@@ -67,7 +68,6 @@ __all__ = ["ShearFlow", "ObliqueSpectralNS", "ObliqueMAC", "MetricProjector", "s
            "contravariant", "cartesian", "lees_edwards_wrap", "lees_edwards_displacement",
            "INTERPOLATIONS"]
 
-INTERPOLATIONS = ("linear", "spline")
 
 
 class ShearFlow:
@@ -111,66 +111,6 @@ def cartesian(u, g, out=None):
         np.copyto(out, u)
     out[0] += g * u[1]
     return out
-
-
-# ---------------------------------------------------------------------------- interpolation
-def shift_rows(f, shift, method="linear", rows=None):
-    """g[i, j, ...] = f(x_i - shift_j) along axis 0, periodic; ``shift`` (NY,) in grid points.
-
-    f: (NX, NY, ...) or (c, NX, NY, ...) with a leading component axis (then ``f.ndim == 4``).
-    Integer shifts are exact permutations for both methods.  ``rows`` (a slice of x): only
-    those rows of g (the same values as those rows of the whole g).
-    """
-    if method not in INTERPOLATIONS:
-        raise ValueError(f"OBL_INT must be one of {INTERPOLATIONS}, got {method!r}")
-    f = np.asarray(f, dtype=float)
-    if f.ndim == 4:
-        return np.stack([shift_rows(c, shift, method, rows) for c in f])
-    nx, ny = f.shape[0], f.shape[1]
-    shift = np.asarray(shift, dtype=float).reshape(ny)
-    base = np.floor(shift)
-    frac = shift - base                      # g_i = f(i - base - frac)
-    i = np.arange(nx)[:, None] if rows is None else np.arange(nx)[rows][:, None]
-    j = np.arange(ny)[None, :]
-    b = base.astype(np.int64)[None, :]
-    w = frac[None, :]
-    extra = (slice(None),) * 0
-    if method == "linear":
-        # f(i - b - w) = (1 - w) f[i - b] + w f[i - b - 1]
-        f0 = f[(i - b) % nx, j]
-        f1 = f[(i - b - 1) % nx, j]
-        wb = w.reshape(w.shape + (1,) * (f.ndim - 2))
-        return (1.0 - wb) * f0 + wb * f1
-    from scipy.ndimage import spline_filter1d
-    c = spline_filter1d(f, order=3, axis=0, mode="grid-wrap")
-    # point x = i - b - w = (i - b - 1) + (1 - w): cubic B-spline weights at t = 1 - w
-    t = (1.0 - w).reshape(w.shape + (1,) * (f.ndim - 2))
-    w0 = (1.0 - t) ** 3 / 6.0
-    w1 = (3 * t ** 3 - 6 * t ** 2 + 4) / 6.0
-    w2 = (-3 * t ** 3 + 3 * t ** 2 + 3 * t + 1) / 6.0
-    w3 = t ** 3 / 6.0
-    p = i - b - 1
-    out = w0 * c[(p - 1) % nx, j]
-    out += w1 * c[p % nx, j]
-    out += w2 * c[(p + 1) % nx, j]
-    out += w3 * c[(p + 2) % nx, j]
-    del extra
-    return out
-
-
-def _ny(f):
-    return np.shape(f)[2] if np.ndim(f) == 4 else np.shape(f)[1]
-
-
-def to_rectangular(f, g, method="linear", origin=0.0):
-    """A field on the oblique grid of strain g -> the rectangular grid (same shape):
-    rect[i, j] = f at oblique x^ = i - g (j - origin) (grid units; origin = y0 / DX)."""
-    return shift_rows(f, g * (np.arange(_ny(f)) - origin), method)
-
-
-def to_oblique(f, g, method="linear", origin=0.0):
-    """Inverse of ``to_rectangular``: obl[i, j] = rect at x = i + g (j - origin)."""
-    return shift_rows(f, -g * (np.arange(_ny(f)) - origin), method)
 
 
 # ---------------------------------------------------------------------------- particles

@@ -38,7 +38,7 @@ def shear_flow(cfg: RunConfig):
 
 
 def check_interpolation(cfg: RunConfig) -> str:
-    from ..fluid.oblique import INTERPOLATIONS
+    from ..regrid import INTERPOLATIONS
     m = cfg.switches.OBL_INT
     if m not in INTERPOLATIONS:
         raise ConfigError(f"must be one of {', '.join(INTERPOLATIONS)}",
@@ -155,7 +155,7 @@ class ShearLEModel(SpectralModel):
         to rank 0 (one rank: the fields themselves), which interpolates them to the
         rectangular frame along x and derives tau and the pressure there."""
         from ..fluid.diagnostics import spectral_pressure, viscous_stress_spectral
-        from ..fluid.oblique import to_rectangular
+        from ..regrid import to_rectangular
         from ..parallel.pencil import Gathered
         g0 = self.fluid.y0 / self.cfg.mesh.DX
 
@@ -494,7 +494,7 @@ class ShearFDMModel(FDMModel):
 
     # ------------------------------------------------------------------ rectangular output
     def _rect(self, f):
-        from ..fluid.oblique import to_rectangular
+        from ..regrid import to_rectangular
         return to_rectangular(f, self.mac.frame_strain, self.interpolation,
                               self.mac.y0 / self.dx)
 

@@ -557,19 +557,19 @@ class PencilGrid(Grid):
 
     def to_rectangular(self, f, g, method="linear", origin=0.0):
         """This rank's block of a field (c, NX, NY, NZ) of the oblique grid of strain g
-        re-gridded onto the rectangular grid: kapsel.fluid.oblique.to_rectangular of the
+        re-gridded onto the rectangular grid: kapsel.regrid.to_rectangular of the
         whole field, cut to the block (the same bits).  The x shift of a row needs the whole
         row: each component's blocks of this rank's column (comm_x) are gathered along x
         (one (NX, NY / py, NZ) slab at a time), shifted and cut to the block again."""
         return self._shift_rows(f, g * (np.arange(self.shape[1]) - origin), method)
 
     def to_oblique(self, f, g, method="linear", origin=0.0):
-        """The inverse re-gridding, rectangular -> oblique (kapsel.fluid.oblique.to_oblique),
+        """The inverse re-gridding, rectangular -> oblique (kapsel.regrid.to_oblique),
         as ``to_rectangular``."""
         return self._shift_rows(f, -g * (np.arange(self.shape[1]) - origin), method)
 
     def _shift_rows(self, f, shift, method):
-        from ..fluid.oblique import shift_rows
+        from ..regrid import shift_rows
         f = np.asarray(f, dtype=float)
         if f.ndim == 4:
             return np.stack([self._shift_rows(c, shift, method) for c in f])
