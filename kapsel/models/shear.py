@@ -379,8 +379,8 @@ class ShearFDMModel(FDMModel):
         return raw
 
     def _extrapolated_phi(self):
-        """phi* (above) on a rect-coupled run (SPM.rect); a run coupling on the oblique grid
-        (distributed, or KAPSEL_LE_COUPLING=oblique) takes phi^n.  The step's displacement
+        """phi* (above): every Lees-Edwards run couples on the rectangular grid (SPM.rect),
+        distributed ones too (without particles: phi itself).  The step's displacement
         is that of the unwrapped positions (the original's (3 x - x_previous) / 2 of the
         wrapped ones lands half a box away in the step after a particle crosses a
         boundary); the first step, and the first after a restart without the exact state,
