@@ -386,7 +386,7 @@ class ShearFDMModel(FDMModel):
         boundary); the first step, and the first after a restart without the exact state,
         take R^n (the original's ts 0 and its restart's x_previous = x)."""
         spm = self.spm
-        if self.phi is None or not spm.rect:
+        if self.phi is None:
             return self.phi
         mac = self.mac
         p = spm.p
@@ -416,12 +416,16 @@ class ShearFDMModel(FDMModel):
         (R,) = self.grid.reduce(R)
         return np.asarray(R, dtype=float).reshape(-1, 3)
 
+    _R_end = None   # _unwrapped_positions() at the end of the last step (the next start)
+
     def advance(self):
-        keep = self._implicit() and self.particles.n and self.spm.rect
-        before = self._unwrapped_positions() if keep else None
+        keep = self._implicit() and self.particles.n
+        before = (self._R_end if self._R_end is not None else self._unwrapped_positions()) \
+            if keep else None
         super().advance()
         if keep:
-            self._dR = self._unwrapped_positions() - before
+            self._R_end = self._unwrapped_positions()
+            self._dR = self._R_end - before
 
     def _after_fluid(self):
         n = self.mac.take_remap()
@@ -593,6 +597,7 @@ class ShearFDMModel(FDMModel):
         super().load_fields(fields, exact)
         dR = exact.get("dR_last")
         self._dR = None if dR is None else np.array(dR, dtype=float).reshape(-1, 3)
+        self._R_end = None          # the positions were set from the restart
 
 
 @register("Shear_Navier_Stokes_Lees_Edwards_FDM")
