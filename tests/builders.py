@@ -818,6 +818,18 @@ def exchanged_momentum(spm, dv, dw):
             - p.mass[:, None] * dv).sum(axis=0)
 
 
+def run_until_steady(spm, value, n_steps, t_max, tol):
+    """Advance ``spm`` ``n_steps`` at a time until ``value()`` changes by less than ``tol``
+    relatively over one such block, or its time reaches ``t_max``."""
+    prev = None
+    while spm.step_index * spm.dt < t_max:
+        spm.run(n_steps)
+        v = value()
+        if prev is not None and abs(v - prev) < tol * abs(v):
+            break
+        prev = v
+
+
 def terminal_velocity(L, dt=None, tol=5e-4, t_max=None, threads=1):
     """Sphere A = 4 under F = (1, 0, 0), FIX_CELL on: V_x / (F / (6 pi eta A K)) at steady state
     (stop when V changes by < tol relatively over one slowest-mode decay time L^2/(4 pi^2))."""
@@ -829,14 +841,7 @@ def terminal_velocity(L, dt=None, tol=5e-4, t_max=None, threads=1):
     U = 1.0 / (6 * np.pi * A * _hasimoto_K(L))
     tau = L ** 2 / (4 * np.pi ** 2)
     n_tau = max(1, int(round(tau / dt)))
-    t_max = t_max or 12 * tau
-    prev = None
-    while spm.step_index * dt < t_max:
-        spm.run(n_tau)
-        v = p.v[0, 0]
-        if prev is not None and abs(v - prev) < tol * abs(v):
-            break
-        prev = v
+    run_until_steady(spm, lambda: p.v[0, 0], n_tau, t_max or 12 * tau, tol)
     return p.v[0] / U, spm.step_index * dt
 
 

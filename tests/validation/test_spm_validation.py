@@ -16,7 +16,7 @@ from kapsel.particles.spm import SPM
 from kapsel.particles.state import ParticleState
 
 from builders import (_auto_dt, _spectral, _spheres, A, DT_FACTOR, exchanged_momentum,
-                      terminal_velocity, XI)
+                      run_until_steady, terminal_velocity, XI)
 
 
 def _two_pushed(fluid, mass_ratio):
@@ -139,14 +139,8 @@ def steady_rotation(L, dt=None, tol=5e-4, threads=1):
     spm = SPM(fluid, p, A, XI, 1.0, 1.0, dt, forces=lambda q: (np.zeros((1, 3)), T))
     c = 4 / 3 * np.pi * A ** 3 / L ** 3
     W = (1 - c - 1.95708 * c ** (10 / 3)) / (8 * np.pi * A ** 3)
-    n_tau = max(1, int(round(A ** 2 / dt)))
-    prev = None
-    while spm.step_index * dt < 40 * A ** 2:
-        spm.run(n_tau)
-        w = p.omega[0, 2]
-        if prev is not None and abs(w - prev) < tol * abs(w):
-            break
-        prev = w
+    run_until_steady(spm, lambda: p.omega[0, 2], max(1, int(round(A ** 2 / dt))),
+                     40 * A ** 2, tol)
     return p.omega[0] / W, spm.step_index * dt
 
 
