@@ -30,6 +30,15 @@ TESTS = os.path.dirname(os.path.abspath(__file__))
 SAMPLES = os.path.join(TESTS, "..", "samples")
 
 
+
+def write_input(u, d, gts, nsnap):
+    """``u`` with output.GTS and output.Num_snap set, written as d/input.udf (its path)."""
+    u.put(gts, "output.GTS")
+    u.put(nsnap, "output.Num_snap")
+    path = os.path.join(d, "input.udf")
+    u.write(path)
+    return path
+
 def copy_schema(d, src=SAMPLES):
     """define.udf and kapsel_unit.udf of the directory ``src`` (the manual's sample) copied
     to the run directory ``d``: what every input beside them needs."""
@@ -140,11 +149,7 @@ def make_input(d, eq, ns="implicit_scheme", ch="implicit_scheme", particles=3, g
     u.put(ch, f"{NS_CH}.CH_solver.type")
     u.put(ns, "constitutive_eq.Navier_Stokes_FDM.NS_solver.type")
     u.put(particles, "object_type.spherical_particle.Particle_spec[0].Particle_number")
-    u.put(gts, "output.GTS")
-    u.put(nsnap, "output.Num_snap")
-    path = os.path.join(d, "input.udf")
-    u.write(path)
-    return path
+    return write_input(u, d, gts, nsnap)
 
 
 def cli(d, inp, *extra):
@@ -254,11 +259,7 @@ def shear_input(d, particles=1, kind="DC", rate=0.02, freq=0.0, gts=10, nsnap=2,
         u.put(npx, f"mesh.{k}")
     u.put(particles, "object_type.spherical_particle.Particle_spec[0].Particle_number")
     u.put(obl, "switch.ns_solver.OBL_INT")
-    u.put(gts, "output.GTS")
-    u.put(nsnap, "output.Num_snap")
-    path = os.path.join(d, "input.udf")
-    u.write(path)
-    return path
+    return write_input(u, d, gts, nsnap)
 
 
 def build(inp):
