@@ -310,17 +310,23 @@ def test_error_bad_path():
         u.put("bogus", "LJ_powers")
 
 
-def test_error_in_bulk_array_points_at_the_number(tmp_path):
+def _spoiled_bulk_array(tmp_path, offset, bad):
+    """A record of 100 particles written, then the first 1.0 of the line ``offset`` lines into
+    the array replaced by ``bad``: (the reader's message, that line's index)."""
     u = UDFManager(schema_from=DEFINE)
     u.newRecord()
     u.put(np.ones((100, 34)), "Particles[]")
     path = tmp_path / "o.udf"
     u.write(str(path))
     lines = path.read_text().splitlines()
-    k = next(i for i, l in enumerate(lines) if l.startswith("{{1.0") and i > 5) + 10
-    lines[k] = lines[k].replace("1.0", "1.0x0", 1)
+    k = next(i for i, l in enumerate(lines) if l.startswith("{{1.0") and i > 5) + offset
+    lines[k] = lines[k].replace("1.0", bad, 1)
     path.write_text("\n".join(lines) + "\n")
-    msg = error_of(str(path))
+    return error_of(str(path)), k
+
+
+def test_error_in_bulk_array_points_at_the_number(tmp_path):
+    msg, k = _spoiled_bulk_array(tmp_path, 10, "1.0x0")
     assert f"o.udf:{k + 1}:" in msg and "x0" in msg
 
 
@@ -336,16 +342,7 @@ def test_ragged_bulk_array_is_refused(tmp_path):
 
 
 def test_error_malformed_number_inside_numeric_text(tmp_path):
-    u = UDFManager(schema_from=DEFINE)
-    u.newRecord()
-    u.put(np.ones((100, 34)), "Particles[]")
-    path = tmp_path / "o.udf"
-    u.write(str(path))
-    lines = path.read_text().splitlines()
-    k = next(i for i, l in enumerate(lines) if l.startswith("{{1.0") and i > 5) + 20
-    lines[k] = lines[k].replace("1.0", "1.0.0", 1)
-    path.write_text("\n".join(lines) + "\n")
-    msg = error_of(str(path))
+    msg, k = _spoiled_bulk_array(tmp_path, 20, "1.0.0")
     assert f"o.udf:{k + 1}:" in msg and "'1.0.0'" in msg and "malformed number" in msg
 
 
