@@ -12,6 +12,10 @@ __all__ = ["INTERPOLATIONS", "shift_rows", "to_rectangular", "to_oblique"]
 
 INTERPOLATIONS = ("linear", "spline")
 
+#: kapsel.regrid_kernels once the compiled kernels are enabled (kapsel.fluid.compiled): the
+#: same shifts in one pass, the same bits; None: the numpy passes below
+kernels = None
+
 
 def shift_rows(f, shift, method="linear", rows=None):
     """g[i, j, ...] = f(x_i - shift_j) along axis 0, periodic; ``shift`` (NY,) in grid points.
@@ -24,7 +28,11 @@ def shift_rows(f, shift, method="linear", rows=None):
         raise ValueError(f"OBL_INT must be one of {INTERPOLATIONS}, got {method!r}")
     f = np.asarray(f, dtype=float)
     if f.ndim == 4:
+        if kernels is not None:
+            return _shift_compiled(f, shift, method, rows)
         return np.stack([shift_rows(c, shift, method, rows) for c in f])
+    if kernels is not None and f.ndim == 3:
+        return _shift_compiled(f[None], shift, method, rows)[0]
     nx, ny = f.shape[0], f.shape[1]
     shift = np.asarray(shift, dtype=float).reshape(ny)
     base = np.floor(shift)
@@ -54,6 +62,33 @@ def shift_rows(f, shift, method="linear", rows=None):
     out += w2 * c[(p + 1) % nx, j]
     out += w3 * c[(p + 2) % nx, j]
     del extra
+    return out
+
+
+def _shift_compiled(f, shift, method, rows):
+    """shift_rows of the components of ``f`` (c, NX, NY, NZ) by the compiled kernels: the
+    weights as the numpy passes compute them, then one pass per component."""
+    nx, ny = f.shape[1], f.shape[2]
+    shift = np.asarray(shift, dtype=float).reshape(ny)
+    base = np.floor(shift)
+    frac = shift - base
+    b = base.astype(np.int64)
+    idx = np.arange(nx, dtype=np.int64)
+    idx = np.ascontiguousarray(idx if rows is None else idx[rows])
+    out = np.empty((f.shape[0], idx.size) + f.shape[2:])
+    if method == "linear":
+        for c in range(f.shape[0]):
+            kernels.shift_linear(np.ascontiguousarray(f[c]), idx, b, frac, out[c])
+        return out
+    t = 1.0 - frac
+    w0 = (1.0 - t) ** 3 / 6.0
+    w1 = (3 * t ** 3 - 6 * t ** 2 + 4) / 6.0
+    w2 = (-3 * t ** 3 + 3 * t ** 2 + 3 * t + 1) / 6.0
+    w3 = t ** 3 / 6.0
+    coef = np.empty(f.shape[1:])
+    for c in range(f.shape[0]):
+        kernels.spline_coefficients(np.ascontiguousarray(f[c]), coef)
+        kernels.shift_spline(coef, idx, b, w0, w1, w2, w3, out[c])
     return out
 
 

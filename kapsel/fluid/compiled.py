@@ -1,7 +1,7 @@
 """The compiled (numba) kernels, loaded on demand.
 
-``kapsel.fluid.spectral_kernels`` (fused spectral passes) and ``kapsel.fluid.stencils`` (MAC
-stencils) are bit-identical to the numpy passes they replace, so a run may switch to them at
+``kapsel.fluid.spectral_kernels`` (fused spectral passes), ``kapsel.fluid.stencils`` (MAC
+stencils) and ``kapsel.regrid_kernels`` (the Lees-Edwards row shifts) are bit-identical to the numpy passes they replace, so a run may switch to them at
 any step without changing a single bit of its results.  What they cost is start-up: importing
 numba and loading the cached machine code takes about 0.65 s of CPU per process (0.2 s import,
 0.45 s to initialise numba's code generator on the first cached function; measured on the
@@ -41,16 +41,20 @@ def enable() -> bool:
         return False
     try:
         from . import spectral_kernels, stencils as st
+        from .. import regrid, regrid_kernels
     except ImportError:     # pragma: no cover - numba missing
         return False
     spectral, stencils = spectral_kernels, st
+    regrid.kernels = regrid_kernels
     return True
 
 
 def disable() -> None:
     """Back to the numpy passes (tests compare the two)."""
     global spectral, stencils
+    from .. import regrid
     spectral = stencils = None
+    regrid.kernels = None
 
 
 def want(step_done: int, remaining: int) -> bool:
