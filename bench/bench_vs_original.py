@@ -71,6 +71,13 @@ SCENES = {
     "el64": ("Electrolyte 64^3, 8 particles (salt, Z -10)", dict(
         _ns(6, 8, 4.0, "Electrolyte"),
         **{f"{SP}.Surface_charge": -10.0, "constitutive_eq.Electrolyte.kBT": 1.0}), 200, 20),
+    "sns128x1000": ("Shear_Navier_Stokes (zigzag) 128^3, 1000 particles (A 2)",
+                    _ns(7, 1000, 2.0, "Shear_Navier_Stokes"), 20, 10),
+    "le128x1000": ("Shear_Navier_Stokes_Lees_Edwards 128^3, 1000 particles (A 2)",
+                   _ns(7, 1000, 2.0, "Shear_Navier_Stokes_Lees_Edwards"), 20, 10),
+    "el128x1000": ("Electrolyte 128^3, 1000 particles (A 2, salt, Z -1)", dict(
+        _ns(7, 1000, 2.0, "Electrolyte"),
+        **{f"{SP}.Surface_charge": -1.0, "constitutive_eq.Electrolyte.kBT": 1.0}), 20, 10),
     "squirmer64": ("Navier_Stokes 64^3, 8 squirmers (B1 0.01, alpha -1)", dict(
         _ns(6, 8, 4.0),
         **{f"{SP}.janus_axis": "Z", f"{SP}.janus_propulsion": "SQUIRMER",

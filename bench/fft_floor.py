@@ -1,0 +1,142 @@
+"""The FFT floor of a time step: how many 3-D transforms a step does, and what they alone cost.
+
+    .venv/bin/python bench/fft_floor.py [SCENE ...] [--steps N] [--np NP] [--threads T]
+
+For each scene of bench_vs_original (default: the spectral ones) the model is built as the CLI
+builds it and advanced 3 steps (the compiled kernels on, as in a long run).  Every FFTW plan the
+run makes is counted at its ``execute`` (pyfftw.FFTW replaced by a subclass that counts, before
+the model is built), over N steps: the transforms per step by kind (r2c forward, c2r backward;
+a vector field is three), and the plans themselves.  Then, in the same process, the step is
+timed (CPU ms per step over N steps) and so are the counted executions alone, with the same plan
+objects on the arrays they last ran on (their execute() called as many times per step as the
+step calls them): the floor.  The table gives step ms, floor ms and their ratio (issue 25: the
+spectral step within 1.5x of its floor).  CPU time: the machine may be shared; the load average
+is printed with the table.
+"""
+from __future__ import annotations
+
+import os
+
+for _v in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_v, "1")
+
+import argparse  # noqa: E402
+import collections  # noqa: E402
+import sys  # noqa: E402
+import time  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(ROOT / "bench"))
+
+import pyfftw  # noqa: E402
+
+SPECTRAL = ("ns32", "ns64", "ns64x100", "le64", "squirmer64", "el64")
+
+
+class _Counts:
+    """Executions per plan (the plan object, its kind) while ``on``."""
+
+    def __init__(self):
+        self.on = False
+        self.calls = collections.Counter()
+        self.plans = {}
+
+
+COUNTS = _Counts()
+
+
+class CountingFFTW(pyfftw.FFTW):
+    """pyfftw.FFTW that counts its executions (``execute`` and ``__call__``)."""
+
+    def execute(self):
+        if COUNTS.on:
+            COUNTS.calls[id(self)] += 1
+            COUNTS.plans[id(self)] = self
+        return super().execute()
+
+    def __call__(self, *args, **kwargs):
+        if COUNTS.on:
+            COUNTS.calls[id(self)] += 1
+            COUNTS.plans[id(self)] = self
+        return super().__call__(*args, **kwargs)
+
+
+def _kind(plan) -> str:
+    real_in = plan.input_array.dtype.kind == "f"
+    return "r2c" if real_in else "c2r" if plan.output_array.dtype.kind == "f" else "c2c"
+
+
+def measure(scene, steps, np_override=None, threads=1):
+    """(step ms, floor ms, {kind: transforms per step}, mesh) of one scene."""
+    from profile_step import build
+    from kapsel.fluid import compiled
+    compiled.enable()
+    model = build(scene, np_override, threads)
+    for _ in range(3):
+        model.advance()
+    COUNTS.calls.clear()
+    COUNTS.plans.clear()
+    COUNTS.on = True
+    for _ in range(steps):
+        model.advance()
+    COUNTS.on = False
+    per_step = {k: n / steps for k, n in COUNTS.calls.items()}
+    kinds = collections.Counter()
+    for k, n in per_step.items():
+        kinds[_kind(COUNTS.plans[k])] += n
+    t0 = time.process_time()
+    for _ in range(steps):
+        model.advance()
+    step_ms = (time.process_time() - t0) / steps * 1e3
+    # the floor: the same plans, as many executions per step, on the arrays they last had
+    # (a c2r plan destroys its input: the values do not matter for the time, only the sizes)
+    schedule = [(COUNTS.plans[k], round(n)) for k, n in per_step.items()]
+    for plan, n in schedule:                          # warm the caches of each plan once
+        pyfftw.FFTW.execute(plan)
+    t0 = time.process_time()
+    for _ in range(steps):
+        for plan, n in schedule:
+            for _ in range(n):
+                pyfftw.FFTW.execute(plan)
+    floor_ms = (time.process_time() - t0) / steps * 1e3
+    return step_ms, floor_ms, dict(kinds), tuple(model.cfg.mesh.shape)
+
+
+def main(argv=None):
+    from bench_vs_original import SCENES
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("scene", nargs="*", help=f"scenes of bench_vs_original (default: "
+                    f"{' '.join(SPECTRAL)})")
+    ap.add_argument("--steps", type=int, default=20)
+    ap.add_argument("--np", type=int, default=None, help="mesh 2^NP per axis")
+    ap.add_argument("--threads", type=int, default=1)
+    a = ap.parse_args(argv)
+    unknown = [s for s in a.scene if s not in SCENES]
+    if unknown:
+        ap.error(f"unknown scene(s) {' '.join(unknown)}; choose from {' '.join(SCENES)}")
+    a.scene = a.scene or list(SPECTRAL)
+    pyfftw.FFTW = CountingFFTW          # before any plan is made
+    load0 = os.getloadavg()[0]
+    rows = []
+    for scene in a.scene:
+        step, floor, kinds, mesh = measure(scene, a.steps, a.np, a.threads)
+        rows.append((scene, mesh, step, floor, kinds))
+        print(f"# {scene}: step {step:.2f} ms, floor {floor:.2f} ms, {kinds}",
+              file=sys.stderr, flush=True)
+    load1 = os.getloadavg()[0]
+    print(f"{time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}, {a.steps} steps, "
+          f"{a.threads} thread(s), load {load0:.1f} -> {load1:.1f}")
+    print("| scene | mesh | transforms / step (r2c + c2r) | step ms | FFT floor ms | "
+          "step / floor |")
+    print("|---|---|---|---|---|---|")
+    for scene, mesh, step, floor, kinds in rows:
+        t = " + ".join(f"{kinds.get(k, 0):g}" for k in ("r2c", "c2r"))
+        extra = f" (+{kinds['c2c']:g} c2c)" if kinds.get("c2c") else ""
+        print(f"| {SCENES[scene][0]} | {'x'.join(map(str, mesh))} | {t}{extra} | "
+              f"{step:.2f} | {floor:.2f} | {step / floor:.2f} |")
+
+
+if __name__ == "__main__":
+    main()
