@@ -260,7 +260,8 @@ class ObliqueSpectralNS(_ObliqueFrame, SpectralNS):
         super().__init__(grid, rho, eta, dt, fix_cell=fix_cell, scheme="etd1",
                          advection=advection)
         self._init_frame(shear, grid.box, dt, t0, frame_strain0)
-        # the vector scratch of this solver's own step (truncated u^ / N, vorticity, N)
+        # the vector scratch of this solver's own step (truncated u^ / N, vorticity, N; _n
+        # also the contravariant increments of add_solenoidal and the force)
         self._uh = grid.empty_complex()
         self._wh = grid.empty_complex()
         self._n = grid.empty_real()
@@ -394,7 +395,8 @@ class ObliqueSpectralNS(_ObliqueFrame, SpectralNS):
         uh += tmp
         if force is not None:
             fh = self._wh
-            self.grid.forward(contravariant(np.asarray(force, dtype=float), g0), out=fh)
+            self.grid.forward(contravariant(np.asarray(force, dtype=float), g0, out=self._n),
+                              out=fh)
             self.project_metric(fh, g0)
             np.multiply(fh, w1, out=tmp)
             uh += tmp
@@ -481,7 +483,7 @@ class ObliqueSpectralNS(_ObliqueFrame, SpectralNS):
         (not truncated, as the original's Solenoidal_uk_OBL)."""
         g = self.frame_strain
         d = self._wh
-        self.grid.forward(contravariant(np.asarray(du, dtype=float), g), out=d)
+        self.grid.forward(contravariant(np.asarray(du, dtype=float), g, out=self._n), out=d)
         if project:
             self.project_metric(d, g)
         self.u_hat += d
