@@ -22,6 +22,7 @@ import numpy as np
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
 from kapsel.fluid.mac import MACSolver  # noqa: E402
+from kapsel.grid import Grid
 
 
 def initial_field(n, rng):
@@ -45,7 +46,8 @@ def viscosity_field(n):
 def bench(n, scheme, threads, steps, linear, variable):
     rng = np.random.default_rng(0)
     dt = 1.0 / np.pi ** 2
-    s = MACSolver((n, n, n), 1.0, 1.0, 1.0, dt, scheme=scheme, threads=threads, linear=linear)
+    s = MACSolver(Grid((n, n, n), 1.0), 1.0, 1.0, dt, scheme=scheme, threads=threads,
+                  linear=linear)
     u = initial_field(n, rng)
     s.project(u)
     eta = viscosity_field(n) if variable else None

@@ -64,7 +64,8 @@ def terminal_velocity(L, A, xi, factor, solver="spectral", profile=None, tol=2e-
         fluid, cls = SpectralNS(Grid((L, L, L), 1.0), 1.0, 1.0, dt, fix_cell=(True,) * 3), SPM
     else:
         from kapsel.fluid.mac import MACSolver
-        fluid, cls = MACSolver((L, L, L), 1.0, 1.0, 1.0, dt, scheme=solver), _FixCell
+        from kapsel.grid import Grid
+        fluid, cls = MACSolver(Grid((L, L, L), 1.0), 1.0, 1.0, dt, scheme=solver), _FixCell
     p = ParticleState.spheres([0], [A], [1.0], 1.0)
     p.R[:] = p.R_raw[:] = [[L / 2 + 0.3, L / 2 + 0.2, L / 2 - 0.3]]
     F = np.array([[1.0, 0.0, 0.0]])

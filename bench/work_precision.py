@@ -76,7 +76,7 @@ def rect_spm(kind, shape, dt, particles, A, xi, forces=None):
         fluid = SpectralNS(Grid(shape, 1.0), RHO, ETA, dt, fix_cell=(True, True, True))
         return SPM(fluid, particles, A, xi, RHO, 1.0, dt, forces=forces)
     scheme = {"MAC explicit": "explicit_scheme", "MAC implicit": "implicit_scheme"}[kind]
-    fluid = MACSolver(shape, 1.0, RHO, ETA, dt, scheme=scheme)
+    fluid = MACSolver(Grid(shape, 1.0), RHO, ETA, dt, scheme=scheme)
     fluid.check_stability()
     spm = _ModelH_SPM(fluid, particles, A, xi, RHO, 1.0, dt, forces=forces)
     spm.fix_cell = (True, True, True)
@@ -154,7 +154,7 @@ def taylor_green(kind, n, factor, box=32.0):
         u = ns.velocity()
     else:
         scheme = {"MAC explicit": "explicit_scheme", "MAC implicit": "implicit_scheme"}[kind]
-        s = MACSolver((n,) * 3, dx, RHO, ETA, dt, scheme=scheme)
+        s = MACSolver(Grid((n,) * 3, dx), RHO, ETA, dt, scheme=scheme)
         s.check_stability()
         u = u0.copy()
         for _ in range(nsteps):
@@ -176,13 +176,13 @@ def spinodal(scheme, n, factor, waves=2):
               composition_ratio=0.0, initial_fluctuation=0.0, d=0.0, w=0.0, alpha=1.0,
               kappa=1.0, a=1.0, b=1.0)
     psi = np.zeros(shape)
-    limit = CahnHilliard(shape, dx, PhaseField(ch_solver="explicit_scheme", **kw),
+    limit = CahnHilliard(Grid(shape, dx), PhaseField(ch_solver="explicit_scheme", **kw),
                          1.0).stable_dt(psi)
     omega = -1.0 * k * k * (-1.0 + 1.0 * k * k)             # kappa k^2 (a - alpha k^2)
     T = 2.0 / omega
     nsteps = 2 * max(1, math.ceil(T / 2 / (factor * limit)))
     dt = T / nsteps
-    ch = CahnHilliard(shape, dx, PhaseField(ch_solver=scheme, **kw), dt,
+    ch = CahnHilliard(Grid(shape, dx), PhaseField(ch_solver=scheme, **kw), dt,
                       preconditioner="fft" if scheme == "implicit_scheme" else None)
     c = np.cos(k * np.arange(n) * dx)[:, None, None] * np.ones(shape)
     psi += 1e-8 * c
@@ -208,7 +208,7 @@ def lees_edwards(kind, shape, A, factor, rate=0.02, interpolation="linear", xi=2
         spm = SPM(fluid, p, A, xi, RHO, 1.0, dt)
     else:
         scheme = {"MAC explicit": "explicit_scheme", "MAC implicit": "implicit_scheme"}[kind]
-        fluid = ObliqueMAC(shape, 1.0, RHO, ETA, dt, shear, scheme=scheme,
+        fluid = ObliqueMAC(Grid(shape, 1.0), RHO, ETA, dt, shear, scheme=scheme,
                            interpolation=interpolation)
         fluid.check_stability()
         spm = _ModelH_SPM(fluid, p, A, xi, RHO, 1.0, dt)

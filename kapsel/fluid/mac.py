@@ -49,7 +49,6 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.linalg import LinearOperator
 
-from ..grid import Grid
 from ..linalg import SolverDidNotConverge, UnstableTimeStep, solve_correction
 from ..parallel.halo import Halo
 from . import operators as op
@@ -91,8 +90,9 @@ class MACSolver:
     'implicit_scheme'); ``tolerance`` (relative residual) and ``maximum_iteration`` are the
     BiCGSTAB settings of implicit_scheme (table 2).  ``threads`` is passed to the FFTs.
     ``linear``: 'sparse' (assembled CSR, default, faster) or 'matfree' (LinearOperator);
-    ``fft``: 'pyfftw' (default, faster) or 'scipy'.  ``layout``: the mesh's layout
-    (kapsel.grid.Grid, default; a rank's block: kapsel.parallel.pencil.PencilGrid), whose
+    ``fft``: 'pyfftw' (default, faster) or 'scipy'.  ``layout``: the mesh's layout, which
+    gives the shape and the spacing DX (kapsel.grid.Grid(shape, dx) for one process; a
+    rank's block: kapsel.parallel.pencil.PencilGrid), whose
     halos, sums and transforms the solver uses (docs/distributed.md): on one process they
     are identities, on a block the stencils run on it widened by one ghost layer from the
     neighbour ranks (kapsel.parallel.halo), the same operations point by point as on one
@@ -101,19 +101,19 @@ class MACSolver:
     ``iterations`` / ``residual`` of the last BiCGSTAB solve (residual is NaN when converged).
     """
 
-    def __init__(self, shape, dx, rho, eta, dt, scheme="explicit_scheme", tolerance=1e-9,
+    def __init__(self, layout, rho, eta, dt, scheme="explicit_scheme", tolerance=1e-9,
                  maximum_iteration=1000, threads=1, fft="pyfftw", linear="sparse",
-                 preconditioner="fft", layout=None):
+                 preconditioner="fft"):
         if scheme not in ("explicit_scheme", "implicit_scheme"):
             raise ValueError("scheme must be 'explicit_scheme' or 'implicit_scheme', not %r"
                              % (scheme,))
         if linear not in ("sparse", "matfree"):
             raise ValueError("linear must be 'sparse' or 'matfree'")
-        self.shape = tuple(int(n) for n in shape)
+        self.shape = tuple(int(n) for n in layout.shape)
         if len(self.shape) != 3 or min(self.shape) < 1:
             raise ValueError("shape must be (NX, NY, NZ)")
-        self.dx, self.rho, self.eta, self.dt = float(dx), float(rho), float(eta), float(dt)
-        self.grid = layout if layout is not None else Grid(self.shape, self.dx)
+        self.dx, self.rho, self.eta, self.dt = float(layout.dx), float(rho), float(eta), float(dt)
+        self.grid = layout
         self.fshape = tuple(self.grid.local_shape)   # the fields: the mesh or a rank's block
         self.halo = Halo(self.grid, 1)
         self._eta_pad = None        # (eta_field, eta_field widened) of this step

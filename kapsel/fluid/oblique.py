@@ -574,12 +574,12 @@ class ObliqueMAC(_ObliqueFrame, MACSolver):
     plainly periodic, so the halo is the periodic one.
     """
 
-    def __init__(self, shape, dx, rho, eta, dt, shear: ShearFlow, scheme="explicit_scheme",
+    def __init__(self, layout, rho, eta, dt, shear: ShearFlow, scheme="explicit_scheme",
                  tolerance=1e-9, maximum_iteration=1000, threads=1, interpolation="linear",
-                 t0=0.0, frame_strain0=None, layout=None):
-        MACSolver.__init__(self, shape, dx, rho, eta, dt, scheme=scheme, tolerance=tolerance,
+                 t0=0.0, frame_strain0=None):
+        MACSolver.__init__(self, layout, rho, eta, dt, scheme=scheme, tolerance=tolerance,
                            maximum_iteration=maximum_iteration, threads=threads,
-                           linear="matfree", layout=layout)
+                           linear="matfree")
         try:                          # the variable-viscosity term (reach 2)
             self.halo2 = Halo(self.grid, 2)
         except ValueError:            # blocks of one point: refused by the model

@@ -122,16 +122,16 @@ class FDMModel(Model):
         on the layout (a distributed run: this rank's block)."""
         from ..fluid.mac import MACSolver
         f = cfg.fluid
-        return MACSolver(cfg.mesh.shape, cfg.mesh.DX, f.RHO, f.ETA, self.dt, scheme=f.ns_solver,
+        return MACSolver(self.grid, f.RHO, f.ETA, self.dt, scheme=f.ns_solver,
                          tolerance=f.tolerance, maximum_iteration=f.maximum_iteration,
-                         threads=self.threads, layout=self.grid)
+                         threads=self.threads)
 
     def _make_ch(self, dt):
         """The Cahn-Hilliard solver of the type with time step dt, on the layout."""
         from ..phase import CahnHilliard
         try:
-            return CahnHilliard(self.shape, self.dx, self.cfg.phase, dt, wall=self.wall,
-                                layout=self.grid, **self.ch_kwargs)
+            return CahnHilliard(self.grid, self.cfg.phase, dt, wall=self.wall,
+                                **self.ch_kwargs)
         except ValueError as e:
             raise ConfigError(str(e), path=f"constitutive_eq.{self.cfg.type}.Potential."
                               f"Landau.psi_0_wall.user_specify.psi_0_wall[]") from None

@@ -334,10 +334,10 @@ class ShearFDMModel(FDMModel):
     def _make_fluid(self, cfg):
         from ..fluid.oblique import ObliqueMAC
         f = cfg.fluid
-        return ObliqueMAC(cfg.mesh.shape, cfg.mesh.DX, f.RHO, f.ETA, self.dt, shear_flow(cfg),
+        return ObliqueMAC(self.grid, f.RHO, f.ETA, self.dt, shear_flow(cfg),
                           scheme=f.ns_solver, tolerance=f.tolerance,
                           maximum_iteration=f.maximum_iteration, threads=self.threads,
-                          interpolation=self.interpolation, layout=self.grid)
+                          interpolation=self.interpolation)
 
     def _fix_cell(self, cfg):
         """The original forces FIX_CELL.y ON for the sheared types (PHYSICS-EXTRA §1.2)."""
@@ -348,8 +348,7 @@ class ShearFDMModel(FDMModel):
         from ..phase.oblique import make_oblique_cahn_hilliard
         mac = self.mac
         return make_oblique_cahn_hilliard(lambda: mac.frame_strain, mac.max_frame_strain,
-                                          self.shape, self.dx, self.cfg.phase, dt,
-                                          layout=self.grid, **self.ch_kwargs)
+                                          self.grid, self.cfg.phase, dt, **self.ch_kwargs)
 
     # ------------------------------------------------------------------ the implicit step's
     # capillary force: the original's NS_solver_slavedEuler_Shear_OBL_implicit (fdm.cxx)

@@ -230,9 +230,9 @@ def wetting_angle(params, wall, xi):
     psi_eq = math.sqrt(params.b / params.a)
     F = {}
     for phase, sign in (("A", 1.0), ("B", -1.0)):
-        ch = CahnHilliard(shape, wall.dx, params, 1.0, xi=xi, wall=w1)
+        ch = CahnHilliard(Grid(shape, wall.dx), params, 1.0, xi=xi, wall=w1)
         F[phase] = _relaxed_energy(ch, np.full(shape, sign * psi_eq))
-    ch = CahnHilliard(shape, wall.dx, params, 1.0, xi=xi)
+    ch = CahnHilliard(Grid(shape, wall.dx), params, 1.0, xi=xi)
     r = np.arange(n)
     strip = np.where((r >= n // 4) & (r < 3 * n // 4), psi_eq, -psi_eq).reshape(shape)
     flat = ch.free_energy(np.full(shape, psi_eq))
@@ -266,7 +266,8 @@ class CahnHilliard:
     ``preconditioner``: None (original), 'jacobi' or 'fft' (exact inverse of the
     constant-coefficient part c0 + dt kappa alpha K^4); ``threads`` for the FFTs.
 
-    ``layout``: the mesh's layout (kapsel.grid.Grid, default; a rank's block:
+    ``layout``: the mesh's layout, which gives the shape and the spacing DX
+    (kapsel.grid.Grid(shape, dx) for one process; a rank's block:
     kapsel.parallel.pencil.PencilGrid, docs/distributed.md).  ``shape`` is then the block,
     ``global_shape`` the mesh; the stencils run on the block widened by the halo (one
     layer; the implicit operator by two in one exchange, ``halo2``, when the blocks are
@@ -275,12 +276,13 @@ class CahnHilliard:
     process all of these are identities.  Walls need a layout of the whole mesh.
     """
 
-    def __init__(self, shape, dx, params, dt, threads=1, *, xi=1.0, psi_bar=None, kBT=1.0,
-                 preconditioner=None, wall=None, layout=None):
-        shape = tuple(int(n) for n in shape)
+    def __init__(self, layout, params, dt, threads=1, *, xi=1.0, psi_bar=None, kBT=1.0,
+                 preconditioner=None, wall=None):
+        shape = tuple(int(n) for n in layout.shape)
         if len(shape) != 3 or min(shape) < 1:
             raise ValueError("shape must be (NX, NY, NZ)")
-        self.grid = layout if layout is not None else Grid(shape, dx)
+        dx = layout.dx
+        self.grid = layout
         if wall is not None and not self.grid.whole_mesh:
             raise ValueError("walls do not run distributed")
         self.global_shape = tuple(self.grid.shape)

@@ -2,6 +2,7 @@
 import numpy as np
 import pytest
 
+from kapsel.grid import Grid
 from kapsel.fluid import operators as op
 from kapsel.fluid.mac import MACSolver, SolverDidNotConverge, UnstableTimeStep
 
@@ -53,7 +54,7 @@ def run(u0, k, scheme, dx, r, tfac=0.2, eta_field=None, **kw):
     T = tfac / (NU * k * k)
     nst = int(np.ceil(T / (r * dx * dx / NU)))
     dt = T / nst
-    s = MACSolver(u0.shape[1:], dx, RHO, ETA, dt, scheme=scheme, **kw)
+    s = MACSolver(Grid(u0.shape[1:], dx), RHO, ETA, dt, scheme=scheme, **kw)
     u = u0.copy()
     for _ in range(nst):
         s.step(u, eta_field=eta_field)
@@ -128,10 +129,10 @@ def test_assembled_matrix_matches_matrix_free(sh):
     eta = rng.random(sh) + 0.5
     for ef in (None, eta):
         for th in (1, 2):
-            a = MACSolver(sh, 0.9, 1.3, 1.1, 0.2, scheme="implicit_scheme", linear="sparse",
+            a = MACSolver(Grid(sh, 0.9), 1.3, 1.1, 0.2, scheme="implicit_scheme", linear="sparse",
                           threads=th)
             a._thread_min_rows = 0                # exercise the threaded row blocks
-            b = MACSolver(sh, 0.9, 1.3, 1.1, 0.2, scheme="implicit_scheme", linear="matfree")
+            b = MACSolver(Grid(sh, 0.9), 1.3, 1.1, 0.2, scheme="implicit_scheme", linear="matfree")
             d = a._operator(us, ef) @ w.ravel() - b._operator(us, ef) @ w.ravel()
             assert np.abs(d).max() < 1e-12
 
@@ -142,7 +143,7 @@ def test_compiled_stencil_operator_bit_identical_to_csr(sh, compiled_kernels):
     compiled_kernels.on()
     rng = np.random.default_rng(2)
     us, w = rng.standard_normal((2, 3) + sh)
-    a = MACSolver(sh, 0.9, 1.3, 1.1, 0.2, scheme="implicit_scheme")
+    a = MACSolver(Grid(sh, 0.9), 1.3, 1.1, 0.2, scheme="implicit_scheme")
     csr = a._assemble(us, None) @ w.ravel()
     assert np.array_equal(a._operator(us, None) @ w.ravel(), csr)
 
@@ -259,7 +260,7 @@ def test_project_divergence_free_keeps_mean(shape):
     rng = np.random.default_rng(2)
     u = rng.standard_normal((3,) + shape) + np.array([0.3, -0.2, 0.1])[:, None, None, None]
     mean = u.mean(axis=(1, 2, 3))
-    s = MACSolver(shape, 0.5, RHO, ETA, 0.01)
+    s = MACSolver(Grid(shape, 0.5), RHO, ETA, 0.01)
     assert np.abs(s.divergence(u)).max() > 1.0
     s.project(u)
     assert np.abs(s.divergence(u)).max() < 1e-12
@@ -320,7 +321,7 @@ def test_explicit_step_is_the_originals():
     advection; the pressure from the updated velocity (the original's right-hand side)."""
     rng = np.random.default_rng(3)
     sh, dt, dx = (12, 10, 8), 0.05, 1.0
-    s = MACSolver(sh, dx, RHO, ETA, dt)
+    s = MACSolver(Grid(sh, dx), RHO, ETA, dt)
     u = 0.1 * rng.standard_normal((3,) + sh)
     ref, adv_old = u.copy(), None
     for n in range(3):
@@ -342,7 +343,7 @@ def test_implicit_step_is_the_originals():
     nu lap u/2 = u^n/dt - (u*.grad)u^n/2 + nu lap u^n/2 - G p / RHO."""
     rng = np.random.default_rng(5)
     sh, dt, dx = (10, 12, 8), 0.1, 1.0
-    s = MACSolver(sh, dx, RHO, ETA, dt, scheme="implicit_scheme", tolerance=1e-13)
+    s = MACSolver(Grid(sh, dx), RHO, ETA, dt, scheme="implicit_scheme", tolerance=1e-13)
     u0 = 0.1 * rng.standard_normal((3,) + sh)
     u1 = 0.1 * rng.standard_normal((3,) + sh)
     s.u_old = u0
@@ -369,10 +370,9 @@ def test_step_then_spectral_projection_is_divergence_free():
     """The SPM step ends every FDM step with the original's Solenoidal_u (the spectral
     projection with the 2/3 rule): spectrally divergence-free, mean kept."""
     from kapsel.fluid.spectral import SpectralProjector
-    from kapsel.grid import Grid
     rng = np.random.default_rng(3)
     sh = (12, 12, 12)
-    s = MACSolver(sh, 1.0, RHO, ETA, 0.1)
+    s = MACSolver(Grid(sh, 1.0), RHO, ETA, 0.1)
     u = 0.1 * rng.standard_normal((3,) + sh) + 0.05
     s.step(u)
     mean = u.mean(axis=(1, 2, 3))
@@ -398,7 +398,7 @@ def test_momentum_changes_by_the_advection(scheme, variable):
     sh, dt = (12, 12, 12), 0.05
     u = 0.2 * rng.standard_normal((3,) + sh) + np.array([0.5, -0.3, 0.2])[:, None, None, None]
     eta = (0.5 + rng.random(sh)) if variable else None
-    s = MACSolver(sh, 1.0, RHO, ETA, dt, scheme=scheme, tolerance=1e-13)
+    s = MACSolver(Grid(sh, 1.0), RHO, ETA, dt, scheme=scheme, tolerance=1e-13)
     u0 = u.copy()
     p0 = s.momentum(u)
     s.step(u, eta_field=eta)
@@ -421,7 +421,7 @@ def test_momentum_changes_by_the_advection(scheme, variable):
 @pytest.mark.parametrize("scheme", SCHEMES)
 def test_uniform_force_accelerates(scheme):
     sh = (8, 8, 8)
-    s = MACSolver(sh, 1.0, RHO, ETA, 0.1, scheme=scheme)
+    s = MACSolver(Grid(sh, 1.0), RHO, ETA, 0.1, scheme=scheme)
     u = np.zeros((3,) + sh)
     f = np.zeros_like(u)
     f[2] = 0.3
@@ -449,7 +449,7 @@ def test_uniform_eta_field_equals_constant_viscosity(case):
     # a uniform eta_field of 2 ETA is the constant-viscosity solver with ETA -> 2 ETA
     c, T, s = run(u0, k, "implicit_scheme", dx, r=0.2, eta_field=np.full((n, n, n), 2 * ETA),
                   **kw)
-    s2 = MACSolver((n, n, n), dx, RHO, 2 * ETA, s.dt, scheme="implicit_scheme", **kw)
+    s2 = MACSolver(Grid((n, n, n), dx), RHO, 2 * ETA, s.dt, scheme="implicit_scheme", **kw)
     d = u0.copy()
     for _ in range(int(round(T / s.dt))):
         s2.step(d)
@@ -462,7 +462,7 @@ def test_non_convergence_raises():
     sh = (8, 8, 8)
     u = 0.1 * rng.standard_normal((3,) + sh)
     eta = 0.5 + 5 * rng.random(sh)
-    s = MACSolver(sh, 1.0, RHO, ETA, 0.5, scheme="implicit_scheme", tolerance=1e-9,
+    s = MACSolver(Grid(sh, 1.0), RHO, ETA, 0.5, scheme="implicit_scheme", tolerance=1e-9,
                   maximum_iteration=1)
     with pytest.raises(SolverDidNotConverge) as ei:
         s.step(u, eta_field=eta)
@@ -474,7 +474,7 @@ def test_u_old_and_iterations():
     sh = (8, 8, 8)
     u, _ = shear_wave(sh, 1.0, amp=0.1)
     u += 0.01 * np.random.default_rng(6).standard_normal(u.shape)
-    s = MACSolver(sh, 1.0, RHO, ETA, 0.1, scheme="implicit_scheme")
+    s = MACSolver(Grid(sh, 1.0), RHO, ETA, 0.1, scheme="implicit_scheme")
     u0 = u.copy()
     s.step(u)
     assert np.array_equal(s.u_old, u0) and s.iterations >= 1
@@ -487,16 +487,16 @@ def test_u_old_and_iterations():
 
 def test_stability_limit():
     dx, nu = 0.5, 2.0
-    s = MACSolver((8, 8, 8), dx, 1.0, nu, 0.1)
+    s = MACSolver(Grid((8, 8, 8), dx), 1.0, nu, 0.1)
     assert s.stable_dt() == pytest.approx(dx * dx / (6 * nu))
     with pytest.raises(UnstableTimeStep, match="stability limit"):
         s.check_stability()
-    ok = MACSolver((8, 8, 8), dx, 1.0, nu, 0.01)
+    ok = MACSolver(Grid((8, 8, 8), dx), 1.0, nu, 0.01)
     assert ok.check_stability() == pytest.approx(dx * dx / (6 * nu))
-    assert MACSolver((8, 8, 8), dx, 1.0, nu, 10.0, scheme="implicit_scheme").stable_dt() \
+    assert MACSolver(Grid((8, 8, 8), dx), 1.0, nu, 10.0, scheme="implicit_scheme").stable_dt() \
         == np.inf
     with pytest.raises(ValueError):
-        MACSolver((8, 8, 8), dx, 1.0, nu, 0.1, scheme="spectral")
+        MACSolver(Grid((8, 8, 8), dx), 1.0, nu, 0.1, scheme="spectral")
 
 
 @pytest.mark.parametrize("sh", [(5, 6, 7), (1, 16, 1), (2, 8, 2), (3, 4, 5)])

@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 from kapsel.config import PhaseField
+from kapsel.grid import Grid
 from kapsel.phase import (CahnHilliard, FloryHuggins, Landau, SolverDidNotConverge,
                           UnstableTimeStep, capillary_force, chemical_potential, free_energy)
 
@@ -81,7 +82,7 @@ def test_explicit_linear_growth(pot, psi0, kw, m):
     p = params("explicit_scheme", pot, alpha=0.7, kappa=1.3, **kw)
     c, K2 = mode(m)
     eps, dt = 1e-8, 0.004
-    ch = CahnHilliard(SHAPE, DX, p, dt)
+    ch = CahnHilliard(Grid(SHAPE, DX), p, dt)
     fpp = float(ch.potential.d2f(psi0))
     psi = psi0 + eps * c
     ch.step(psi)
@@ -103,7 +104,7 @@ def test_bdf2_linear_growth(pot, psi0, kw):
     m = (1, 1, 0) if pot == "Flory_Huggins" else (2, 1, 0)
     c, K2 = mode(m)
     eps, dt = 1e-8, 0.8
-    ch = CahnHilliard(SHAPE, DX, p, dt)
+    ch = CahnHilliard(Grid(SHAPE, DX), p, dt)
     fpp = float(ch.potential.d2f(psi0))
     assert ch.growth_rate(K2, fpp) > 0                       # spinodal mode
     le, li = -p.kappa * K2 * fpp, -p.kappa * p.alpha * K2 * K2
@@ -139,7 +140,7 @@ def test_landau_flat_interface():
     ps = math.sqrt(b / a)
     psi = np.empty(shape)
     psi[...] = (ps * np.tanh(dist / (2 * s)))[:, None, None]     # twice too wide
-    ch = CahnHilliard(shape, 1.0, p, dt=4.0)
+    ch = CahnHilliard(Grid(shape, 1.0), p, dt=4.0)
     assert ch.dt < ch.stable_dt()                # BDF2/AB2 linear limit with f''(+-sqrt(b/a))
     assert ch.potential.equilibrium() == pytest.approx((-ps, ps), rel=1e-15)
     err0 = np.abs(psi[:, 0, 0] - ps * np.tanh(dist / s)).max() / ps
@@ -160,7 +161,7 @@ def test_conservation_advection(scheme, dt, pot):
     shape = (16, 12, 10)
     kw = dict(composition_ratio=0.1) if pot == "Landau" else {}
     p = params(scheme, pot, tol=1e-9, initial_fluctuation=0.05, **kw)
-    ch = CahnHilliard(shape, 1.0, p, dt)
+    ch = CahnHilliard(Grid(shape, 1.0), p, dt)
     psi = ch.initial_field()
     u = shear_wave(shape)
     m0 = psi.sum()
@@ -178,7 +179,7 @@ def test_conservation_with_particle(scheme, dt, pot):
     kw = dict(composition_ratio=0.1, w=-1.0) if pot == "Landau" else dict(
         composition_ratio=0.45, w=-0.1)
     p = params(scheme, pot, tol=1e-9, initial_fluctuation=0.05, d=1.0, **kw)
-    ch = CahnHilliard(shape, 1.0, p, dt, xi=2.0)
+    ch = CahnHilliard(Grid(shape, 1.0), p, dt, xi=2.0)
     phi = sphere(shape, (7.3, 8.1, 5.6), 4.0, 2.0)
     psi = ch.initial_field()
     u = shear_wave(shape)
@@ -246,7 +247,7 @@ def test_potentials():
 def test_bicgstab_non_convergence_raises():
     shape = (8, 8, 8)
     p = params("implicit_scheme", tol=1e-14, maxit=2, initial_fluctuation=0.3)
-    ch = CahnHilliard(shape, 1.0, p, dt=5.0)
+    ch = CahnHilliard(Grid(shape, 1.0), p, dt=5.0)
     psi = ch.initial_field()
     with pytest.raises(SolverDidNotConverge) as exc:
         ch.step(psi, shear_wave(shape))
@@ -260,20 +261,20 @@ def test_explicit_stability_limit():
     highest mode decays, just above it grows; check_stability refuses dt above it."""
     shape, psi0 = (8, 8, 8), 0.8
     p = params("explicit_scheme", alpha=0.5, kappa=0.7)
-    probe = CahnHilliard(shape, 1.0, p, 1.0)
+    probe = CahnHilliard(Grid(shape, 1.0), p, 1.0)
     fpp = 3 * psi0 ** 2 - 1
     lim = probe.stable_dt(np.full(shape, psi0))
     assert lim == pytest.approx(2 / (0.7 * 12 * (fpp + 0.5 * 12)), rel=1e-14)
     c = np.cos(np.pi * np.indices(shape).sum(axis=0))           # K^2 = 12
     for f, grows in ((0.98, False), (1.02, True)):
-        ch = CahnHilliard(shape, 1.0, p, f * lim)
+        ch = CahnHilliard(Grid(shape, 1.0), p, f * lim)
         psi = psi0 + 1e-6 * c
         for _ in range(20):
             ch.step(psi)
         assert (amplitude(psi, c) > 1e-6) == grows
     with pytest.raises(UnstableTimeStep):
-        CahnHilliard(shape, 1.0, p, 1.02 * lim).check_stability(np.full(shape, psi0))
-    assert CahnHilliard(shape, 1.0, p, 0.98 * lim).check_stability(
+        CahnHilliard(Grid(shape, 1.0), p, 1.02 * lim).check_stability(np.full(shape, psi0))
+    assert CahnHilliard(Grid(shape, 1.0), p, 0.98 * lim).check_stability(
         np.full(shape, psi0)) == pytest.approx(lim)
 
 
@@ -289,7 +290,7 @@ def test_capillary_force_and_initial_field():
                                atol=1e-14)
     assert np.abs(F[0]).max() == 0 and np.abs(F[2]).max() == 0
     p = params(potential="Flory_Huggins", composition_ratio=0.4, initial_fluctuation=0.05)
-    ch = CahnHilliard(shape, dx, p, 0.01)
+    ch = CahnHilliard(Grid(shape, dx), p, 0.01)
     a = ch.initial_field()
     np.testing.assert_array_equal(a, ch.initial_field())
     assert a.min() >= 0.35 and a.max() <= 0.45 and abs(a.mean() - 0.4) < 0.01
@@ -310,7 +311,7 @@ def test_initial_field_is_the_originals():
     u = original_uniform(24, 0.4 - 0.05, 0.4 + 0.05).reshape(shape)
     for pot, want in (("Landau", u * (1 - phi)), ("Flory_Huggins", u * (1 - phi) + 0.5 * phi)):
         p = params(potential=pot, composition_ratio=0.4, initial_fluctuation=0.05)
-        np.testing.assert_array_equal(CahnHilliard(shape, 1.0, p, 0.01).initial_field(phi),
+        np.testing.assert_array_equal(CahnHilliard(Grid(shape, 1.0), p, 0.01).initial_field(phi),
                                       want)
 
 
@@ -319,12 +320,12 @@ def test_restart_from_psi_old():
     the run exactly."""
     shape = (12, 10, 8)
     p = params("implicit_scheme", tol=1e-12, initial_fluctuation=0.1)
-    a = CahnHilliard(shape, 1.0, p, 0.3)
+    a = CahnHilliard(Grid(shape, 1.0), p, 0.3)
     psi = a.initial_field()
     u = shear_wave(shape)
     for _ in range(3):
         a.step(psi, u)
-    b = CahnHilliard(shape, 1.0, p, 0.3)
+    b = CahnHilliard(Grid(shape, 1.0), p, 0.3)
     b.psi_old = a.psi_old.copy()
     other = psi.copy()
     a.step(psi, u)
@@ -338,10 +339,10 @@ def test_preconditioners_agree(pc):
     p = params("implicit_scheme", tol=1e-12, initial_fluctuation=0.1, d=1.0, w=-1.0)
     phi = sphere(shape, (5.0, 5.0, 4.0), 3.0, 2.0)
     u = shear_wave(shape)
-    ref = CahnHilliard(shape, 1.0, p, 0.5, xi=2.0)
+    ref = CahnHilliard(Grid(shape, 1.0), p, 0.5, xi=2.0)
     psi = ref.initial_field()
     other = psi.copy()
-    alt = CahnHilliard(shape, 1.0, p, 0.5, xi=2.0, preconditioner=pc)
+    alt = CahnHilliard(Grid(shape, 1.0), p, 0.5, xi=2.0, preconditioner=pc)
     for _ in range(3):
         ref.step(psi, u, phi)
         alt.step(other, u, phi)
@@ -356,19 +357,19 @@ def test_implicit_z_term_takes_the_interface_width():
     shape = (10, 10, 10)
     phi = sphere(shape, (5.0, 5.0, 5.0), 3.0, 2.0)
     kw = dict(tol=1e-13, initial_fluctuation=0.1, d=1.0, alpha=1.0, b=2.0)
-    imp = CahnHilliard(shape, 1.0, params("implicit_scheme", z=-0.2, **kw), 0.05, xi=2.0)
-    exp_ = CahnHilliard(shape, 1.0, params("explicit_scheme", z=-0.2, **kw), 0.05, xi=2.0)
+    imp = CahnHilliard(Grid(shape, 1.0), params("implicit_scheme", z=-0.2, **kw), 0.05, xi=2.0)
+    exp_ = CahnHilliard(Grid(shape, 1.0), params("explicit_scheme", z=-0.2, **kw), 0.05, xi=2.0)
     assert imp.z_width == pytest.approx(0.5) and exp_.z_width == 1.0
     psi = imp.initial_field()
     np.testing.assert_array_equal(imp.chemical_potential(psi, phi),
                                   exp_.chemical_potential(psi, phi))
-    half = CahnHilliard(shape, 1.0, params("implicit_scheme", z=-0.1, **kw), 0.05, xi=2.0)
+    half = CahnHilliard(Grid(shape, 1.0), params("implicit_scheme", z=-0.1, **kw), 0.05, xi=2.0)
     half.z_width = 1.0
     a, b = psi.copy(), psi.copy()
     imp.step(a, None, phi)
     half.step(b, None, phi)
     np.testing.assert_allclose(a, b, rtol=0, atol=1e-12)
     c = psi.copy()
-    CahnHilliard(shape, 1.0, params("implicit_scheme", z=0.0, **kw), 0.05, xi=2.0).step(c, None,
-                                                                                       phi)
+    zero = CahnHilliard(Grid(shape, 1.0), params("implicit_scheme", z=0.0, **kw), 0.05, xi=2.0)
+    zero.step(c, None, phi)
     assert np.abs(c - a).max() > 1e-6           # z does act

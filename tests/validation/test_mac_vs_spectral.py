@@ -28,7 +28,7 @@ def test_shear_wave_mac_matches_spectral(scheme):
     u0[0] = np.sin(k * y)          # shear wave: x velocity varying along y
     dt = measured_dt(0.1, rho, eta, 1.0)
     steps = int(round(0.2 / (eta / rho * k ** 2) / dt))
-    mac = MACSolver(shape, 1.0, rho, eta, dt, scheme=scheme)
+    mac = MACSolver(Grid(shape, 1.0), rho, eta, dt, scheme=scheme)
     u = u0.copy()
     for _ in range(steps):
         mac.step(u)

@@ -358,7 +358,8 @@ def spectral(L, dt):
 
 def mac(L, dt):
     from kapsel.fluid.mac import MACSolver
-    return MACSolver((L,) * 3, 1.0, 1.0, 1.0, dt)
+    from kapsel.grid import Grid
+    return MACSolver(Grid((L,) * 3, 1.0), 1.0, 1.0, dt)
 
 
 def angular_velocity(u, centre, r, axis_index):

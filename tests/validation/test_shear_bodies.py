@@ -228,7 +228,7 @@ def test_rigid_square_straddling_the_boundary_rotates_in_the_fdm_shear():
     origin); V_x = gamma_dot (0.5 - 12) to 1e-8.  Run time 12 s (45 s on a loaded machine)."""
     from kapsel.fluid.oblique import ObliqueMAC
     n, A, rate, dt, yc = 24, 2.5, 0.02, 0.05, 0.5
-    f = ObliqueMAC((n, n, n), 1.0, 1.0, 1.0, dt, ShearFlow("DC", rate),
+    f = ObliqueMAC(Grid((n, n, n), 1.0), 1.0, 1.0, dt, ShearFlow("DC", rate),
                    scheme="implicit_scheme")
     p, b = _square(f, n, A, yc)
     spm = _spm_moving_with_the_flow(f, b, p, A, dt)

@@ -31,7 +31,7 @@ def test_mac_shearing_waves_converge(scheme):
         errs = []
         for n in (16, 32):
             g = Grid((n, n, 4))
-            m = ObliqueMAC(g.shape, 1.0, 1.0, nu, dt, shear, scheme=scheme)
+            m = ObliqueMAC(Grid(g.shape, 1.0), 1.0, nu, dt, shear, scheme=scheme)
             sole = MetricProjector(g, m)
             u = shearing_wave(g, shear, nu, 0.0, m=(1, -1), inplane=inplane)
             for _ in range(300):
@@ -198,7 +198,7 @@ def test_non_square_box_remap_interpolates(method):
     shifts are integers: 7.4e-6 for both, the discretisation error)."""
     shear, nu, dt = ShearFlow("DC", 0.1), 0.05, 0.05
     g = Grid((16, 32, 4))
-    m = ObliqueMAC(g.shape, 1.0, 1.0, nu, dt, shear, interpolation=method)
+    m = ObliqueMAC(Grid(g.shape, 1.0), 1.0, nu, dt, shear, interpolation=method)
     u = shearing_wave(g, shear, nu, 0.0, m=(1, 1))
     for _ in range(220):                 # strain 1.1: re-mapped at 0.25, 0.75
         m.step(u)

@@ -337,7 +337,7 @@ def test_ac_frame_is_the_originals_discrete_strain():
     shear, dt, steps = ShearFlow("AC", 0.4, 0.02), 0.05, 400
     gs = original_ac_strains(shear, dt, steps)
     f = ObliqueSpectralNS(Grid((8, 8, 4)), 1.0, 0.1, dt, shear)
-    m = ObliqueMAC((8, 8, 4), 1.0, 1.0, 0.1, dt, shear, scheme="implicit_scheme")
+    m = ObliqueMAC(Grid((8, 8, 4), 1.0), 1.0, 0.1, dt, shear, scheme="implicit_scheme")
     assert f.shear_rate_now == m.shear_rate_now == shear.rate0
     u = np.zeros((3, 8, 8, 4))
     for n in range(1, steps + 1):

@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 
 from kapsel.particles.spm import SPM
+from kapsel.grid import Grid
 from kapsel.particles.state import ParticleState
 
 from builders import (_auto_dt, _spectral, _spheres, A, DT_FACTOR, exchanged_momentum,
@@ -88,7 +89,7 @@ def test_momentum_exchange_spectral(mass_ratio):
 def test_momentum_exchange_mac():
     from kapsel.fluid.mac import MACSolver
     dt = 0.05
-    mac = MACSolver((24, 24, 24), 1.0, 1.0, 1.0, dt)
+    mac = MACSolver(Grid((24, 24, 24), 1.0), 1.0, 1.0, dt)
     p, forces = _two_pushed(mac, 1.0)
     spm = SPM(mac, p, A, XI, 1.0, 1.0, dt, forces=forces)
     worst, drift = _momentum_balance(spm, 50)

@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 from kapsel import config
+from kapsel.grid import Grid
 from kapsel.config import PhaseField
 from kapsel.particles.profile import Stencil, particle_profiles, total_phi
 from kapsel.particles.walls import FlatWall
@@ -44,7 +45,7 @@ def test_chemical_potential_is_the_gradient_of_the_free_energy():
     wall = FlatWall(2, 4, shape, 1.0, 2.0)
     rng = np.random.default_rng(2)
     psi0_map = rng.uniform(-1, 1, (8, 8))
-    ch = CahnHilliard(shape, 1.0, params(psi_0_wall=psi0_map), 0.01, xi=2.0, wall=wall)
+    ch = CahnHilliard(Grid(shape, 1.0), params(psi_0_wall=psi0_map), 0.01, xi=2.0, wall=wall)
     phi = particle_phi(shape, [[4.0, 4.0, 8.0]])
     psi = rng.uniform(-1, 1, shape)
     mu = ch.chemical_potential(psi, phi)
@@ -67,7 +68,7 @@ def test_psi_relaxes_to_psi_0_inside_the_solids():
                                                                                    abs=1e-14)
     shape = (4, 4, 32)
     wall = FlatWall(2, 8, shape, 1.0, 2.0)
-    ch = CahnHilliard(shape, 1.0, params("implicit_scheme", z=0.0, w_wall=0.0, d=3.0), 0.05,
+    ch = CahnHilliard(Grid(shape, 1.0), params("implicit_scheme", z=0.0, w_wall=0.0, d=3.0), 0.05,
                       xi=2.0, wall=wall, preconditioner="fft")
     psi = np.zeros(shape)
     psi[:, :, 10:22] = 0.2
@@ -98,7 +99,7 @@ def test_an_x_wall_evolves_as_the_z_wall_rotated():
     for axis in (2, 0):
         shape = (8, 8, 16) if axis == 2 else (16, 8, 8)
         wall = FlatWall(axis, 4, shape, 1.0, 2.0)
-        ch = CahnHilliard(shape, 1.0, params("implicit_scheme"), 0.05, xi=2.0, wall=wall,
+        ch = CahnHilliard(Grid(shape, 1.0), params("implicit_scheme"), 0.05, xi=2.0, wall=wall,
                           preconditioner="fft")
         psi = psi_z.copy() if axis == 2 else np.ascontiguousarray(np.swapaxes(psi_z, 0, 2))
         for _ in range(5):
@@ -148,7 +149,7 @@ def test_an_interface_meets_the_wall_at_the_predicted_contact_angle(w_wall):
     p = PhaseField("implicit_scheme", **BASE, d=1.0, w=0.0, w_wall=w_wall)
     theta = wetting_angle(p, wall, 2.0)
     assert abs(theta - 90.0) > 15.0
-    ch = CahnHilliard(shape, 1.0, p, 0.1, xi=2.0, wall=wall, preconditioner="fft")
+    ch = CahnHilliard(Grid(shape, 1.0), p, 0.1, xi=2.0, wall=wall, preconditioner="fft")
     x = np.arange(shape[0])
     psi = np.where((x >= 8) & (x < 24), 1.0, -1.0)[:, None, None] * (1.0 - wall.phi)
     total = psi.sum()
@@ -236,7 +237,7 @@ def test_psi_0_wall_map_patterns_the_wall(tmp_path):
     shape = (4, 6, 16)
     wall = FlatWall(2, 6, shape, 1.0, 2.0)
     table = np.where(np.add.outer(np.arange(8), np.arange(8)) % 2 == 0, 0.8, -0.8)
-    ch = CahnHilliard(shape, 1.0, params("implicit_scheme", z=0.0, w_wall=0.0, d=3.0,
+    ch = CahnHilliard(Grid(shape, 1.0), params("implicit_scheme", z=0.0, w_wall=0.0, d=3.0,
                                          psi_0_wall=table), 0.05, xi=2.0, wall=wall,
                       preconditioner="fft")
     psi = np.zeros(shape)
@@ -244,7 +245,7 @@ def test_psi_0_wall_map_patterns_the_wall(tmp_path):
         ch.step(psi)
     assert np.all(np.sign(psi[:, :, 0]) == np.sign(table[:4, :6]))
     with pytest.raises(ValueError, match="wall plane has 4 x 6"):
-        CahnHilliard(shape, 1.0, params(psi_0_wall=table[:3]), 0.05, xi=2.0, wall=wall)
+        CahnHilliard(Grid(shape, 1.0), params(psi_0_wall=table[:3]), 0.05, xi=2.0, wall=wall)
     # the input's table reaches the configuration
     path = _copy(tmp_path, "ex14", "input.udf", [('     "uniform",\n', '     "user_specify",\n')])
     grid = config.load(path).phase.psi_0_wall
@@ -264,7 +265,7 @@ def test_psi_0_wall_does_nothing_without_a_wall(scheme):
     phi = particle_phi(shape, [(7.5, 7.5, 7.5)])
     runs = []
     for psi0w in (0.0, 1.0):
-        ch = CahnHilliard(shape, 1.0, params(scheme, z=0.0, w_wall=0.0, d=3.0, psi_0_p=0.1,
+        ch = CahnHilliard(Grid(shape, 1.0), params(scheme, z=0.0, w_wall=0.0, d=3.0, psi_0_p=0.1,
                                              psi_0_wall=psi0w),
                           0.01, xi=2.0, preconditioner="fft")
         psi = -0.7 * (1.0 - phi) + 0.1 * phi      # the original's start, composition -0.7

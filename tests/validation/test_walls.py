@@ -57,7 +57,7 @@ def test_pressure_driven_flow_between_walls_is_parabolic(solver, axis, steps):
         spm = SPM(fluid, no_particles(), 4.0, 2.0, 1.0, 1.0, dt, wall=wall)
         step_args = {}
     else:
-        spm = _ModelH_SPM(MACSolver(shape, 1.0, 1.0, 1.0, dt), no_particles(), 4.0, 2.0, 1.0,
+        spm = _ModelH_SPM(MACSolver(Grid(shape, 1.0), 1.0, 1.0, dt), no_particles(), 4.0, 2.0, 1.0,
                           1.0, dt, wall=wall)
         f = np.zeros((3,) + shape)
         f[fa] = g
