@@ -221,29 +221,6 @@ def kinetic_energy(rho, dx, u, phi, particles, reduce=None, owned=False) -> floa
     return e
 
 
-def overlap_guard(forces, limit: float = 0.5):
-    """Wrap ``forces`` so that a deep overlap (closest pair below ``limit`` of the contact
-    distance) stops the run instead of launching particles across the box."""
-    if forces is None:
-        return None
-
-    def check(ratio):
-        if ratio < limit:
-            raise FloatingPointError(f"particles overlap deeply (closest pair at {ratio:.2f} "
-                                     f"of the contact distance)")
-
-    def guarded(p):
-        F, T, ratio = forces(p)
-        check(ratio)
-        return F, T
-    guarded.virial = getattr(forces, "virial", None)
-    guarded.check = check           # a distributed run checks the smallest ratio of all ranks
-    guarded.check_bonds = forces.check_stretch
-    guarded.local = getattr(forces, "local", None)
-    guarded.cutoff = getattr(forces, "cutoff", 0.0)
-    return guarded
-
-
 class Model:
     """What every model shares: the configuration, the clock (dt, time, step_index) and the
     seeded random stream.  Subclasses implement ``advance`` by calling ``tick`` once a step."""

@@ -32,7 +32,8 @@ import numpy as np
 
 from ..config import ConfigError
 from ..simulation import register
-from .common import make_forces, make_particles, overlap_guard
+from ..particles.interactions import OVERLAP_LIMIT, Callback
+from .common import make_forces, make_particles
 from .spectral import SpectralModel
 
 
@@ -94,8 +95,8 @@ class ElectrolyteModel(SpectralModel):
         spm_class = type("IonSPM", (_IonSPM, SPM), {"model": self})
         self.spm = spm_class(self.fluid, self.particles, self.spm_radius(), cfg.particles.A_XI,
                              f.RHO, cfg.mesh.DX, self.dt, rotation=cfg.switches.ROTATION,
-                             forces=self._with_charge_force(
-                                 overlap_guard(make_forces(cfg, self.particles))), noise=None,
+                             forces=self._with_charge_force(make_forces(
+                                 cfg, self.particles, overlap_limit=OVERLAP_LIMIT)), noise=None,
                              dry=self.dry)    # --check: no profiles
         p = self.particles
         self.charges = np.array([cfg.particles.species[s].surface_charge for s in p.species],
@@ -146,8 +147,7 @@ class ElectrolyteModel(SpectralModel):
                 F = F + self._charge_force[0]
                 T = T + self._charge_force[1]
             return F, T
-        total.virial = getattr(forces, "virial", None)
-        return total
+        return Callback(total, virial=None if forces is None else forces.virial)
 
     def _geometry(self):
         p, cfg = self.particles, self.cfg

@@ -24,8 +24,8 @@ import numpy as np
 from ..config import ConfigError, RunConfig
 from ..simulation import register
 from ..particles.spm import SPM
-from .common import (Model, kinetic_energy, make_forces, make_noise, make_particles,
-                     overlap_guard)
+from ..particles.interactions import OVERLAP_LIMIT
+from .common import Model, kinetic_energy, make_forces, make_noise, make_particles
 
 
 class _ModelH_SPM(SPM):
@@ -64,9 +64,9 @@ class FDMModel(Model):
         self.wall = make_wall(cfg)
         self.spm = _ModelH_SPM(self.mac, self.particles, self.spm_radius(), cfg.particles.A_XI,
                                f.RHO, dx, self.dt, rotation=cfg.switches.ROTATION,
-                               forces=overlap_guard(make_forces(
+                               forces=make_forces(
                                    cfg, self.particles, strain=self._pair_strain(),
-                                   wall=self.wall)),
+                                   wall=self.wall, overlap_limit=OVERLAP_LIMIT),
                                noise=make_noise(cfg, self.particles, seed), wall=self.wall,
                                impose=not self.sheared_start, dry=self.dry)
         self.spm.interpolation = getattr(self, "interpolation", "linear")   # (OBL_INT)

@@ -28,7 +28,8 @@ import numpy as np
 
 from ..config import ConfigError, RunConfig
 from ..simulation import register
-from .common import Model, make_forces, make_noise, make_particles, overlap_guard
+from ..particles.interactions import OVERLAP_LIMIT
+from .common import Model, make_forces, make_noise, make_particles
 from .spectral import SpectralModel
 
 
@@ -70,7 +71,7 @@ def le_table_row(time, rate, frame_strain, strain, lj, particle, reynolds, fluid
 def lj_stress_xy(forces, volume) -> float:
     """-(1/V) sum over pairs of (f_x dr_y + f_y dr_x) / 2 of the last force evaluation
     (0 without pair forces)."""
-    w = getattr(forces, "virial", None)
+    w = None if forces is None else forces.virial
     if w is None:
         return 0.0
     return -0.5 * float(w[0, 1] + w[1, 0]) / volume
@@ -116,10 +117,11 @@ class ShearLEModel(SpectralModel):
                                        fix_cell=cfg.switches.fix_cell)
         self.particles = make_particles(cfg, self.rng)
         fluid = self.fluid
-        forces = make_forces(cfg, self.particles, strain=lambda: fluid.frame_strain)
+        forces = make_forces(cfg, self.particles, strain=lambda: fluid.frame_strain,
+                             overlap_limit=OVERLAP_LIMIT)
         self.spm = SPM(self.fluid, self.particles, self.spm_radius(), cfg.particles.A_XI, f.RHO,
                        cfg.mesh.DX, self.dt, rotation=cfg.switches.ROTATION,
-                       forces=overlap_guard(forces), noise=make_noise(cfg, self.particles, seed),
+                       forces=forces, noise=make_noise(cfg, self.particles, seed),
                        impose=False, dry=self.dry)
         self.spm.interpolation = self.interpolation       # (OBL_INT)
         self.spm.start_sheared(impose=not self.dry)    # as the original (SPM.start_sheared)

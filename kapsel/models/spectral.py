@@ -8,8 +8,8 @@ import numpy as np
 
 from ..config import ConfigError, RunConfig
 from ..simulation import register
-from .common import (Model, kinetic_energy, make_forces, make_noise, make_particles,
-                     overlap_guard)
+from ..particles.interactions import OVERLAP_LIMIT
+from .common import Model, kinetic_energy, make_forces, make_noise, make_particles
 
 
 class SpectralModel(Model):
@@ -25,7 +25,8 @@ class SpectralModel(Model):
         self.wall = make_wall(cfg)
         self.spm = SPM(self.fluid, self.particles, self.spm_radius(), cfg.particles.A_XI, f.RHO,
                        cfg.mesh.DX, self.dt, rotation=cfg.switches.ROTATION,
-                       forces=overlap_guard(make_forces(cfg, self.particles, wall=self.wall)),
+                       forces=make_forces(cfg, self.particles, wall=self.wall,
+                                          overlap_limit=OVERLAP_LIMIT),
                        noise=make_noise(cfg, self.particles, seed), wall=self.wall,
                        dry=self.dry)
 

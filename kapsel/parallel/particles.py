@@ -339,10 +339,9 @@ class Owned:
         F_o, T_o, ratio, stretch = forces.local(p, weight, self.gid,
                                                 reduce=lambda a: reduce(a)[0])
         ratio, stretch = self.allmin(ratio, -stretch)      # the same on every rank
-        if hasattr(forces, "check"):                        # (overlap_guard)
-            forces.check_bonds(-stretch)
-            forces.check(ratio)
-        virial = getattr(forces, "virial", None)
+        forces.check_bonds(-stretch)
+        forces.check(ratio)
+        virial = forces.virial
         if virial is not None:
             virial[...] = reduce(virial)[0]
         return F_o[:n], T_o[:n]

@@ -12,6 +12,10 @@ ranks); ``reduce`` a sum over the ranks (the Ewald sum).  Any of F, T may be Non
 largest bond stretch over R0 (or 0).  ``local = False`` marks a force a distributed run does
 not have (the walls).  Adding a force: its class and its factory here, and the factory's
 line in :data:`FORCES`.
+
+What the particle step sees is one object with ``__call__(p) -> (F, T)`` (the checks made),
+``local``, ``check``, ``check_bonds``, ``virial`` and ``cutoff``: :class:`Interactions`, or
+:class:`Callback` around a plain function ``p -> (F, T)`` (:func:`as_forces`).
 """
 from __future__ import annotations
 
@@ -20,8 +24,12 @@ import numpy as np
 from . import chains
 from . import forces as pf
 
-__all__ = ["Interactions", "PairForce", "Gravity", "WallForce", "FENEBonds", "Electric",
-           "FORCES", "make_forces"]
+__all__ = ["Interactions", "Callback", "PairForce", "Gravity", "WallForce", "FENEBonds",
+           "Electric", "FORCES", "OVERLAP_LIMIT", "as_forces", "make_forces"]
+
+#: a run stops when the closest pair is nearer than this fraction of the contact distance
+#: (a deep overlap would launch the particles across the box)
+OVERLAP_LIMIT = 0.5
 
 
 class PairForce:
@@ -132,14 +140,17 @@ class Electric:
 
 
 class Interactions:
-    """The sum of a list of force objects, in their order: ``interactions(p) -> (F, T,
-    ratio)`` on the whole table (a bond stretched past chains.BOND_BREAK raises
-    FloatingPointError), ``local(p, weight, gid, reduce) -> (F, T, ratio, stretch)`` on a
-    rank's table (None when a force does not run distributed); ``virial`` the pair virial of
-    the last call; ``cutoff`` the largest reach."""
+    """The sum of a list of force objects, in their order: ``interactions(p) -> (F, T)`` on
+    the whole table, after the checks (``check_bonds``: a bond stretched past
+    chains.BOND_BREAK, ``check``: a pair closer than ``overlap_limit`` of contact, if set;
+    both raise FloatingPointError), ``local(p, weight, gid, reduce) -> (F, T, ratio,
+    stretch)`` on a rank's table (None when a force does not run distributed; the caller
+    checks the minima over the ranks); ``virial`` the pair virial of the last call;
+    ``cutoff`` the largest reach."""
 
-    def __init__(self, forces, n, virial):
+    def __init__(self, forces, n, virial, overlap_limit=None):
         self.forces, self.virial = list(forces), virial
+        self.overlap_limit = overlap_limit
         self._zeros = np.zeros((n, 3))
         self.cutoff = max([0.0] + [f.cutoff for f in self.forces])
         if not all(f.local for f in self.forces):
@@ -159,21 +170,60 @@ class Interactions:
         return (zeros.copy() if F is None else F), T, ratio, stretch
 
     @staticmethod
-    def check_stretch(stretch) -> None:
+    def check_bonds(stretch) -> None:
         """FloatingPointError when a chain bond reached chains.BOND_BREAK of R0."""
         if stretch >= chains.BOND_BREAK:
             raise FloatingPointError(f"a chain bond stretched to {stretch:.3f} of the FENE "
                                      f"maximum R0 = {chains.FENE_R0} (2 A)")
 
+    def check(self, ratio) -> None:
+        """FloatingPointError when the closest pair is nearer than ``overlap_limit`` of the
+        contact distance (no check without a limit)."""
+        if self.overlap_limit is not None and ratio < self.overlap_limit:
+            raise FloatingPointError(f"particles overlap deeply (closest pair at {ratio:.2f} "
+                                     f"of the contact distance)")
+
     def __call__(self, p):
         F, T, ratio, stretch = self._sum(p, self._zeros)
-        self.check_stretch(stretch)
-        return F, T, ratio
+        self.check_bonds(stretch)
+        self.check(ratio)
+        return F, T
 
     def local(self, p, weight, gid, reduce=None):
         """The forces of a rank's table (owned + ghosts; ``gid`` the global ids), complete
         on the owned rows; the virial counts each pair once over the ranks."""
         return self._sum(p, np.zeros((p.n, 3)), gid, weight, reduce)
+
+
+class Callback:
+    """The forces of a plain function ``fn(p) -> (F, T, ...)`` (tests, scripts, a model's
+    sum of its interactions and a force of its own), on the whole table: no reach, no
+    checks of its own (``fn`` makes them), not distributed; ``virial`` the one ``fn``'s
+    pairs fill, if any."""
+
+    cutoff = 0.0
+    local = None
+
+    def __init__(self, fn, virial=None):
+        self.fn, self.virial = fn, virial
+
+    def __call__(self, p):
+        res = self.fn(p)
+        return res[0], res[1]
+
+    def check(self, ratio) -> None:
+        pass
+
+    def check_bonds(self, stretch) -> None:
+        pass
+
+
+def as_forces(forces):
+    """The force object of the particle step: None (no forces), an :class:`Interactions`
+    or a :class:`Callback`, or a plain function made a Callback."""
+    if forces is None or isinstance(forces, (Interactions, Callback)):
+        return forces
+    return Callback(forces)
 
 
 def _pairs(cfg, particles, strain, wall, virial):
@@ -226,13 +276,14 @@ def _electric(cfg, particles, strain, wall, virial):
 FORCES = [_pairs, _gravity, _wall, _bonds, _electric]
 
 
-def make_forces(cfg, particles, strain=None, wall=None):
+def make_forces(cfg, particles, strain=None, wall=None, overlap_limit=None):
     """The interactions of a run's particles (module docstring), or None when a scene has
     none: pair forces (skipped for LJ_truncate NONE), net gravity, the particle-wall force of
     ``wall`` (a kapsel.particles.walls.FlatWall), FENE bonds of chains, dipoles and the
     Quincke constraint (:data:`FORCES`).  ``strain()``: the Lees-Edwards frame strain of the
-    sheared types (pairs and bonds by the Lees-Edwards minimum image)."""
+    sheared types (pairs and bonds by the Lees-Edwards minimum image).  ``overlap_limit``:
+    a deep overlap stops the run (a run's models pass :data:`OVERLAP_LIMIT`)."""
     virial = np.zeros((3, 3))       # sum over pairs of f_a dr_b of the last call
     out = [f for f in (make(cfg, particles, strain, wall, virial) for make in FORCES)
            if f is not None]
-    return Interactions(out, particles.n, virial) if out else None
+    return Interactions(out, particles.n, virial, overlap_limit) if out else None

@@ -64,6 +64,7 @@ import numpy as np
 from .coupling import (clear_points, hydro_force_torque, particle_velocity_field,
                        rigidity_increment, sample)
 from . import motion as _free_motion
+from .interactions import as_forces
 from .profile import Stencil, lees_edwards_profiles, particle_profiles, total_phi
 
 __all__ = ["SPM"]
@@ -72,7 +73,9 @@ __all__ = ["SPM"]
 class SPM:
     """Fluid + particles by the SPM (see module docstring).  No I/O.
 
-    forces(particles) -> (F, T) or (F, T, ...) : non-hydrodynamic forces / torques (N, 3);
+    forces : the non-hydrodynamic forces / torques (N, 3): a force object of
+        kapsel.particles.interactions (Interactions, Callback) or a plain function
+        ``forces(particles) -> (F, T) or (F, T, ...)`` (made a Callback);
     noise(n, dt) -> (dP, dL) : thermal impulses over one step (eqs 13-14).
     u: initial velocity for the MAC mode (default zero); ignored for 'spectral'.
     impose: make the initial field move with the particles (eq 6) at construction.
@@ -88,7 +91,7 @@ class SPM:
         self.dx = float(dx)
         self.dt = float(dt)
         self.rotation = bool(rotation)
-        self.forces = forces
+        self.forces = as_forces(forces)
         self.noise = noise
         if hasattr(fluid, "add_solenoidal"):
             self.mode = "spectral"
@@ -281,7 +284,7 @@ class SPM:
         process all of it).  ``self.p`` is then the local table, owned rows first."""
         from .rigid import RigidBodies
         f = self.forces
-        cutoff = float(getattr(f, "cutoff", 0.0) or 0.0) if f is not None else 0.0
+        cutoff = float(f.cutoff) if f is not None else 0.0
         # the Lees-Edwards images of the rectangular grid the profiles are built on
         images = (lambda: self.fluid.image_offset) if self.rect else None
         c = getattr(whole, "constraints", None)

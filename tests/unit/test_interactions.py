@@ -3,6 +3,7 @@ one is its class and a line in FORCES (issue 27), shown here by a force this tes
 import os
 
 import numpy as np
+import pytest
 
 from kapsel.particles import interactions
 
@@ -65,6 +66,29 @@ def test_the_sum_keeps_the_order_of_the_list():
         def compute(self, p, gid=None, weight=None, reduce=None):
             return None, np.ones((p.n, 3)), 0.5, 0.0
     acc = interactions.Interactions([Push(1.0), T(0.0), Push(2.0)], 2, np.zeros((3, 3)))
-    F, torque, ratio = acc(P())
+    F, torque = acc(P())
+    _, _, ratio, _ = acc.local(P(), np.ones(2), None)
     assert np.array_equal(F[:, 0], [3.0, 3.0]) and np.array_equal(torque, np.ones((2, 3)))
     assert ratio == 0.5 and acc.local is not None
+
+
+def test_the_overlap_check_is_the_interactions_own():
+    """With an overlap limit the sum stops a run whose closest pair is nearer than it (the
+    same check a distributed run makes on the minimum over the ranks); without, it does not;
+    a plain function becomes a Callback with no reach and no virial."""
+    class P:
+        n = 2
+        R = np.zeros((2, 3))
+
+    class Close(Push):
+        def compute(self, p, gid=None, weight=None, reduce=None):
+            return None, None, 0.4, 0.0
+    interactions.Interactions([Close(0.0)], 2, np.zeros((3, 3)))(P())
+    with pytest.raises(FloatingPointError, match="overlap deeply"):
+        interactions.Interactions([Close(0.0)], 2, np.zeros((3, 3)),
+                                  interactions.OVERLAP_LIMIT)(P())
+    cb = interactions.as_forces(lambda p: (np.ones((p.n, 3)), None, "extra"))
+    assert isinstance(cb, interactions.Callback) and interactions.as_forces(cb) is cb
+    assert cb.cutoff == 0.0 and cb.virial is None and cb.local is None
+    F, T = cb(P())
+    assert np.array_equal(F, np.ones((2, 3))) and T is None

@@ -160,7 +160,7 @@ def test_wall_torque_adds_to_the_pair_torque_of_a_rigid_body():
     beads.R[:] = R
     beads.constraints = types.SimpleNamespace(body=np.array([0, 0, -1]))
     forces = make_forces(cfg, beads, wall=wall)
-    F, T, _ = forces(beads)
+    F, T = forces(beads)
     Fw = wall.forces(R, A)[0]
     Fp = pf.pair_forces(R, [L] * 3, [A] * 3, "12:6", 1.0, "ON", group=[0, 0, -1])[0]
     assert np.allclose(F, Fw + Fp)
