@@ -1,4 +1,4 @@
-"""Output writers: one small protocol, and the one function that lists a run's writers.
+"""Output writers: one small protocol, and the registry of a run's writers (WRITERS).
 
 A writer is an object with
 
@@ -16,11 +16,14 @@ the schedule of the snapshots) and reads what it needs from the snapshot by name
 something the model does not offer is refused by ``make_writers`` before anything is written.
 One module of kapsel/io per format: records.py (output.udf and the text logs), fields.py (the
 FDM types' per-snapshot files), extended.py (output.AVS EXTENDED), avs.py (legacy AVS).
+A new output quantity is a factory line in :data:`WRITERS` (a :class:`TableWriter` for a
+table of numbers per snapshot; docs/extending.md).
 """
 from __future__ import annotations
 
 import os
 import sys
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -184,32 +187,90 @@ def output_dir(args) -> str:
     return os.path.dirname(os.path.abspath(args.output))
 
 
-def make_writers(cfg, args, input_doc, snap, announce: bool = True, comment=None) -> list:
-    """The writers a run needs, from the configuration and what the model offers (``snap``:
-    its first snapshot).  Raises kapsel.config.ConfigError for output the type cannot give.
-    ``announce``: print the original's console block of the field writer (not for --check);
-    ``comment``: output.udf's first line (kapsel.io.records.run_comment)."""
-    out_dir = output_dir(args)
-    writers = []
-    if cfg.output.UDF:
-        writers.append(RecordWriter(args, input_doc, comment))
+class TableWriter(_LogWriter):
+    """A table of one row per snapshot, ``step t`` then ``columns`` (kapsel.io.records.
+    TableLog: rows appended whole, a continued run keeps its rows up to the restart);
+    ``values(snap)`` gives a row's values.  What a new output quantity needs besides its
+    factory line in :data:`WRITERS`."""
+
+    def __init__(self, path, columns, values):
+        super().__init__(path)
+        self.columns, self.values = list(columns), values
+
+    def _make(self, snap, append):
+        from .records import TableLog
+        return TableLog(self.path, self.columns, append=append, until_step=snap.step)
+
+    def _row(self, snap):
+        self.log.write_row(snap.step, snap.time, self.values(snap))
+
+
+@dataclass(frozen=True)
+class WriterContext:
+    """What a writer factory may ask: the run's configuration, command line and input
+    document, the model's first snapshot (what it offers), the directory of output.udf,
+    whether to print the console block (not for --check) and output.udf's first line."""
+    cfg: object
+    args: object
+    input_doc: object
+    snap: object
+    out_dir: str
+    announce: bool = True
+    comment: str | None = None
+
+
+def _records(c):
+    return RecordWriter(c.args, c.input_doc, c.comment) if c.cfg.output.UDF else None
+
+
+def _snapshot_files(c):
     from .fields import SnapshotFiles
-    files = SnapshotFiles(out_dir, cfg.type, cfg.mesh.shape, cfg.mesh.DX, cfg.output.GTS,
-                          snap.n_particles)
-    if files.series:
-        _require(snap, files.needs(), "the per-snapshot files")
-        writers.append(files)
-    spec = cfg.output.fields
-    if spec is not None:
-        check_output(cfg, snap)
-        writers.append(field_writer(cfg, args, snap, announce))
-    if snap.offers("shear"):
-        writers.append(ShearLogWriter(os.path.join(out_dir, "shear_stress.dat")))
-    if snap.offers("E_rot"):
-        writers.append(RotationalEnergyWriter(os.path.join(out_dir, "rotational_energy.dat")))
-    if snap.offers("free_energy"):
-        writers.append(ElectrolyteTable(None if getattr(args, "quiet", False) else sys.stderr))
-    return writers
+    files = SnapshotFiles(c.out_dir, c.cfg.type, c.cfg.mesh.shape, c.cfg.mesh.DX,
+                          c.cfg.output.GTS, c.snap.n_particles)
+    if not files.series:
+        return None
+    _require(c.snap, files.needs(), "the per-snapshot files")
+    return files
+
+
+def _fields(c):
+    if c.cfg.output.fields is None:
+        return None
+    check_output(c.cfg, c.snap)
+    return field_writer(c.cfg, c.args, c.snap, c.announce)
+
+
+def _shear_table(c):
+    return (ShearLogWriter(os.path.join(c.out_dir, "shear_stress.dat"))
+            if c.snap.offers("shear") else None)
+
+
+def _rotational_energy_table(c):
+    return (RotationalEnergyWriter(os.path.join(c.out_dir, "rotational_energy.dat"))
+            if c.snap.offers("E_rot") else None)
+
+
+def _electrolyte_table(c):
+    if not c.snap.offers("free_energy"):
+        return None
+    return ElectrolyteTable(None if getattr(c.args, "quiet", False) else sys.stderr)
+
+
+#: the writer factories, in the order the writers write a snapshot:
+#: ``factory(WriterContext) -> Writer or None`` (None: the run has nothing for it).
+#: Adding an output quantity: its source in the model's snapshot (if it is new) and a
+#: factory line here, e.g. a :class:`TableWriter` of it.
+WRITERS = [_records, _snapshot_files, _fields, _shear_table, _rotational_energy_table,
+           _electrolyte_table]
+
+
+def make_writers(cfg, args, input_doc, snap, announce: bool = True, comment=None) -> list:
+    """The writers a run needs (:data:`WRITERS`), from the configuration and what the model
+    offers (``snap``: its first snapshot).  Raises kapsel.config.ConfigError for output the
+    type cannot give.  ``announce``: print the original's console block of the field writer
+    (not for --check); ``comment``: output.udf's first line (kapsel.io.records.run_comment)."""
+    c = WriterContext(cfg, args, input_doc, snap, output_dir(args), announce, comment)
+    return [w for w in (make(c) for make in WRITERS) if w is not None]
 
 
 def field_directory(cfg, args) -> str:
