@@ -404,8 +404,43 @@ def from_document(doc: udf.UDFManager, input_path: str = "") -> RunConfig:
         r.fail("constitutive_eq.type", eq_type, f"is not implemented in kapsel-py "
                                                 f"(implemented: {', '.join(TYPES)})")
     base = f"constitutive_eq.{eq_type}"
+    mesh, DX = _read_mesh(r, base)
+    fluid = _read_fluid(r, base, eq_type)
+    shear = _read_shear(r, base) if spec(eq_type).sheared else None
+    electrolyte = None
+    if spec(eq_type).ions:
+        with r.block():
+            electrolyte = _electrolyte(r, base)
 
-    # ---- mesh ------------------------------------------------------------------------
+    # ---- phase field -----------------------------------------------------------------
+    phase = None
+    if spec(eq_type).phase:
+        with r.block():
+            phase = _phase_field(r, base, eq_type, mesh)
+    obj, species, particles, count = _read_particles(r, mesh, eq_type, DX, fluid)
+    if electrolyte is not None and obj is not None:
+        _check_electrolyte_objects(r, electrolyte, species, obj)
+    inter = _read_interactions(r, obj, count)
+
+    # ---- switches ----------------------------------------------------------------------
+    switches = None
+    if obj is not None:
+        with r.block():
+            switches = _switches(r, obj, species, mesh, particles, eq_type, inter)
+    time = _read_time(r, fluid, mesh)
+    output = _read_output(r, mesh, eq_type)
+    resume = None
+    with r.block():
+        resume = Resume(r.get("resume.Calculation"))
+    r.finish()
+    return RunConfig(type=eq_type, mesh=mesh, fluid=fluid, particles=particles,
+                     interactions=inter, switches=switches, time=time, output=output,
+                     resume=resume, phase=phase, shear=shear, electrolyte=electrolyte,
+                     input_path=input_path)
+
+
+def _read_mesh(r: _Reader, base: str):
+    """mesh.NP* and the type's DX: (Mesh or None, DX or None)."""
     nps, DX = [], None
     for ax in ("NPX", "NPY", "NPZ"):
         with r.block():
@@ -419,8 +454,11 @@ def from_document(doc: udf.UDFManager, input_path: str = "") -> RunConfig:
     with r.block():
         DX = r.positive(f"{base}.DX")
     mesh = Mesh(*nps, DX=DX) if len(nps) == 3 and DX is not None else None
+    return mesh, DX
 
-    # ---- fluid -----------------------------------------------------------------------
+
+def _read_fluid(r: _Reader, base: str, eq_type: str):
+    """The type's fluid parameters (and NS_solver of the FDM types): Fluid or None."""
     fluid = None
     with r.block():
         fl = {}
@@ -455,28 +493,25 @@ def from_document(doc: udf.UDFManager, input_path: str = "") -> RunConfig:
         if all(k in fl for k in ("RHO", "ETA", "kBT", "alpha_v", "alpha_o")):
             fluid = Fluid(**fl)
 
-    # ---- shear -----------------------------------------------------------------------
+    return fluid
+
+
+def _read_shear(r: _Reader, base: str):
+    """External_field of the sheared types: Shear or None."""
     shear = None
-    if spec(eq_type).sheared:
-        with r.block():
-            ef = f"{base}.External_field"
-            kind = r.get(f"{ef}.type")
-            rate = r.finite(f"{ef}.{kind}.Shear_rate")
-            freq = r.non_negative(f"{ef}.AC.Frequency") if kind == "AC" else 0.0
-            shear = Shear(kind, rate, freq)
+    with r.block():
+        ef = f"{base}.External_field"
+        kind = r.get(f"{ef}.type")
+        rate = r.finite(f"{ef}.{kind}.Shear_rate")
+        freq = r.non_negative(f"{ef}.AC.Frequency") if kind == "AC" else 0.0
+        shear = Shear(kind, rate, freq)
+    return shear
 
-    electrolyte = None
-    if spec(eq_type).ions:
-        with r.block():
-            electrolyte = _electrolyte(r, base)
 
-    # ---- phase field -----------------------------------------------------------------
-    phase = None
-    if spec(eq_type).phase:
-        with r.block():
-            phase = _phase_field(r, base, eq_type, mesh)
-
-    # ---- particles (A, A_XI and the positions are in units of DX: radius = A DX) -------
+def _read_particles(r: _Reader, mesh, eq_type: str, DX, fluid):
+    """object_type, A, A_XI and the species, with the memory, fit and mass checks:
+    (obj, species, Particles or None, number of particles).  A, A_XI and the positions are
+    in units of DX: radius = A DX."""
     obj = None
     with r.block():
         obj = r.get("object_type.type")
@@ -504,26 +539,33 @@ def from_document(doc: udf.UDFManager, input_path: str = "") -> RunConfig:
         if fluid is not None:
             with r.block():
                 _check_masses(r, obj, species, particles, fluid.RHO)
+    return obj, species, particles, count
 
-    if electrolyte is not None and obj is not None:
-        with r.block():
-            _check_charges(r, electrolyte, species, obj)
-        # the original refuses walls and janus propulsion with Electrolyte (PHYSICS-EXTRA §6.1)
-        if r.optional("switch.wall.type", "NONE") != "NONE":
-            r.report("switch.wall.type", r.get("switch.wall.type"),
-                     "walls are not allowed with Electrolyte (as in the original)")
-        if obj == "spherical_particle":
-            sp = "object_type.spherical_particle.Particle_spec"
-            for i, s_ in enumerate(species):
-                prop = r.optional(f"{sp}[{i}].janus_propulsion", "OFF")
-                # TUMBLER / SQUIRMER: refused for every type but NS / SNS by janus.check_types
-                if prop == "OBSTACLE" and s_.particles:
-                    r.report(f"{sp}[{i}].janus_propulsion", prop, "self-propelled particles "
-                                                                  "are not allowed with "
-                                                                  "Electrolyte (as in the "
-                                                                  "original)")
 
-    # ---- interactions ----------------------------------------------------------------
+def _check_electrolyte_objects(r: _Reader, electrolyte, species, obj) -> None:
+    """The charges, and what the original refuses with Electrolyte (PHYSICS-EXTRA §6.1):
+    walls and janus propulsion."""
+    with r.block():
+        _check_charges(r, electrolyte, species, obj)
+    # the original refuses walls and janus propulsion with Electrolyte (PHYSICS-EXTRA §6.1)
+    if r.optional("switch.wall.type", "NONE") != "NONE":
+        r.report("switch.wall.type", r.get("switch.wall.type"),
+                 "walls are not allowed with Electrolyte (as in the original)")
+    if obj == "spherical_particle":
+        sp = "object_type.spherical_particle.Particle_spec"
+        for i, s_ in enumerate(species):
+            prop = r.optional(f"{sp}[{i}].janus_propulsion", "OFF")
+            # TUMBLER / SQUIRMER: refused for every type but NS / SNS by janus.check_types
+            if prop == "OBSTACLE" and s_.particles:
+                r.report(f"{sp}[{i}].janus_propulsion", prop, "self-propelled particles "
+                                                              "are not allowed with "
+                                                              "Electrolyte (as in the "
+                                                              "original)")
+
+
+def _read_interactions(r: _Reader, obj, count):
+    """EPSILON, LJ_powers, LJ_truncate and gravity (and what chains need): Interactions or
+    None."""
     inter = None
     with r.block():
         lj = r.get("LJ_powers")
@@ -538,14 +580,11 @@ def from_document(doc: udf.UDFManager, input_path: str = "") -> RunConfig:
             if inter.LJ_truncate == "NONE":
                 r.report("switch.LJ_truncate", "NONE", "chains need the excluded volume of the "
                                                        "LJ forces (ON or OFF)")
+    return inter
 
-    # ---- switches ----------------------------------------------------------------------
-    switches = None
-    if obj is not None:
-        with r.block():
-            switches = _switches(r, obj, species, mesh, particles, eq_type, inter)
 
-    # ---- time, output, resume --------------------------------------------------------
+def _read_time(r: _Reader, fluid, mesh):
+    """time_increment (and its stability check): TimeIncrement or None."""
     time = None
     with r.block():
         kind = r.get("time_increment.type")
@@ -555,6 +594,11 @@ def from_document(doc: udf.UDFManager, input_path: str = "") -> RunConfig:
             time = TimeIncrement("manual", delta_t=r.positive("time_increment.manual.delta_t"))
         if fluid is not None and mesh is not None:
             _check_time_step(r, time, fluid, mesh)
+    return time
+
+
+def _read_output(r: _Reader, mesh, eq_type: str):
+    """output (GTS, Num_snap, UDF, AVS and its fields): Output or None."""
     output = None
     with r.block():
         gts, nsnap = r.get("output.GTS"), r.get("output.Num_snap")
@@ -566,14 +610,7 @@ def from_document(doc: udf.UDFManager, input_path: str = "") -> RunConfig:
         avs = r.get("output.AVS") == "ON"
         fields = _field_output(r, mesh, eq_type) if avs and mesh is not None else None
         output = Output(gts, nsnap, r.get("output.UDF") == "ON", avs, fields)
-    resume = None
-    with r.block():
-        resume = Resume(r.get("resume.Calculation"))
-    r.finish()
-    return RunConfig(type=eq_type, mesh=mesh, fluid=fluid, particles=particles,
-                     interactions=inter, switches=switches, time=time, output=output,
-                     resume=resume, phase=phase, shear=shear, electrolyte=electrolyte,
-                     input_path=input_path)
+    return output
 
 
 def _electrolyte(r: _Reader, base: str) -> Electrolyte:
