@@ -34,14 +34,11 @@ def shift_rows(f, shift, method="linear", rows=None):
     if kernels is not None and f.ndim == 3:
         return _shift_compiled(f[None], shift, method, rows)[0]
     nx, ny = f.shape[0], f.shape[1]
-    shift = np.asarray(shift, dtype=float).reshape(ny)
-    base = np.floor(shift)
-    frac = shift - base                      # g_i = f(i - base - frac)
+    b, frac = _split(shift, ny)              # g_i = f(i - b - frac)
     i = np.arange(nx)[:, None] if rows is None else np.arange(nx)[rows][:, None]
     j = np.arange(ny)[None, :]
-    b = base.astype(np.int64)[None, :]
+    b = b[None, :]
     w = frac[None, :]
-    extra = (slice(None),) * 0
     if method == "linear":
         # f(i - b - w) = (1 - w) f[i - b] + w f[i - b - 1]
         f0 = f[(i - b) % nx, j]
@@ -50,29 +47,35 @@ def shift_rows(f, shift, method="linear", rows=None):
         return (1.0 - wb) * f0 + wb * f1
     from scipy.ndimage import spline_filter1d
     c = spline_filter1d(f, order=3, axis=0, mode="grid-wrap")
-    # point x = i - b - w = (i - b - 1) + (1 - w): cubic B-spline weights at t = 1 - w
-    t = (1.0 - w).reshape(w.shape + (1,) * (f.ndim - 2))
-    w0 = (1.0 - t) ** 3 / 6.0
-    w1 = (3 * t ** 3 - 6 * t ** 2 + 4) / 6.0
-    w2 = (-3 * t ** 3 + 3 * t ** 2 + 3 * t + 1) / 6.0
-    w3 = t ** 3 / 6.0
+    w0, w1, w2, w3 = (a.reshape((1, ny) + (1,) * (f.ndim - 2)) for a in _spline_weights(frac))
     p = i - b - 1
     out = w0 * c[(p - 1) % nx, j]
     out += w1 * c[p % nx, j]
     out += w2 * c[(p + 1) % nx, j]
     out += w3 * c[(p + 2) % nx, j]
-    del extra
     return out
+
+
+def _split(shift, ny):
+    """The row shifts (NY,) as whole grid points b (int) and the fraction left, in [0, 1)."""
+    shift = np.asarray(shift, dtype=float).reshape(ny)
+    base = np.floor(shift)
+    return base.astype(np.int64), shift - base
+
+
+def _spline_weights(frac):
+    """The cubic B-spline weights of the 4 points around x = i - b - frac, per row: the point
+    is (i - b - 1) + t, t = 1 - frac."""
+    t = 1.0 - frac
+    return ((1.0 - t) ** 3 / 6.0, (3 * t ** 3 - 6 * t ** 2 + 4) / 6.0,
+            (-3 * t ** 3 + 3 * t ** 2 + 3 * t + 1) / 6.0, t ** 3 / 6.0)
 
 
 def _shift_compiled(f, shift, method, rows):
     """shift_rows of the components of ``f`` (c, NX, NY, NZ) by the compiled kernels: the
     weights as the numpy passes compute them, then one pass per component."""
     nx, ny = f.shape[1], f.shape[2]
-    shift = np.asarray(shift, dtype=float).reshape(ny)
-    base = np.floor(shift)
-    frac = shift - base
-    b = base.astype(np.int64)
+    b, frac = _split(shift, ny)
     idx = np.arange(nx, dtype=np.int64)
     idx = np.ascontiguousarray(idx if rows is None else idx[rows])
     out = np.empty((f.shape[0], idx.size) + f.shape[2:])
@@ -80,11 +83,7 @@ def _shift_compiled(f, shift, method, rows):
         for c in range(f.shape[0]):
             kernels.shift_linear(np.ascontiguousarray(f[c]), idx, b, frac, out[c])
         return out
-    t = 1.0 - frac
-    w0 = (1.0 - t) ** 3 / 6.0
-    w1 = (3 * t ** 3 - 6 * t ** 2 + 4) / 6.0
-    w2 = (-3 * t ** 3 + 3 * t ** 2 + 3 * t + 1) / 6.0
-    w3 = t ** 3 / 6.0
+    w0, w1, w2, w3 = _spline_weights(frac)
     coef = np.empty(f.shape[1:])
     for c in range(f.shape[0]):
         kernels.spline_coefficients(np.ascontiguousarray(f[c]), coef)
