@@ -51,7 +51,7 @@ def build(kind, npx, n, d):
 
     class Args:
         quiet, threads, seed = True, 1, 1
-    from kapsel.simulation import SOLVERS
+    from kapsel.typespec import SOLVERS
     import kapsel.models  # noqa: F401
     return SOLVERS[kind](cfg, Args(), None)
 

@@ -22,7 +22,7 @@ import numpy as np
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
 from kapsel.fluid.mac import MACSolver  # noqa: E402
-from kapsel.grid import Grid
+from kapsel.mesh.grid import Grid
 
 
 def initial_field(n, rng):

@@ -9,7 +9,7 @@ on the manual's sample input (samples/input.udf) turned into that type (default
 Navier_Stokes; the FDM types with the MAC scheme ``--ns`` and the Cahn-Hilliard scheme
 ``--ch``, default the sample's) with N^3 cells, ``--particles`` particles (A = 4) and no
 thermal noise.  For the FDM types the last column adds the wall time per step the halo
-exchanges took (kapsel.parallel.halo: copies into the padded blocks and MPI_Sendrecv, the
+exchanges took (kapsel.mesh.halo: copies into the padded blocks and MPI_Sendrecv, the
 slowest rank).  Each run builds the model as
 ``kapsel-py`` does (kapsel.cli.prepare: input, model, particles, FFT plans), makes 2
 warm-up steps, then times ``--steps`` steps between two barriers (rank 0's wall clock):

@@ -18,7 +18,7 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
 
 from kapsel import config, models  # noqa: E402,F401
-from kapsel.simulation import SOLVERS  # noqa: E402
+from kapsel.typespec import SOLVERS  # noqa: E402
 from kapsel.io import writers as wr  # noqa: E402
 from udf import UDFManager  # noqa: E402
 

@@ -24,7 +24,7 @@ sys.path.insert(0, ROOT)
 sys.path.insert(0, os.path.join(ROOT, "tests"))
 from kapsel import config, models  # noqa: E402,F401
 from kapsel.io.restart import write_checkpoint, write_restart  # noqa: E402
-from kapsel.simulation import SOLVERS  # noqa: E402
+from kapsel.typespec import SOLVERS  # noqa: E402
 from builders import sample_input  # noqa: E402  (tests/builders.py)
 from udf import UDFManager  # noqa: E402
 

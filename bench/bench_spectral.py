@@ -7,7 +7,7 @@ Prints ms/step and ns per grid point per step for 32^3, 64^3 (128^3 with --big),
 FFT threads, a random small-amplitude field, dt = auto_dt(1), FIX_CELL on, planner "auto".
 Times: median and best of the timed steps after 2 warm-up steps.  --planners compares
 FFTW_MEASURE and FFTW_ESTIMATE (plan time, one forward+backward vector pair), the
-measurement behind kapsel.grid's default.  --profile N: cProfile of 20 steps at N^3.
+measurement behind kapsel.mesh.grid's default.  --profile N: cProfile of 20 steps at N^3.
 (The benchmark with particles is bench/bench_spm.py.)
 
 Measured 2026-11-22 with both shared cores busy with other jobs (load ~3.5), etd1, medians:
@@ -35,7 +35,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from kapsel.fluid.spectral import SpectralNS  # noqa: E402
-from kapsel.grid import Grid  # noqa: E402
+from kapsel.mesh.grid import Grid  # noqa: E402
 from kapsel.timestep import auto_dt  # noqa: E402
 
 

@@ -21,7 +21,7 @@ import numpy as np
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
 from kapsel.fluid.spectral import SpectralNS  # noqa: E402
-from kapsel.grid import Grid  # noqa: E402
+from kapsel.mesh.grid import Grid  # noqa: E402
 from kapsel.particles.placement import uniform_random  # noqa: E402
 from kapsel.particles.spm import SPM  # noqa: E402
 from kapsel.particles.state import ParticleState  # noqa: E402

@@ -17,7 +17,7 @@ each in a fresh process with T threads (the original: OMP_NUM_THREADS=T; kapsel-
               the repeats;
 
 and the ratios kapsel-py / original.  Runs are long enough for kapsel-py's compiled kernels
-(they switch on in the first steps of a run; kapsel.fluid.compiled).  The load average before and after
+(they switch on in the first steps of a run; kapsel.mesh.compiled).  The load average before and after
 is printed with the table: the machine is shared, so CPU time, not wall time, is compared.
 
 The original is not part of the project (no licence): build it from its public source with

@@ -71,7 +71,7 @@ def _kind(plan) -> str:
 def measure(scene, steps, np_override=None, threads=1):
     """(step ms, floor ms, {kind: transforms per step}, mesh) of one scene."""
     from profile_step import build
-    from kapsel.fluid import compiled
+    from kapsel.mesh import compiled
     compiled.enable()
     model = build(scene, np_override, threads)
     for _ in range(3):

@@ -5,7 +5,7 @@
 Builds the scene's input (samples/input.udf with the scene's edits), the model as the CLI does, runs 3
 warm-up steps, then N steps (default 20) under cProfile and prints the functions by their own
 (tottime) and cumulative time per step, plus the CPU ms/step without the profiler.
-The compiled kernels (kapsel.fluid.compiled) are on, as in a long CLI run; KAPSEL_PY_COMPILED=0
+The compiled kernels (kapsel.mesh.compiled) are on, as in a long CLI run; KAPSEL_PY_COMPILED=0
 times the numpy passes.  ``--np NP`` overrides the mesh (2^NP per axis).  ``--memory``: peak RSS (ru_maxrss) after the
 steps, per grid point, minus the RSS before the model was built.
 """
@@ -77,7 +77,7 @@ def build(name, np_override=None, threads=1):
     import udf
     from kapsel import config, models  # noqa: F401
     from kapsel.cli import build_parser
-    from kapsel.simulation import SOLVERS
+    from kapsel.typespec import SOLVERS
     edits = dict(SCENES[name][1])
     if np_override:
         edits.update({f"mesh.NP{ax}": np_override for ax in "XYZ"})
@@ -106,12 +106,13 @@ def main(argv=None):
                     help="print only the profiled time per stage (FFT, stencils, ...)")
     a = ap.parse_args(argv)
     try:
-        from kapsel.fluid import compiled
-    except ImportError:     # a tree before kapsel.fluid.compiled (before/after comparisons)
+        from kapsel.mesh import compiled
+    except ImportError:     # a tree before kapsel.mesh.compiled (before/after comparisons)
         compiled = None
     if compiled is not None and compiled.enable():   # as a long CLI run from step 10 on (KAPSEL_PY_COMPILED=0: never)
         import numpy as np
-        from kapsel.fluid import spectral_kernels as sk, stencils as st
+        from kapsel.fluid import spectral_kernels as sk
+        from kapsel.mesh import stencils as st
         z, f = np.zeros((3, 4, 4, 4)), np.zeros((4, 4, 4))
         st.div_b(z, 1.0, f)                 # numba's code generator loaded before the RSS base
         sk.cross(z, z, z.copy())

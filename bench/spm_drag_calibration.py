@@ -60,11 +60,11 @@ def terminal_velocity(L, A, xi, factor, solver="spectral", profile=None, tol=2e-
     dt = auto_dt(factor, 1.0, 1.0, 1.0, (L, L, L))
     if solver == "spectral":
         from kapsel.fluid.spectral import SpectralNS
-        from kapsel.grid import Grid
+        from kapsel.mesh.grid import Grid
         fluid, cls = SpectralNS(Grid((L, L, L), 1.0), 1.0, 1.0, dt, fix_cell=(True,) * 3), SPM
     else:
         from kapsel.fluid.mac import MACSolver
-        from kapsel.grid import Grid
+        from kapsel.mesh.grid import Grid
         fluid, cls = MACSolver(Grid((L, L, L), 1.0), 1.0, 1.0, dt, scheme=solver), _FixCell
     p = ParticleState.spheres([0], [A], [1.0], 1.0)
     p.R[:] = p.R_raw[:] = [[L / 2 + 0.3, L / 2 + 0.2, L / 2 - 0.3]]

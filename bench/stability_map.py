@@ -330,7 +330,7 @@ def main():
     a = ap.parse_args()
     rows = [s for s in scenes() if not a.only or any(k in s.name for k in a.only)]
     from kapsel import models
-    from kapsel.fluid import compiled  # noqa: F401  (loaded once, shared by the probes)
+    from kapsel.mesh import compiled  # noqa: F401  (loaded once, shared by the probes)
     compiled.enable()
     t0 = time.perf_counter()
     results = []

@@ -47,11 +47,12 @@ import time  # noqa: E402
 import numpy as np  # noqa: E402
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
-from kapsel.fluid import compiled  # noqa: E402
+from kapsel.mesh import compiled  # noqa: E402
 from kapsel.fluid.mac import MACSolver  # noqa: E402
-from kapsel.fluid.oblique import ObliqueMAC, ObliqueSpectralNS, ShearFlow  # noqa: E402
+from kapsel.fluid.oblique import ObliqueMAC, ObliqueSpectralNS  # noqa: E402
+from kapsel.frame import ShearFlow  # noqa: E402
 from kapsel.fluid.spectral import SpectralNS  # noqa: E402
-from kapsel.grid import Grid  # noqa: E402
+from kapsel.mesh.grid import Grid  # noqa: E402
 from kapsel.models.fdm import _ModelH_SPM  # noqa: E402
 from kapsel.particles.spm import SPM  # noqa: E402
 from kapsel.particles.state import ParticleState  # noqa: E402
@@ -363,7 +364,7 @@ def main(argv=None):
                     help="directory of the CSV and PNGs (default bench/results)")
     ap.add_argument("--no-plots", action="store_true")
     a = ap.parse_args(argv)
-    compiled.enable()                 # as a long run would (kapsel.fluid.compiled)
+    compiled.enable()                 # as a long run would (kapsel.mesh.compiled)
     rows = [r for r in plan(a.quick) if (not a.only or r[0] in a.only)
             and (not a.scheme or a.scheme in r[1])]
     t_start = time.perf_counter()

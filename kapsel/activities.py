@@ -94,19 +94,19 @@ class StressTable(Activity):
 
 class CompiledSwitch(Activity):
     """The compiled kernels switched on once the run has shown it is long enough
-    (kapsel.fluid.compiled.want); they give the same bits as the numpy ones."""
+    (kapsel.mesh.compiled.want); they give the same bits as the numpy ones."""
 
     name = "compiled kernels"
     every_rank = True
 
     def __init__(self, start_step, total):
         super().__init__()
-        from .fluid import compiled
+        from .mesh import compiled
         self.start, self.total = start_step, total
         self.on = compiled.mode() == "1" and (compiled.enable() or True)
 
     def __call__(self, loop):
-        from .fluid import compiled
+        from .mesh import compiled
         step = loop.model.step_index
         if not self.on and compiled.want(step - self.start, self.total - step):
             self.on = compiled.enable() or True

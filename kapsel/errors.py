@@ -1,7 +1,8 @@
 """The exceptions a run ends with (the bottom of the package: imports nothing of kapsel)."""
 from __future__ import annotations
 
-__all__ = ["InstabilityError", "RunError", "Interrupted", "NothingToDo"]
+__all__ = ["InstabilityError", "RunError", "Interrupted", "NothingToDo", "SolverDidNotConverge",
+           "UnstableTimeStep"]
 
 
 class InstabilityError(Exception):
@@ -29,3 +30,18 @@ class Interrupted(RunError):
 
 class NothingToDo(Exception):
     """The input is the restart of a run that has reached its last step."""
+
+
+class SolverDidNotConverge(RuntimeError):
+    """BiCGSTAB did not reach ``tolerance`` within ``maximum_iteration`` (manual table 2)."""
+
+    def __init__(self, iterations, residual, message=None, what="BiCGSTAB"):
+        self.iterations = int(iterations)
+        self.residual = float(residual)
+        super().__init__(message or (
+            "%s did not converge in %d iterations: relative residual %.3e; reduce the time "
+            "step or raise maximum_iteration" % (what, self.iterations, self.residual)))
+
+
+class UnstableTimeStep(ValueError):
+    """dt above an explicit scheme's stability limit."""

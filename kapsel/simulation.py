@@ -13,7 +13,7 @@ What a model offers is declared on kapsel.models.common.Model: ``lockstep`` (the
 protocol of the run's world, kapsel.parallel.lockstep; with one rank its calls run at once), ``sheared`` (a per-step stress table: ``shear_table``, ``shear_table_row``),
 ``restart_kind`` (None: no restart file), ``whole_particles()``, ``stability()``.
 
-``SOLVERS`` maps each implemented ``constitutive_eq.type`` to a factory
+``kapsel.typespec.SOLVERS`` maps each implemented ``constitutive_eq.type`` to a factory
 ``make(cfg, args, input_doc) -> model``; ``TimeLoop`` drives any of them.
 """
 from __future__ import annotations
@@ -28,17 +28,6 @@ from udf.files import disk_full, write_failure
 
 from .checks import check_finite, check_step, first_blow_up, table_row  # noqa: F401
 from .errors import InstabilityError, Interrupted, NothingToDo, RunError  # noqa: F401
-
-SOLVERS: dict = {}
-
-
-def register(type_name: str):
-    """Decorator: make ``factory(cfg, args, doc) -> model`` the model of a type."""
-    def deco(factory):
-        SOLVERS[type_name] = factory
-        return factory
-    return deco
-
 
 def advance(model) -> None:
     """One time step, without numpy's floating-point warnings: a step that overflows or
@@ -213,7 +202,7 @@ class TimeLoop:
 
     def _step(self):
         """One step, then each activity due after it."""
-        from .fluid.mac import SolverDidNotConverge
+        from .errors import SolverDidNotConverge
         model = self.model
         before = model.step_index
         try:
@@ -272,7 +261,7 @@ class TimeLoop:
         and the restart holds that state (ts = MSTEP after MSTEP + 1 steps, FORMAT-OUTPUT.md
         §1.2, §6.3), so either program continues it without repeating a snapshot; then
         every activity closed, and the closing lines."""
-        from .fluid.mac import SolverDidNotConverge
+        from .errors import SolverDidNotConverge
         model = self.model
         try:
             advance(model)

@@ -329,7 +329,7 @@ def validate(input_path: str, define_path: str | None = None, overrides: dict | 
     ``prepare`` goes on to build the model."""
     import udf
     from . import config, models  # noqa: F401  (models register their types)
-    from .simulation import SOLVERS
+    from .typespec import SOLVERS
     try:
         doc = udf.UDFManager(input_path)
         bad = []
@@ -377,7 +377,7 @@ def build_model(cfg, args, doc, resumed: bool, origin: dict | None = None):
 
     import udf
     from . import config
-    from .simulation import SOLVERS
+    from .typespec import SOLVERS
     started = time.perf_counter()
     talked = threading.Event()
 

@@ -1,7 +1,8 @@
 """The ``constitutive_eq.type`` values: one :class:`TypeSpec` each, the single place that says
 what a type is (its grid, whether it carries an order parameter, a shear, ions; what the
 original allows with it).  Everything that asks "which types ..." asks here (:func:`spec`,
-:func:`names`); a type's model registers its factory with ``kapsel.simulation.register``.
+:func:`names`); a type's model registers its factory here with :func:`register`
+(``SOLVERS``: type name -> ``make(cfg, args, input_doc) -> model``).
 
 Adding a type: one ``TypeSpec`` line below and the module of its model (its
 ``@register(name)`` factory), plus the type's block in define.udf.
@@ -10,7 +11,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-__all__ = ["TypeSpec", "TYPES", "spec", "names", "sheared"]
+__all__ = ["TypeSpec", "TYPES", "SOLVERS", "register", "spec", "names", "sheared"]
 
 
 @dataclass(frozen=True)
@@ -73,3 +74,14 @@ def names(**flags) -> tuple[str, ...]:
     e.g. ``names(sheared=True)``."""
     return tuple(n for n, s in TYPES.items()
                  if all(getattr(s, k) == v for k, v in flags.items()))
+
+
+SOLVERS: dict = {}      # type name -> the factory of its model (kapsel.models registers them)
+
+
+def register(type_name: str):
+    """Decorator: make ``factory(cfg, args, doc) -> model`` the model of a type."""
+    def deco(factory):
+        SOLVERS[type_name] = factory
+        return factory
+    return deco

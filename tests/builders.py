@@ -264,7 +264,7 @@ def shear_input(d, particles=1, kind="DC", rate=0.02, freq=0.0, gts=10, nsnap=2,
 
 def build(inp):
     from kapsel import config, models  # noqa: F401
-    from kapsel.simulation import SOLVERS
+    from kapsel.typespec import SOLVERS
     import udf
     doc = udf.UDFManager(inp)
     cfg = config.from_document(doc, inp)
@@ -777,7 +777,7 @@ def measured_dt(factor, rho, eta, dx):
 
 def _spectral(L, dt, fix_cell, threads=1):
     import pytest
-    grid_mod = pytest.importorskip("kapsel.grid")
+    grid_mod = pytest.importorskip("kapsel.mesh.grid")
     spectral = pytest.importorskip("kapsel.fluid.spectral")
     grid = grid_mod.Grid((L, L, L), 1.0, threads=threads)
     return spectral.SpectralNS(grid, 1.0, 1.0, dt, fix_cell=(fix_cell,) * 3)

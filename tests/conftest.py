@@ -49,7 +49,7 @@ SLOW_VARIANTS = {
 
 
 class CompiledKernels:
-    """The compiled kernels (kapsel.fluid.compiled) switched on or off inside a test."""
+    """The compiled kernels (kapsel.mesh.compiled) switched on or off inside a test."""
 
     def __init__(self, compiled):
         self._compiled = compiled
@@ -76,7 +76,7 @@ class CompiledKernels:
 def compiled_kernels():
     """The compiled on / off switch of the tests that compare the compiled kernels with the
     numpy passes: off at the start and again after the test, whatever it did."""
-    from kapsel.fluid import compiled
+    from kapsel.mesh import compiled
     compiled.disable()
     yield CompiledKernels(compiled)
     compiled.disable()

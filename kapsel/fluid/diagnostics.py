@@ -16,7 +16,7 @@ PAIRS = ((0, 0), (0, 1), (0, 2), (1, 1), (1, 2))       # xx, xy, xz, yy, yz
 
 
 def pressure_at_nodes(p_cells: np.ndarray) -> np.ndarray:
-    """B-grid pressure (cell centres (i+1/2, j+1/2, k+1/2) DX, kapsel.fluid.operators) at the
+    """B-grid pressure (cell centres (i+1/2, j+1/2, k+1/2) DX, kapsel.mesh.operators) at the
     nodes i DX: the mean of the 8 cells around each node."""
     q = p_cells + np.roll(p_cells, 1, axis=0)
     q = q + np.roll(q, 1, axis=1)
@@ -38,7 +38,7 @@ def stress_from_gradient(grad: np.ndarray, eta) -> np.ndarray:
 def velocity_gradient_central(u: np.ndarray, dx: float, gradient=None) -> np.ndarray:
     """grad[a, b] = d_b u_a by central differences at the nodes (periodic grid);
     ``gradient(f, out)`` replaces the central gradient (e.g. the oblique frame's)."""
-    from .operators import grad_central
+    from ..mesh.operators import grad_central
     g = np.empty((3, 3) + u.shape[1:])
     for a in range(3):
         if gradient is None:

@@ -1,6 +1,6 @@
 """MAC solver of the Navier-Stokes equation on the semi-staggered Arakawa B grid (manual §5.1).
 
-Velocities at the nodes, pressure at the cell centres (see kapsel.fluid.operators).
+Velocities at the nodes, pressure at the cell centres (see kapsel.mesh.operators).
 
 * ``explicit_scheme`` (eqs 20-21): explicit advection + diffusion, then the pressure Poisson
   equation (21) - keeping its ∇·u^n "cycle error self-adjustment" term - solved by FFT with
@@ -12,7 +12,7 @@ Velocities at the nodes, pressure at the cell centres (see kapsel.fluid.operator
   of its constant-viscosity diffusion part (``preconditioner='fft'``, default; the original
   has none, ``preconditioner=None``): 64^3, 8 particles, dt auto: 5 -> 1 iterations per step
   at the same tolerance, step 126-132 -> 98-105 ms.  For constant viscosity the operator is
-  applied by a compiled stencil sweep (kapsel.fluid.stencils), bit-identical to the CSR
+  applied by a compiled stencil sweep (kapsel.mesh.stencils), bit-identical to the CSR
   rows it replaces.  With ``eta_field`` the viscous term is ∇·η(∇u + ∇u^T)/ρ in the
   original's node form for ∇·u = 0, (η∇²u + ∇η·(∇u + ∇u^T))/ρ with central differences
   (operators.viscous_variable_nc; its CSR rows have the original's 11 entries: components
@@ -21,7 +21,7 @@ Velocities at the nodes, pressure at the cell centres (see kapsel.fluid.operator
 Choices, measured on this 2-core machine (shared, so +-30 %; ms, min of repeats):
 
 * FFT: pyfftw (planned once, aligned buffers reused; FFTW_ESTIMATE up to 64^3 points,
-  FFTW_MEASURE above, the rule of kapsel.grid: deterministic across processes where MEASURE
+  FFTW_MEASURE above, the rule of kapsel.mesh.grid: deterministic across processes where MEASURE
   does not pay, and no 0.09 s MEASURE planning in the start-up of a 32^3 run) vs scipy.fft, one
   Poisson solve (rfftn + scale + irfftn): 32^3 0.10 vs 0.34, 64^3 1.06 vs 3.36 -> pyfftw
   (scipy.fft kept as ``fft='scipy'``).
@@ -49,22 +49,23 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.linalg import LinearOperator
 
-from ..linalg import SolverDidNotConverge, UnstableTimeStep, solve_correction
-from ..parallel.halo import Halo
-from . import operators as op
+from ..errors import SolverDidNotConverge, UnstableTimeStep
+from ..mesh.linalg import solve_correction
+from ..mesh.halo import Halo
+from ..mesh import operators as op
 
 try:  # pragma: no cover - import guard
     import pyfftw
 except ImportError:  # pragma: no cover
     pyfftw = None
-from . import compiled as _compiled
+from ..mesh import compiled as _compiled
 
 __all__ = ["MACSolver", "SolverDidNotConverge", "UnstableTimeStep"]
 
 
 class _Poisson:
     """Solves D G phi = r (B grid, cell arrays) by FFT on the layout (``ScalarSolve`` of
-    kapsel.grid, or of a rank's block: kapsel.parallel.pencil); null modes -> 0."""
+    kapsel.mesh.grid, or of a rank's block: kapsel.mesh.pencil); null modes -> 0."""
 
     def __init__(self, layout, dx, threads=1, backend="pyfftw"):
         self.fft = layout.scalar_solver(threads, backend)
@@ -91,11 +92,11 @@ class MACSolver:
     BiCGSTAB settings of implicit_scheme (table 2).  ``threads`` is passed to the FFTs.
     ``linear``: 'sparse' (assembled CSR, default, faster) or 'matfree' (LinearOperator);
     ``fft``: 'pyfftw' (default, faster) or 'scipy'.  ``layout``: the mesh's layout, which
-    gives the shape and the spacing DX (kapsel.grid.Grid(shape, dx) for one process; a
-    rank's block: kapsel.parallel.pencil.PencilGrid), whose
+    gives the shape and the spacing DX (kapsel.mesh.grid.Grid(shape, dx) for one process; a
+    rank's block: kapsel.mesh.pencil.PencilGrid), whose
     halos, sums and transforms the solver uses (docs/distributed.md): on one process they
     are identities, on a block the stencils run on it widened by one ghost layer from the
-    neighbour ranks (kapsel.parallel.halo), the same operations point by point as on one
+    neighbour ranks (kapsel.mesh.halo), the same operations point by point as on one
     process; sums, dot products and maxima are over the ranks in a fixed order.
     Attributes: ``pressure`` (last p^{n+1}), ``u_old`` (u^{n-1}, settable for restarts),
     ``iterations`` / ``residual`` of the last BiCGSTAB solve (residual is NaN when converged).
@@ -448,7 +449,7 @@ class MACSolver:
 
     def _stencil_operator(self, ustar):
         """A of ``_assemble`` (constant viscosity) applied by a compiled stencil sweep
-        (kapsel.fluid.stencils.implicit_matvec_nc): the same products summed in the same order
+        (kapsel.mesh.stencils.implicit_matvec_nc): the same products summed in the same order
         as the CSR rows, so bit-identical, without assembling the matrix (64^3: 24 ms per
         step and 70 MB saved, matvec 15 -> 4 ms)."""
         hl = self.halo

@@ -47,8 +47,9 @@ original's oblique formulation).  The interface the SPM driver uses is the one o
 ``add_solenoidal(du)``: Cartesian increment) plus the frame for the particles
 (``frame_strain``, ``shear_rate_now``, ``background``, ``wrap_particles``).
 
-Interpolation between oblique and rectangular grids (``to_rectangular``, ``to_oblique``,
-``shift_rows``): along x per row, ``linear`` (2 points) or ``spline`` (periodic cubic
+Interpolation between oblique and rectangular grids (kapsel.mesh.regrid: ``to_rectangular``,
+Interpolation between oblique and rectangular grids (kapsel.mesh.regrid: ``to_rectangular``,
+``to_oblique``, ``shift_rows``): along x per row, ``linear`` (2 points) or ``spline`` (periodic cubic
 B-spline interpolant), ``switch.ns_solver.OBL_INT``.
 """
 from __future__ import annotations
@@ -57,90 +58,17 @@ import math
 
 import numpy as np
 
-from ..grid import Grid
-from ..regrid import INTERPOLATIONS, shift_rows, to_oblique, to_rectangular  # noqa: F401
-from ..parallel.halo import Halo
+from ..frame import ShearFlow, lees_edwards_wrap
+from ..mesh.grid import Grid
+from ..mesh.oblique import (_d11, _d12, cartesian, contravariant, oblique_gradient,
+                            oblique_viscous_variable)
+from ..mesh.regrid import INTERPOLATIONS, shift_rows, to_rectangular
+from ..mesh.halo import Halo
 from .mac import MACSolver
 from .spectral import SpectralNS, cross_in_place, phi1
-from . import compiled as _compiled
+from ..mesh import compiled as _compiled
 
-__all__ = ["ShearFlow", "ObliqueSpectralNS", "ObliqueMAC", "MetricProjector", "shift_rows", "to_rectangular", "to_oblique",
-           "contravariant", "cartesian", "lees_edwards_wrap", "lees_edwards_displacement",
-           "INTERPOLATIONS"]
-
-
-
-class ShearFlow:
-    """gamma_dot(t) and the applied strain Gamma(t) of a DC or AC shear (table 4)."""
-
-    def __init__(self, kind="DC", rate=0.0, frequency=0.0):
-        if kind not in ("DC", "AC"):
-            raise ValueError(f"shear kind must be DC or AC, got {kind!r}")
-        self.kind, self.rate0, self.frequency = kind, float(rate), float(frequency)
-        self.omega = 2.0 * math.pi * self.frequency
-
-    @classmethod
-    def from_config(cls, shear):
-        return cls(shear.kind, shear.shear_rate, shear.frequency)
-
-    def rate(self, t: float) -> float:
-        if self.kind == "AC":
-            return self.rate0 * math.cos(self.omega * t)
-        return self.rate0
-
-    def strain(self, t: float) -> float:
-        if self.kind == "AC" and self.omega > 0:
-            return self.rate0 * math.sin(self.omega * t) / self.omega
-        return self.rate0 * t
-
-
-# ---------------------------------------------------------------------------- components
-def contravariant(u, g, out=None):
-    """Cartesian (3, ...) -> contravariant components of the frame with strain g."""
-    out = np.array(u, dtype=float, copy=True) if out is None else out
-    if out is not u:
-        np.copyto(out, u)
-    out[0] -= g * u[1]
-    return out
-
-
-def cartesian(u, g, out=None):
-    """Contravariant (3, ...) -> Cartesian components."""
-    out = np.array(u, dtype=float, copy=True) if out is None else out
-    if out is not u:
-        np.copyto(out, u)
-    out[0] += g * u[1]
-    return out
-
-
-# ---------------------------------------------------------------------------- particles
-def lees_edwards_wrap(R, v, box, offset, rate, v_old=None):
-    """Wrap positions into the box with Lees-Edwards images: a particle leaving through
-    y = Ly re-enters at y = 0 displaced by -offset along x (offset = g Ly, the image shift)
-    with its x velocity lowered by rate Ly (and the reverse through y = 0); then x and z are
-    wrapped periodically.  R, v (and v_old) are changed in place."""
-    L = np.asarray(box, dtype=float)
-    n = np.floor(R[:, 1] / L[1])
-    if np.any(n):
-        R[:, 0] -= n * offset
-        R[:, 1] -= n * L[1]
-        v[:, 0] -= n * rate * L[1]
-        if v_old is not None:
-            v_old[:, 0] -= n * rate * L[1]
-    np.mod(R, L, out=R)
-    R[R >= L] = 0.0
-
-
-def lees_edwards_displacement(dr, box, offset):
-    """Minimum-image displacement under Lees-Edwards images (y first, then x, z)."""
-    L = np.asarray(box, dtype=float)
-    dr = np.array(dr, dtype=float, copy=True)
-    n = np.round(dr[..., 1] / L[1])
-    dr[..., 0] -= n * offset
-    dr[..., 1] -= n * L[1]
-    dr[..., 0] -= np.round(dr[..., 0] / L[0]) * L[0]
-    dr[..., 2] -= np.round(dr[..., 2] / L[2]) * L[2]
-    return dr
+__all__ = ["ObliqueSpectralNS", "ObliqueMAC", "MetricProjector"]
 
 
 # ---------------------------------------------------------------------------- frame
@@ -446,7 +374,7 @@ class ObliqueSpectralNS(_ObliqueFrame, SpectralNS):
         self._gK = None
 
     def _remap_distributed(self, n):
-        """remap_fourier on a distributed grid (kapsel.parallel.pencil): the mode shift runs
+        """remap_fourier on a distributed grid (kapsel.mesh.pencil): the mode shift runs
         along k_y, split over the ranks of a column, so each column gathers its
         (NX, NY, z block) slab, shifts it as above and keeps its own block again (a re-mapping
         happens once per strain Lx/Ly: rare)."""
@@ -518,29 +446,6 @@ class ObliqueSpectralNS(_ObliqueFrame, SpectralNS):
 
 
 # ---------------------------------------------------------------------------- MAC
-def _d11(f, dx, out):
-    """Second difference along x (periodic), f[i+1] - 2 f[i] + f[i-1] over DX^2."""
-    from .operators import shift_add
-    np.multiply(f, -2.0, out=out)
-    shift_add(out, f, 1, 0)
-    shift_add(out, f, -1, 0)
-    out *= 1.0 / (dx * dx)
-    return out
-
-
-def _d12(f, dx, out, work=None):
-    """Mixed central difference d^2 f / dx dy on the nodes (4 diagonal neighbours):
-    the central y difference of the central x difference."""
-    from .operators import cdiff_acc
-    t = np.empty_like(f) if work is None else work
-    t[...] = 0.0
-    cdiff_acc(t, f, 0)
-    out[...] = 0.0
-    cdiff_acc(out, t, 1)
-    out *= 1.0 / (4.0 * dx * dx)
-    return out
-
-
 class ObliqueMAC(_ObliqueFrame, MACSolver):
     """The MAC schemes (explicit eqs 20-21, implicit eqs 23-26) in the oblique frame: eq 27
     on the B grid for the contravariant deviation u^i.
@@ -589,7 +494,7 @@ class ObliqueMAC(_ObliqueFrame, MACSolver):
         self.interpolation = interpolation
         box = np.array(self.shape, dtype=float) * self.dx
         self._init_frame(shear, box, dt, t0, frame_strain0)
-        from . import operators as op
+        from ..mesh import operators as op
         block = self.grid.spec_range
         S = op.symbol_div_b(self.shape, self.dx, block)
         self._SS = {(a, b): np.real(S[a] * np.conj(S[b])) for a in range(3) for b in range(a, 3)}
@@ -621,7 +526,7 @@ class ObliqueMAC(_ObliqueFrame, MACSolver):
         _OBL_hdt: K = (k1, k2 - g k1, k3)), for the original's pressure solve."""
         g = self._g_op
         if getattr(self, "_g_lap", None) != g:
-            from . import operators as op
+            from ..mesh import operators as op
             kx, ky, kz = op.wavenumbers(self.shape, self.dx, self.grid.spec_range)
             K2 = kx * kx + (ky - g * kx) ** 2 + kz * kz
             inv = np.zeros(np.broadcast_shapes(kx.shape, ky.shape, kz.shape))
@@ -772,48 +677,6 @@ class ObliqueMAC(_ObliqueFrame, MACSolver):
         return n
 
 
-def oblique_laplacian(f, dx, g, out, work=None):
-    """G^jk d^_j d^_k f = (lap + g^2 D_xx - 2 g D_xy) f on the oblique grid (sums to zero)."""
-    from .operators import laplacian
-    laplacian(f, dx, out)
-    if g:
-        t = np.empty_like(f) if work is None else work
-        _d11(f, dx, t)
-        out += (g * g) * t
-        _d12(f, dx, t)
-        out -= (2.0 * g) * t
-    return out
-
-
-def oblique_gradient(f, dx, g, out):
-    """Physical (Cartesian) central gradient on the oblique grid: d_x = D_1,
-    d_y = D_2 - g D_1, d_z = D_3."""
-    from .operators import cdiff_acc
-    for ax in range(3):
-        out[ax] = 0.0
-        cdiff_acc(out[ax], f, ax)
-    out *= 0.5 / dx
-    if g:
-        out[1] -= g * out[0]
-    return out
-
-
-def oblique_viscous_variable(u, eta, dx, g):
-    """div(eta (grad u + grad u^T)) of the Cartesian u on the oblique grid with the physical
-    central gradient (``oblique_gradient``), Cartesian result."""
-    grads = np.empty((3, 3) + u.shape[1:])
-    for a in range(3):
-        oblique_gradient(u[a], dx, g, grads[a])      # grads[a, b] = d_b u_a
-    out = np.zeros_like(u)
-    t = np.empty((3,) + u.shape[1:])
-    for a in range(3):
-        for b in range(3):
-            tau = eta * (grads[a, b] + grads[b, a])
-            oblique_gradient(tau, dx, g, t)
-            out[a] += t[b]
-    return out
-
-
 class MetricProjector:
     """u <- P_K u in place for the Cartesian deviation u (3, NX, NY, NZ) on the oblique grid
     of ``fluid`` (its current frame strain g): the spectral projection with the physical
@@ -822,7 +685,7 @@ class MetricProjector:
     Time_evolution_hydro_OBL_fdm: Solenoidal_uk_OBL of the contravariant field, the same
     projection in other components).  ``truncate``: with the 2/3 rule too (the sheared
     types' start, imposed by the original's unsheared routines).  ``grid``: a
-    kapsel.grid.Grid (or this rank's PencilGrid)."""
+    kapsel.mesh.grid.Grid (or this rank's PencilGrid)."""
 
     def __init__(self, grid, fluid):
         self.grid, self.fluid = grid, fluid

@@ -4,7 +4,7 @@ driver adds as a solenoidal increment).
 
     du/dt = u x omega - grad(p/RHO + |u|^2/2) + nu lap u + f,   div u = 0,   nu = ETA/RHO
 
-State: u_hat (3, NX, NY, NZ//2+1), the unnormalised rfftn of u (``kapsel.grid``).  One step:
+State: u_hat (3, NX, NY, NZ//2+1), the unnormalised rfftn of u (``kapsel.mesh.grid``).  One step:
 
 1. u and omega = curl u in real space from the 2/3-rule truncated u_hat (6 c2r FFTs);
 2. N = u x omega (rotational form), back to Fourier space (3 r2c FFTs); the k = 0 mode of
@@ -43,8 +43,10 @@ import functools
 
 import numpy as np
 
-from ..grid import Grid
-from . import compiled as _compiled
+from ..mesh.grid import Grid
+from ..mesh import compiled as _compiled
+
+_compiled.provide("spectral", __name__.rsplit(".", 1)[0] + ".spectral_kernels")
 
 __all__ = ["SpectralNS", "SpectralProjector", "phi1", "phi2"]
 
@@ -110,7 +112,7 @@ def _factorial(n):
 
 
 class SpectralNS:
-    """Pseudo-spectral NS solver (module docstring) on ``grid`` (a ``kapsel.grid.Grid``).
+    """Pseudo-spectral NS solver (module docstring) on ``grid`` (a ``kapsel.mesh.grid.Grid``).
 
     rho, eta : RHO, ETA;  dt : time step (``kapsel.timestep.auto_dt``);  fix_cell :
     switch.FIX_CELL, (bool, bool, bool) per axis or one bool for all;  scheme : 'etd1'
@@ -159,13 +161,13 @@ class SpectralNS:
         self._ikx = 1j * g.kx
         self._iky = 1j * g.ky
         self._ikz = 1j * g.kz
-        # k as contiguous 1-d arrays for the compiled passes (kapsel.fluid.compiled)
+        # k as contiguous 1-d arrays for the compiled passes (kapsel.mesh.compiled)
         self._k1 = tuple(np.ascontiguousarray(k.ravel()) for k in (g.kx, g.ky, g.kz))
         self.force_hat = None
         # after_update(u_hat): applied in step() after the update, before FIX_CELL (the
         # zigzag pin of Shear_Navier_Stokes, kapsel.models.zigzag)
         self.after_update = None
-        # a distributed grid (kapsel.parallel.pencil) holds the k = 0 mode on one rank only
+        # a distributed grid (kapsel.mesh.pencil) holds the k = 0 mode on one rank only
         self._k0 = getattr(g, "has_k0", True)
         self._dist = hasattr(g, "comm")
         if force is not None:
@@ -418,7 +420,7 @@ class SpectralProjector:
     solenoidal projection (continuous wavenumbers), inverse FFT; the mean is kept.  The
     original applies it to the whole velocity of the FDM types after the particles' force of
     every step (operate_omega.h Solenoidal_u, sp_3d_ns.cxx Time_evolution_hydro_fdm).
-    ``grid``: a kapsel.grid.Grid (or a distributed PencilGrid: u is then this rank's block)."""
+    ``grid``: a kapsel.mesh.grid.Grid (or a distributed PencilGrid: u is then this rank's block)."""
 
     def __init__(self, grid):
         self.grid = grid

@@ -7,7 +7,7 @@ is computed as the two real products, which is what numpy's complex product give
 imaginary part of one factor is 0, up to the sign of zero results).
 
 Compiled with numba (``cache=True``: the machine code is kept in __pycache__, so only the
-first run on a machine pays the JIT); loaded on demand by kapsel.fluid.compiled.
+first run on a machine pays the JIT); loaded on demand by kapsel.mesh.compiled.
 """
 from __future__ import annotations
 
@@ -80,7 +80,7 @@ def cross(u, w, n):
 
 @njit(inline="always")
 def _project_point(a, b, c, ki, kj, kk, inv):
-    """P v = v - k (k.v)/k^2 at one mode, as kapsel.grid.Grid.project computes it."""
+    """P v = v - k (k.v)/k^2 at one mode, as kapsel.mesh.grid.Grid.project computes it."""
     sr = a.real * ki + b.real * kj
     si = a.imag * ki + b.imag * kj
     sr = sr + c.real * kk

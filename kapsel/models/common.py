@@ -204,7 +204,7 @@ def kinetic_energy(rho, dx, u, phi, particles, reduce=None, owned=False) -> floa
     """E: fluid outside the particles, 1/2 RHO sum (1 - phi)|u|^2 dx^3, plus the particles'
     translational and rotational energy.  ``reduce``: sums the fluid part over the ranks of
     a distributed run (u, phi are then this rank's blocks); ``owned``: ``particles`` are
-    this rank's owned particles (kapsel.parallel.particles), their part summed alike."""
+    this rank's owned particles (kapsel.particles.ownership), their part summed alike."""
     w = 1.0 - np.clip(phi, 0.0, 1.0) if phi is not None else 1.0
     e = 0.5 * rho * dx ** 3 * float(np.sum(w * np.einsum("i...,i...->...", u, u)))
     if reduce is not None:
@@ -324,7 +324,7 @@ class Model:
         as a plain run writes them (kapsel.io.fields), every rank writing its block; a source
         computed on rank 0 from gathered fields (``Gathered``) is written by rank 0 alone."""
         import h5py
-        from ..parallel.pencil import Gathered
+        from ..mesh.pencil import Gathered
         g = self.grid
         (x0, x1), (y0, y1), _ = g.real_range
         nx, ny, nz = g.shape
@@ -354,7 +354,7 @@ class Model:
     def _partial_particles(self) -> bool:
         """Whether the SPM's particle table is a rank's part of the run's (kapsel.parallel.
         particles.Owned): its sums (the kinetic energy) are then summed over the ranks; on
-        one process (kapsel.grid.WholeTable) or without particles it is the whole."""
+        one process (kapsel.particles.ownership.WholeTable) or without particles it is the whole."""
         spm = self._owned()
         return spm is not None and spm.owned.partial
 
@@ -375,7 +375,7 @@ class Model:
         spm = self._owned()
         if spm is None:
             return self.particles
-        from ..parallel.particles import restore
+        from ..particles.ownership import restore
         restore(self.particles)
         spm.owned.gather(spm.p, self.particles, everyone=True)
         return self.particles
@@ -385,7 +385,7 @@ class Model:
         (None elsewhere; on one process the field itself); sources that gather or reduce themselves
         return a ``Gathered`` (taken as is), scalars and particle data are the same
         everywhere."""
-        from ..parallel.pencil import Gathered
+        from ..mesh.pencil import Gathered
         v = self._local_sources[name]()
         if isinstance(v, Gathered):
             return v.value
@@ -500,7 +500,7 @@ class Model:
         if p is not None and p.n:
             from ..io.restart import particles_from_table
             if self._owned() is not None:     # the whole table, then this rank's rows
-                from ..parallel.particles import restore
+                from ..particles.ownership import restore
                 restore(p)
                 self._gathered_at = None
             if saved.particles is None:

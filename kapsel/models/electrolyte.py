@@ -31,7 +31,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..config import ConfigError
-from ..simulation import register
+from ..typespec import register
 from ..particles.interactions import OVERLAP_LIMIT, Callback
 from .common import make_forces, make_particles
 from .spectral import SpectralModel

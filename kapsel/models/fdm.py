@@ -22,7 +22,7 @@ import sys
 import numpy as np
 
 from ..config import ConfigError, RunConfig
-from ..simulation import register
+from ..typespec import register
 from ..particles.spm import SPM
 from ..particles.interactions import OVERLAP_LIMIT
 from .common import Model, kinetic_energy, make_forces, make_noise, make_particles
@@ -45,7 +45,7 @@ class FDMModel(Model):
     sheared_start = False       # the sheared types' start of the particles (ShearFDMModel)
 
     def __init__(self, cfg: RunConfig, args):
-        from ..fluid.mac import UnstableTimeStep
+        from ..errors import UnstableTimeStep
         super().__init__(cfg, args)
         threads, seed = self.threads, self.seed
         shape, dx = cfg.mesh.shape, cfg.mesh.DX
@@ -364,7 +364,7 @@ class FDMModel(Model):
         """u, pressure (at the nodes, the particles' force included), tau; phi with particles; psi, psi_all (psi is defined
         inside the particles too, so it is the total order parameter) and flux with a phase
         field (kapsel.snapshot)."""
-        from ..parallel.pencil import Gathered
+        from ..mesh.pencil import Gathered
         g = self.grid                 # pressure, tau: from the gathered fields, on rank 0
 
         def pressure():

@@ -27,19 +27,19 @@ from __future__ import annotations
 import numpy as np
 
 from ..config import ConfigError, RunConfig
-from ..simulation import register
+from ..typespec import register
 from ..particles.interactions import OVERLAP_LIMIT
 from .common import Model, make_forces, make_noise, make_particles
 from .spectral import SpectralModel
 
 
 def shear_flow(cfg: RunConfig):
-    from ..fluid.oblique import ShearFlow
+    from ..frame import ShearFlow
     return ShearFlow.from_config(cfg.shear)
 
 
 def check_interpolation(cfg: RunConfig) -> str:
-    from ..regrid import INTERPOLATIONS
+    from ..mesh.regrid import INTERPOLATIONS
     m = cfg.switches.OBL_INT
     if m not in INTERPOLATIONS:
         raise ConfigError(f"must be one of {', '.join(INTERPOLATIONS)}",
@@ -157,8 +157,8 @@ class ShearLEModel(SpectralModel):
         to rank 0 (one rank: the fields themselves), which interpolates them to the
         rectangular frame along x and derives tau and the pressure there."""
         from ..fluid.diagnostics import spectral_pressure, viscous_stress_spectral
-        from ..regrid import to_rectangular
-        from ..parallel.pencil import Gathered
+        from ..mesh.regrid import to_rectangular
+        from ..mesh.pencil import Gathered
         g0 = self.fluid.y0 / self.cfg.mesh.DX
 
         def rect(f):
@@ -478,9 +478,9 @@ class ShearFDMModel(FDMModel):
         return sig, inter
 
     def _oblique_gradient(self, f, g, out):
-        """kapsel.fluid.oblique.oblique_gradient of a field (of this rank's block: on the
+        """kapsel.mesh.oblique.oblique_gradient of a field (of this rank's block: on the
         block widened by the halo)."""
-        from ..fluid.oblique import oblique_gradient
+        from ..mesh.oblique import oblique_gradient
         h = self.mac.halo
         G = oblique_gradient(h.pad(f, key="stress"), self.dx, g, h.target(out, (3,), "stress"))
         return h.keep(G, out)
@@ -499,7 +499,7 @@ class ShearFDMModel(FDMModel):
 
     # ------------------------------------------------------------------ rectangular output
     def _rect(self, f):
-        from ..regrid import to_rectangular
+        from ..mesh.regrid import to_rectangular
         return to_rectangular(f, self.mac.frame_strain, self.interpolation,
                               self.mac.y0 / self.dx)
 
@@ -512,7 +512,7 @@ class ShearFDMModel(FDMModel):
         interpolated; d_y U_x = gamma_dot added to xy); no flux (the original writes
         flux_<n>.h5 for Navier_Stokes_Cahn_Hilliard_FDM only)."""
         from ..fluid.diagnostics import pressure_at_nodes
-        from ..parallel.pencil import Gathered
+        from ..mesh.pencil import Gathered
         g = self.grid                 # from the fields gathered to rank 0, computed there
 
         def on_root(fn, *parts):
@@ -547,7 +547,7 @@ class ShearFDMModel(FDMModel):
 
     def _tau(self, u=None, eta=None):
         from ..fluid.diagnostics import stress_from_gradient, velocity_gradient_central
-        from ..fluid.oblique import oblique_gradient
+        from ..mesh.oblique import oblique_gradient
         g, dx = self.mac.frame_strain, self.dx
         grad = velocity_gradient_central(self.u if u is None else u, dx,
                                          gradient=lambda f, out: oblique_gradient(f, dx, g, out))

@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..config import ConfigError, RunConfig
-from ..simulation import register
+from ..typespec import register
 from ..particles.interactions import OVERLAP_LIMIT
 from .common import Model, kinetic_energy, make_forces, make_noise, make_particles
 
@@ -31,7 +31,7 @@ class SpectralModel(Model):
                        dry=self.dry)
 
     def make_grid(self, cfg):
-        """The mesh's layout (kapsel.parallel.make_layout: a ``kapsel.grid.Grid``, or in a
+        """The mesh's layout (kapsel.parallel.make_layout: a ``kapsel.mesh.grid.Grid``, or in a
         distributed run this rank's blocks of it)."""
         from ..parallel import make_layout
         try:
@@ -134,7 +134,7 @@ class SpectralModel(Model):
                 memo["u"] = self.spm.velocity()
             return memo["u"]
 
-        from ..parallel.pencil import Gathered
+        from ..mesh.pencil import Gathered
         g = self.grid
 
         def on_root(fn):            # tau, pressure: from the gathered fields, on rank 0

@@ -54,7 +54,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..config import RunConfig
-from ..simulation import register
+from ..typespec import register
 from .spectral import SpectralModel
 
 # the original's table labels (sp_3d_ns.h Mean_shear_stress)

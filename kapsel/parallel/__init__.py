@@ -10,7 +10,7 @@ the same calls, answered at once.
 Which types run distributed: ``DISTRIBUTED``.  Any other type is refused with more than one
 rank (``refuse``), never run serially on every rank writing the same files.
 
-Division of work (kapsel.parallel.pencil for the fields, kapsel.parallel.particles for the
+Division of work (kapsel.mesh.pencil for the fields, kapsel.particles.ownership for the
 particles, kapsel.parallel.lockstep for the output): every rank holds its block of the
 fields.  Spheres and chain beads are owned by the rank whose block holds their stencil's
 base point, rigid bodies (whole, with all their beads) by the owner of their first bead's
@@ -82,8 +82,8 @@ class Dist:
         return self.comm.allreduce(value, op=_mpi().MAX)
 
     def layout(self, shape, dx, threads=1):
-        """This rank's blocks of the mesh (kapsel.parallel.pencil.PencilGrid)."""
-        from .pencil import PencilGrid
+        """This rank's blocks of the mesh (kapsel.mesh.pencil.PencilGrid)."""
+        from ..mesh.pencil import PencilGrid
         return PencilGrid(shape, dx, self.comm, self.dims)
 
     def describe(self) -> list[str]:
@@ -113,7 +113,7 @@ class _SelfComm:
 
 class OneRank(Dist):
     """The world of a plain run: rank 0 of 1, process grid 1 x 1, collectives answered at
-    once, the whole mesh (kapsel.grid.Grid) as its layout; mpi4py is never imported."""
+    once, the whole mesh (kapsel.mesh.grid.Grid) as its layout; mpi4py is never imported."""
 
     def __init__(self):
         super().__init__(_SelfComm(), (1, 1))
@@ -122,7 +122,7 @@ class OneRank(Dist):
         return value
 
     def layout(self, shape, dx, threads=1):
-        from ..grid import Grid
+        from ..mesh.grid import Grid
         return Grid(shape, dx, threads=threads)
 
     def describe(self) -> list[str]:
@@ -195,8 +195,8 @@ def start(args):
 
 
 def make_layout(shape, dx, dist, threads=1):
-    """The layout of a run's mesh in ``dist``, the run's world: a ``kapsel.grid.Grid`` on
-    one process, else this rank's blocks of it (kapsel.parallel.pencil.PencilGrid on the
+    """The layout of a run's mesh in ``dist``, the run's world: a ``kapsel.mesh.grid.Grid`` on
+    one process, else this rank's blocks of it (kapsel.mesh.pencil.PencilGrid on the
     world's process grid; ValueError when the mesh is too small for it)."""
     return dist.layout(shape, dx, threads)
 

@@ -71,7 +71,7 @@ class Lockstep:
 
 def _error(kind, message):
     from ..errors import InstabilityError
-    from ..linalg import SolverDidNotConverge
+    from ..errors import SolverDidNotConverge
     for cls in (InstabilityError, SolverDidNotConverge, FloatingPointError, OSError,
                 KeyboardInterrupt):
         if cls.__name__ == kind:

@@ -51,7 +51,7 @@ def bond_vectors(R, box, i, j, strain=0.0) -> np.ndarray:
     box = np.asarray(box, dtype=float)
     if not strain:
         return minimum_image(R[j] - R[i], box)
-    from ..fluid.oblique import lees_edwards_displacement
+    from ..frame import lees_edwards_displacement
     return lees_edwards_displacement(R[j] - R[i], box, strain * box[1])
 
 

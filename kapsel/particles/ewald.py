@@ -273,7 +273,7 @@ def _reciprocal_owned(R, mu, own, queries, box, alpha, k_cut, reduce, chunk_byte
 def dipolar_ewald_owned(R, mu, own, queries, box, params: EwaldParameters, reduce,
                         epsilon_surface: float = np.inf, strain: float = 0.0):
     """(F, E) of the first ``queries`` dipoles of a rank's sources (R, mu) in a distributed
-    run (kapsel.parallel.particles): ``own`` (bool, len(R)) marks the sources this rank
+    run (kapsel.particles.ownership): ``own`` (bool, len(R)) marks the sources this rank
     accounts for (each source is own on exactly one rank), the others are ghosts, present
     wherever they lie within r_cut of a queried dipole.  The real-space sum runs over the
     rank's sources, the reciprocal one over the structure sums of every rank's own sources

@@ -318,7 +318,7 @@ class RigidBodies:
         s.R_raw += dR
         s.R += dR
         if self.lees_edwards is not None:
-            from ..fluid.oblique import lees_edwards_wrap
+            from ..frame import lees_edwards_wrap
             fl = self.lees_edwards
             lees_edwards_wrap(s.R, s.v, fl.frame_box, fl.image_offset, fl.shear_rate_now,
                               s.v_old)
@@ -381,7 +381,7 @@ class RigidBodies:
         return p
 
     # ------------------------------------------------------------------ distributed
-    # a distributed run (kapsel.parallel.particles, kapsel.particles.spm ``_own``): a body
+    # a distributed run (kapsel.particles.ownership, kapsel.particles.spm ``_own``): a body
     # is owned, with all its beads, by the rank owning its first bead; each bead's record
     # carries the state of its body (BODY_FIELDS) and its Lees-Edwards image count
     BODY_FIELDS = tuple((name, 3) for name in VECTOR_FIELDS) + (("q", 4), ("q_old", 4))
@@ -536,7 +536,7 @@ class RigidBodies:
         s.omega_old[:] = p.omega_old[first]
         cnt = np.bincount(b, m, minlength=nb)[:, None]
         if self.lees_edwards is not None:     # centre from the first bead, through the images
-            from ..fluid.oblique import lees_edwards_wrap
+            from ..frame import lees_edwards_wrap
             fl = self.lees_edwards
             X = p.R[first] - self.offsets()[first]
             lees_edwards_wrap(X, np.zeros_like(X), fl.frame_box, fl.image_offset, 0.0)

@@ -50,7 +50,7 @@ fluid's changes cancel up to the change of the grid volume V_p,i = DX^3 sum_x w_
 the positions of two steps (a sub-grid effect, ~0.1 % of V_p for A = 4, A_XI = 2) and the
 first moment sum_x w_i r of the profiles (``total_momentum``).
 
-Distributed runs (kapsel.parallel.particles): every rank moves the particles it owns, sends
+Distributed runs (kapsel.particles.ownership): every rank moves the particles it owns, sends
 them to the ranks that hold them after the move, builds the profiles of its table's
 particles on its block, and sums the coupling of the ghosts to their owners; the same step.
 A Lees-Edwards run couples on the rectangular grid there too: the layout re-grids the
@@ -65,6 +65,7 @@ from .coupling import (clear_points, hydro_force_torque, particle_velocity_field
                        rigidity_increment, sample)
 from . import motion as _free_motion
 from .interactions import as_forces
+from .ownership import owned_table
 from .profile import Stencil, lees_edwards_profiles, particle_profiles, total_phi
 
 __all__ = ["SPM"]
@@ -109,7 +110,7 @@ class SPM:
         else:
             raise TypeError("fluid must be a SpectralNS or a MACSolver")
         self.size = int(np.prod(self.shape))
-        # the fluid's layout (kapsel.grid.Grid; distributed, kapsel.parallel.pencil: this
+        # the fluid's layout (kapsel.mesh.grid.Grid; distributed, kapsel.mesh.pencil: this
         # rank's block of the fields)
         g = self.layout = fluid.grid
         if wall is not None and not g.whole_mesh:
@@ -168,7 +169,7 @@ class SPM:
             raise ValueError("squirmers need the spectral (rectangular) fluid")
         # the layout's particle table (``owned``): particles owned by the rank holding their
         # stencil's base point (rigid bodies: that of their first bead), with ghosts
-        # (kapsel.parallel.particles); on one process every row, no ghosts (kapsel.grid
+        # (kapsel.particles.ownership); on one process every row, no ghosts (kapsel.mesh.grid
         # WholeTable)
         self.owned = None
         self._bodies = None
@@ -280,7 +281,7 @@ class SPM:
     # ------------------------------------------------------------------ owned particles
     def _own(self, whole):
         """Keep this rank's owned particles and ghosts of the whole table ``whole`` (the
-        model's, the same on every rank at the start; kapsel.parallel.particles; on one
+        model's, the same on every rank at the start; kapsel.particles.ownership; on one
         process all of it).  ``self.p`` is then the local table, owned rows first."""
         from .rigid import RigidBodies
         f = self.forces
@@ -298,8 +299,8 @@ class SPM:
             bodies, width, extra = (b.body, b.first_beads()), b.RECORD_WIDTH, b.bead_records()
             if cutoff > 0:
                 cutoff += b.span()
-        self.owned = self.layout.owned_table(self.stencil.offsets, self.dx, cutoff, images,
-                                             bodies=bodies, extra_width=width)
+        self.owned = owned_table(self.layout, self.stencil.offsets, self.dx, cutoff, images,
+                                 bodies=bodies, extra_width=width)
         self.whole = whole
         self.n_global = whole.n
         self._janus_whole = getattr(whole, "janus", None)   # janus.Janus of all, or None
@@ -340,7 +341,7 @@ class SPM:
         return self.p_own
 
     def _exchange(self):
-        """Migration and new halos (kapsel.parallel.particles ``exchange``); the whole
+        """Migration and new halos (kapsel.particles.ownership ``exchange``); the whole
         table's rows are dropped on the ranks other than 0 from the first step on (a
         restart read before fills them on every rank)."""
         if not self._released:

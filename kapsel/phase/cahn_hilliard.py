@@ -80,17 +80,18 @@ from scipy.sparse.linalg import LinearOperator
 
 from .potentials import make_potential
 
-from ..fluid import operators as ops
-from ..grid import Grid
-from ..parallel.halo import Halo
-from ..linalg import SolverDidNotConverge, UnstableTimeStep, solve_correction  # noqa: F401
+from ..mesh import operators as ops
+from ..mesh.grid import Grid
+from ..mesh.halo import Halo
+from ..errors import SolverDidNotConverge, UnstableTimeStep  # noqa: F401
+from ..mesh.linalg import solve_correction  # noqa: F401
 
 __all__ = ["CahnHilliard", "chemical_potential", "free_energy", "capillary_force",
            "discrete_k2", "div_coef_grad", "neutral_value", "wetting_angle", "SolverDidNotConverge", "UnstableTimeStep"]
 
 
 # --------------------------------------------------------------------------- FD helpers
-# (the periodic shifts and the 7-point Laplacian are the MAC solver's: kapsel.fluid.operators)
+# (the periodic shifts and the 7-point Laplacian are the MAC solver's: kapsel.mesh.operators)
 def _lap(f, dx, out):
     """7-point Laplacian (out must not alias f)."""
     return ops.laplacian(f, dx, out)
@@ -267,8 +268,8 @@ class CahnHilliard:
     constant-coefficient part c0 + dt kappa alpha K^4); ``threads`` for the FFTs.
 
     ``layout``: the mesh's layout, which gives the shape and the spacing DX
-    (kapsel.grid.Grid(shape, dx) for one process; a rank's block:
-    kapsel.parallel.pencil.PencilGrid, docs/distributed.md).  ``shape`` is then the block,
+    (kapsel.mesh.grid.Grid(shape, dx) for one process; a rank's block:
+    kapsel.mesh.pencil.PencilGrid, docs/distributed.md).  ``shape`` is then the block,
     ``global_shape`` the mesh; the stencils run on the block widened by the halo (one
     layer; the implicit operator by two in one exchange, ``halo2``, when the blocks are
     thick enough), sums, means and maxima are over the ranks in a fixed order, BiCGSTAB

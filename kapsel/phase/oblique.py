@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..fluid.oblique import contravariant, oblique_gradient, oblique_laplacian
-from ..parallel.halo import WholeFields
+from ..mesh.oblique import contravariant, oblique_gradient, oblique_laplacian
+from ..mesh.halo import WholeFields
 from .cahn_hilliard import CahnHilliard
 
 __all__ = ["ObliqueCahnHilliard", "make_oblique_cahn_hilliard"]

@@ -1,5 +1,5 @@
 """Run under mpiexec by tests/distributed/test_mpi_layout.py: the distributed layout's pieces of a
-Lees-Edwards run (kapsel.parallel.pencil.PencilGrid) against the one-process functions.
+Lees-Edwards run (kapsel.mesh.pencil.PencilGrid) against the one-process functions.
 
     mpiexec -n P python mpi_layout_probe.py PX PY
 
@@ -10,7 +10,7 @@ Checks on every rank (failures raise, which ends every rank):
 * ``near_rows`` with Lees-Edwards images holds every particle with a point of its
   rectangular-grid profile stencil (kapsel.particles.profile.lees_edwards_profiles) on the
   block, and only particles whose stencil box meets it;
-* the particle table's halos under Lees-Edwards images (kapsel.parallel.particles.Owned
+* the particle table's halos under Lees-Edwards images (kapsel.particles.ownership.Owned
   ``destinations``): every particle whose profile stencil has a point on a rank's block,
   and every pair partner (Lees-Edwards minimum image within the cutoff) of a particle the
   rank owns, goes to that rank;
@@ -24,8 +24,8 @@ import numpy as np
 def main():
     from mpi4py import MPI
 
-    from kapsel.fluid.oblique import to_oblique, to_rectangular
-    from kapsel.parallel.pencil import PencilGrid
+    from kapsel.mesh.regrid import to_oblique, to_rectangular
+    from kapsel.mesh.pencil import PencilGrid
     from kapsel.particles.profile import Stencil, lees_edwards_profiles
     px, py = int(sys.argv[1]), int(sys.argv[2])
     comm = MPI.COMM_WORLD
@@ -80,8 +80,8 @@ def main():
             ("a row whose stencil box misses the block", offset)
         excluded += n - len(T)
         # the halos of the particle table: every rank's stencils and pair partners
-        from kapsel.fluid.oblique import lees_edwards_displacement
-        from kapsel.parallel.particles import Owned
+        from kapsel.frame import lees_edwards_displacement
+        from kapsel.particles.ownership import Owned
         me = comm.Get_rank()
         for cutoff in (0.0, 2.7):
             o = Owned(grid, st.offsets, dx, cutoff, images=lambda: offset)

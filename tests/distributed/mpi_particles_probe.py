@@ -1,6 +1,6 @@
 """Run under mpiexec by tests/distributed/test_mpi_particles.py: build the model of ``input.udf`` in the
 current directory as ``kapsel-py`` does (kapsel.cli.prepare), advance it ``steps`` steps and
-check after every step that the particles are owned by ranks as kapsel.parallel.particles
+check after every step that the particles are owned by ranks as kapsel.particles.ownership
 says; writes probe.npz (rank 0) with the gathered final particle table and the statistics.
 
     mpiexec -n P python mpi_particles_probe.py STEPS [-X px -Y py]

@@ -1,4 +1,4 @@
-"""Particles owned by ranks in distributed runs (kapsel.parallel.particles,
+"""Particles owned by ranks in distributed runs (kapsel.particles.ownership,
 docs/distributed.md): each particle is owned by the rank whose block holds its stencil's base
 point, the other ranks that need it (its profile meets their block, or it is a pair partner
 of one of their particles) hold a ghost copy; particles migrate between ranks; the runs agree

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from kapsel import typespec
-from kapsel.grid import Grid
+from kapsel.mesh.grid import Grid
 from kapsel.fluid import diagnostics as dg
 
 from builders import CROP, extended_input, run_dt, vtk_at, vtk_reader
@@ -304,9 +304,10 @@ def test_a_cut_frame_is_dropped_on_continuing(tmp_path):
 def test_mac_projection_pressure_balances_a_gradient_force():
     """The FDM pressure adds RHO/dt phi for the particles' increment du: for du = dt/RHO G q
     (a pure B-grid gradient force) that part is q itself (zero mean), in both frames."""
-    from kapsel.fluid import operators as op
+    from kapsel.mesh import operators as op
     from kapsel.fluid.mac import MACSolver
-    from kapsel.fluid.oblique import ObliqueMAC, ShearFlow
+    from kapsel.fluid.oblique import ObliqueMAC
+    from kapsel.frame import ShearFlow
     n, dx, rho, dt = 8, 1.0, 1.3, 0.05
     rng = np.random.default_rng(1)
     q = rng.standard_normal((n, n, n))

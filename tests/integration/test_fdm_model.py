@@ -139,7 +139,7 @@ def test_capillary_force_explicit_enters_the_ab2_once(tmp_path):
     holds the raw F^n (Set_poisson_rhs_ps).  (Combining F before the MAC step extrapolated
     it twice: 17 % more velocity than the original's at the third step of two wetted
     spheres, bench/parity.py.)  No share of F is moved onto the particles."""
-    from kapsel.fluid.operators import advection_nc
+    from kapsel.mesh.operators import advection_nc
     cfg = config.load(fdm_sample(tmp_path, particles=2, manual_dt=0.05))
     m = FDMModel(cfg, Args())
     raw, adv = [], []

@@ -190,8 +190,8 @@ def test_user_shapes_are_checked_by_their_extent(tmp_path):
 # ---- 8. long set-ups talk, cheap checks first -------------------------------------------
 def test_a_slow_setup_says_what_it_builds(tmp_path, monkeypatch, capsys):
     import time
-    from kapsel import simulation
-    monkeypatch.setitem(simulation.SOLVERS, "Navier_Stokes_Cahn_Hilliard_FDM",
+    from kapsel import typespec
+    monkeypatch.setitem(typespec.SOLVERS, "Navier_Stokes_Cahn_Hilliard_FDM",
                         lambda cfg, args, doc: time.sleep(2.6) or "model")
     cfg, doc, _ = cli.validate(sample_copy(tmp_path))
     args = type("A", (), {"quiet": False, "input": "input.udf"})()

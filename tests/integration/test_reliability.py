@@ -264,7 +264,7 @@ def test_6_low_address_space_limit_is_one_line(tmp_path, kib):
 
 def test_6_memory_error_at_set_up_and_at_the_last_restart(tmp_path, monkeypatch, capsys):
     from kapsel.io import restart
-    import kapsel.simulation as sim
+    import kapsel.typespec as sim
     d = small(tmp_path, gts=2, nsnap=2)
     monkeypatch.chdir(d)
     args = ["-Iinput.udf", "-Ooutput.udf", "-Ddefine.udf", "-Rrestart.udf", "--quiet",

@@ -13,7 +13,7 @@ import pytest
 
 from kapsel import config, models, typespec  # noqa: F401  (registers the types)
 from kapsel.io.restart import read_restart, state_path, unpack_zeta
-from kapsel.simulation import SOLVERS
+from kapsel.typespec import SOLVERS
 from udf import UDFManager
 
 from builders import cli, copy_schema, make_input, run_cli, scene as make_scene, TESTS

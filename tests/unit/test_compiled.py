@@ -1,11 +1,11 @@
-"""The compiled kernels (kapsel.fluid.compiled) change no bit of a run: a run that switches to them
+"""The compiled kernels (kapsel.mesh.compiled) change no bit of a run: a run that switches to them
 mid-way (as the time loop does at step 10) ends in the same state as one on numpy passes."""
 import numpy as np
 import pytest
 
 from kapsel import config
-from kapsel.fluid import compiled
-from kapsel.simulation import SOLVERS
+from kapsel.mesh import compiled
+from kapsel.typespec import SOLVERS
 from udf import UDFManager
 
 from builders import Args, fdm_sample
@@ -56,9 +56,9 @@ def test_want_policy(monkeypatch):
 @pytest.mark.parametrize("method", ["linear", "spline"])
 @pytest.mark.parametrize("rows", [None, slice(3, 9)])
 def test_compiled_row_shifts_are_bit_identical(method, rows, compiled_kernels):
-    """kapsel.regrid.shift_rows by the compiled kernels gives the numpy passes' bits, for
+    """kapsel.mesh.regrid.shift_rows by the compiled kernels gives the numpy passes' bits, for
     vector and scalar fields, negative and non-integer shifts, and a block of x rows."""
-    from kapsel import regrid
+    from kapsel.mesh import regrid
     rng = np.random.default_rng(4)
     f = rng.standard_normal((3, 12, 10, 6))
     shift = 2.7 * (np.arange(10) - 4.5)
@@ -79,7 +79,7 @@ def test_compiled_row_shifts_are_bit_identical(method, rows, compiled_kernels):
 def test_compiled_spline_coefficients_are_scipys(shape):
     """The compiled periodic cubic B-spline prefilter gives scipy.ndimage's bits."""
     from scipy.ndimage import spline_filter1d
-    from kapsel import regrid_kernels
+    from kapsel.mesh import regrid_kernels
     f = np.random.default_rng(7).standard_normal(shape)
     c = np.empty_like(f)
     regrid_kernels.spline_coefficients(f, c)

@@ -96,17 +96,17 @@ def test_cli_unknown_select_choice(tmp_path):
 
 
 def test_cli_unimplemented_type_is_named(tmp_path, monkeypatch):
-    from kapsel import models, simulation  # noqa: F401  (register the types first)
-    monkeypatch.setattr(simulation, "SOLVERS", {})
+    from kapsel import models, typespec  # noqa: F401  (register the types first)
+    monkeypatch.setattr(typespec, "SOLVERS", {})
     path = sample_copy(tmp_path)
     code = cli.main([f"-I{path}", "-D", str(tmp_path / "define.udf")])
     assert code == 2
 
 
 def test_cli_flags_with_and_without_space(tmp_path, capsys, monkeypatch):
-    from kapsel import models, simulation  # noqa: F401  (registered before the stub)
+    from kapsel import models, typespec  # noqa: F401  (registered before the stub)
     seen = {}
-    monkeypatch.setitem(simulation.SOLVERS, "Navier_Stokes_Cahn_Hilliard_FDM",
+    monkeypatch.setitem(typespec.SOLVERS, "Navier_Stokes_Cahn_Hilliard_FDM",
                         lambda cfg, args, doc: seen.setdefault("args", args))
     monkeypatch.setattr(cli, "run_to_end", lambda args, prepared: 0)
     monkeypatch.setattr("kapsel.io.writers.check_output", lambda cfg, model: None)

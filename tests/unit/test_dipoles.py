@@ -202,7 +202,7 @@ def test_quincke_needs_one_bead_bodies(tmp_path):
 
 
 def _model(path, eq=None):
-    from kapsel.simulation import SOLVERS  # noqa: F401  (registers the models)
+    from kapsel.typespec import SOLVERS  # noqa: F401  (registers the models)
     cfg = config.load(path)
     if cfg.type == "Navier_Stokes":
         from kapsel.models.spectral import SpectralModel
@@ -277,7 +277,7 @@ def test_dipoles_under_lees_edwards_sum_the_sheared_lattice(tmp_path, eq):
     strained) the particles' forces and torques are the Ewald sum over the sheared lattice at
     the model's strain (kapsel.particles.ewald, strain != 0), not the unsheared one."""
     from kapsel import models  # noqa: F401  (registers the types)
-    from kapsel.simulation import SOLVERS
+    from kapsel.typespec import SOLVERS
     path = nowall_input(tmp_path, switch__quincke__type="OFF", switch__free_rigid__type="NO",
                    object_type__type="spherical_particle", constitutive_eq__type=eq,
                    switch__multipole__ON__Dipole__ON__type="FIXED", gravity__G=0.0, EPSILON=0.0,
@@ -369,7 +369,7 @@ def test_quincke_rollers_under_lees_edwards_keep_their_constraint(tmp_path):
     to 0.13 in 120 steps, t = 7.2), while without it the axes stay out of that plane (0.61).
     16^3, 2 x 120 steps."""
     from kapsel import models  # noqa: F401  (registers the types)
-    from kapsel.simulation import SOLVERS
+    from kapsel.typespec import SOLVERS
     eq = "Shear_Navier_Stokes_Lees_Edwards"
     end = {}
     for on in ("ON", "OFF"):

@@ -238,7 +238,7 @@ def test_sheared_lattice_forces_fields_and_the_bare_law():
 def test_owned_sum_of_two_ranks_is_the_serial_sum(strain, mirror):
     """The distributed Ewald sum (kapsel.particles.dipoles ``dipole_forces_owned``) of two
     "ranks" splitting a 64 x 32 x 32 box at x = 32 (in the oblique coordinate x - g y of a
-    sheared lattice, as kapsel.parallel.particles), each with its owned particles and the
+    sheared lattice, as kapsel.particles.ownership), each with its owned particles and the
     ghosts within r_cut (1 + |g|) of its half (a proper subset), the structure sums and total
     moment of the owned particles added over the ranks: forces and torques of every particle
     as the serial sum, to round-off (mirror images, Lees-Edwards lattice included)."""

@@ -7,7 +7,7 @@ import re
 
 import numpy as np
 
-from kapsel import simulation, typespec
+from kapsel import typespec
 from udf import UDFManager
 
 from builders import sample_input
@@ -58,7 +58,7 @@ def _run(d, monkeypatch, new_type):
                 fh.write(text)
         monkeypatch.setitem(typespec.TYPES, "Stokes_test",
                             typespec.TypeSpec("Stokes_test", "spectral"))
-        monkeypatch.setitem(simulation.SOLVERS, "Stokes_test", make_stokes_test)
+        monkeypatch.setitem(typespec.SOLVERS, "Stokes_test", make_stokes_test)
     sim = Simulation.from_udf(*(os.path.join(d, f) for f in
                                 ("input.udf", "output.udf", "define.udf", "restart.udf")),
                               seed=1, overrides={"output.GTS": 2, "output.Num_snap": 2})

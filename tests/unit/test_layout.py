@@ -1,10 +1,10 @@
-"""The layout of a run on one process (kapsel.grid.Grid): the sums, gathers, local blocks and
+"""The layout of a run on one process (kapsel.mesh.grid.Grid): the sums, gathers, local blocks and
 halos of kapsel.parallel are identities on it, its transforms solve on the whole mesh."""
 import numpy as np
 
-from kapsel.fluid import operators as op
-from kapsel.grid import Grid
-from kapsel.parallel.halo import Halo
+from kapsel.mesh import operators as op
+from kapsel.mesh.grid import Grid
+from kapsel.mesh.halo import Halo
 
 
 def test_one_process_reductions_and_blocks_are_identities():

@@ -4,7 +4,7 @@ Lees-Edwards minimum image."""
 import numpy as np
 import pytest
 
-from kapsel.fluid.oblique import lees_edwards_displacement
+from kapsel.frame import lees_edwards_displacement
 from kapsel.particles.profile import Stencil, g, lees_edwards_profiles
 
 

@@ -2,9 +2,10 @@
 import numpy as np
 import pytest
 
-from kapsel.grid import Grid
-from kapsel.fluid import operators as op
-from kapsel.fluid.mac import MACSolver, SolverDidNotConverge, UnstableTimeStep
+from kapsel.mesh.grid import Grid
+from kapsel.mesh import operators as op
+from kapsel.fluid.mac import MACSolver
+from kapsel.errors import SolverDidNotConverge, UnstableTimeStep
 
 SCHEMES = ["explicit_scheme", "implicit_scheme"]
 RHO, ETA = 1.0, 1.0
@@ -501,9 +502,9 @@ def test_stability_limit():
 
 @pytest.mark.parametrize("sh", [(5, 6, 7), (1, 16, 1), (2, 8, 2), (3, 4, 5)])
 def test_compiled_operators_bit_identical_to_numpy(sh, compiled_kernels):
-    """laplacian, advection, div_b, grad_b: the compiled sweeps (kapsel.fluid.stencils) give
+    """laplacian, advection, div_b, grad_b: the compiled sweeps (kapsel.mesh.stencils) give
     the numpy slice passes' results bit for bit, also where periodic neighbours coincide."""
-    from kapsel.fluid import operators as ops
+    from kapsel.mesh import operators as ops
     rng = np.random.default_rng(0)
     u = rng.standard_normal((3,) + sh)
     f = rng.standard_normal(sh)

@@ -1,9 +1,9 @@
-"""Pseudo-spectral NS solver (kapsel.fluid.spectral) and grid (kapsel.grid): fast tests."""
+"""Pseudo-spectral NS solver (kapsel.fluid.spectral) and grid (kapsel.mesh.grid): fast tests."""
 import numpy as np
 import pytest
 
 from kapsel.fluid.spectral import SpectralNS, phi1, phi2
-from kapsel.grid import Grid
+from kapsel.mesh.grid import Grid
 from kapsel.timestep import auto_dt
 
 from builders import TESTS
@@ -273,7 +273,7 @@ def test_deterministic_across_processes():
     import sys
     code = (
         "import sys, hashlib, numpy as np\n"
-        "from kapsel.grid import Grid\n"
+        "from kapsel.mesh.grid import Grid\n"
         "from kapsel.fluid.spectral import SpectralNS\n"
         "g = Grid((32, 32, 32), 1.0)\n"
         "ns = SpectralNS(g, 1.0, 1.0, 0.1)\n"
@@ -311,8 +311,8 @@ def test_compiled_step_bit_identical_to_numpy_passes(scheme, compiled_kernels):
 def test_auto_planner_measures_threaded_plans():
     """FFTW_ESTIMATE's threaded plans were 2x slower than one thread at 64^3 (so --threads 2
     was slower than 1): with threads the 'auto' planner measures, with one thread it keeps
-    the deterministic ESTIMATE up to 64^3 (kapsel.grid.auto_planner)."""
-    from kapsel.grid import Grid, auto_planner
+    the deterministic ESTIMATE up to 64^3 (kapsel.mesh.grid.auto_planner)."""
+    from kapsel.mesh.grid import Grid, auto_planner
     assert auto_planner(64 ** 3, 1) == "FFTW_ESTIMATE"
     assert auto_planner(64 ** 3, 2) == "FFTW_MEASURE"
     assert auto_planner(128 ** 3, 1) == "FFTW_MEASURE"

@@ -2,7 +2,7 @@
 import re
 
 from kapsel import typespec
-from kapsel.simulation import SOLVERS
+from kapsel.typespec import SOLVERS
 
 from builders import TESTS
 

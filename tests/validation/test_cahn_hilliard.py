@@ -7,9 +7,9 @@ import numpy as np
 import pytest
 
 from kapsel.config import PhaseField
-from kapsel.grid import Grid
-from kapsel.phase import (CahnHilliard, FloryHuggins, Landau, SolverDidNotConverge,
-                          UnstableTimeStep, capillary_force, chemical_potential, free_energy)
+from kapsel.mesh.grid import Grid
+from kapsel.phase import CahnHilliard, FloryHuggins, Landau, capillary_force, chemical_potential, free_energy
+from kapsel.errors import SolverDidNotConverge, UnstableTimeStep
 
 
 def params(scheme="explicit_scheme", potential="Landau", tol=1e-12, maxit=1000, **kw):

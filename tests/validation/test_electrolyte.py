@@ -9,7 +9,7 @@ import pytest
 from kapsel import config
 from kapsel.cli import main
 from kapsel.fluid.ions import Ions, bulk_densities
-from kapsel.grid import Grid
+from kapsel.mesh.grid import Grid
 from kapsel.io.restart import state_path
 from kapsel.particles.profile import Stencil, g as profile, particle_profiles
 from kapsel.timestep import auto_dt, electrolyte_dt

@@ -21,7 +21,7 @@ import numpy as np
 import pytest
 
 from kapsel.fluid.spectral import SpectralNS
-from kapsel.grid import Grid
+from kapsel.mesh.grid import Grid
 from kapsel.particles.forces import pair_forces
 from kapsel.particles.janus import Janus, JanusSpec
 from kapsel.particles.quaternion import from_axis_angle, rotate

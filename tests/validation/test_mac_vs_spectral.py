@@ -5,7 +5,7 @@ import pytest
 
 from kapsel.fluid.mac import MACSolver
 from kapsel.fluid.spectral import SpectralNS
-from kapsel.grid import Grid
+from kapsel.mesh.grid import Grid
 from kapsel.timestep import auto_dt
 
 from builders import copy_schema, TESTS

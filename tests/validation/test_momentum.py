@@ -19,7 +19,7 @@ import numpy as np
 import pytest
 
 from kapsel import config, models, typespec  # noqa: F401  (models register their types)
-from kapsel.simulation import SOLVERS
+from kapsel.typespec import SOLVERS
 from udf import UDFManager
 
 from builders import Args, exchanged_momentum, fdm_sample

@@ -352,13 +352,13 @@ def test_pair_forces_skip_the_beads_of_one_body():
 # ---------------------------------------------------------------- with the fluid
 def spectral(L, dt):
     from kapsel.fluid.spectral import SpectralNS
-    from kapsel.grid import Grid
+    from kapsel.mesh.grid import Grid
     return SpectralNS(Grid((L,) * 3, 1.0), 1.0, 1.0, dt, fix_cell=(True,) * 3)
 
 
 def mac(L, dt):
     from kapsel.fluid.mac import MACSolver
-    from kapsel.grid import Grid
+    from kapsel.mesh.grid import Grid
     return MACSolver(Grid((L,) * 3, 1.0), 1.0, 1.0, dt)
 
 

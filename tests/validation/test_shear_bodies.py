@@ -6,8 +6,9 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from kapsel.fluid.oblique import ObliqueSpectralNS, ShearFlow
-from kapsel.grid import Grid
+from kapsel.fluid.oblique import ObliqueSpectralNS
+from kapsel.frame import ShearFlow
+from kapsel.mesh.grid import Grid
 from kapsel.particles import chains
 from kapsel.particles import quaternion as quat
 from kapsel.particles.forces import pair_forces

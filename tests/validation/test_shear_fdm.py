@@ -5,8 +5,9 @@ import os
 import numpy as np
 import pytest
 
-from kapsel.fluid.oblique import ObliqueMAC, ShearFlow
-from kapsel.grid import Grid
+from kapsel.fluid.oblique import ObliqueMAC
+from kapsel.frame import ShearFlow
+from kapsel.mesh.grid import Grid
 
 from builders import build, fdm_input, LE_CH, LE_FDM, shear_cli, shearing_wave
 
@@ -263,7 +264,7 @@ def test_z_term_runs_in_the_sheared_ch_type(tmp_path):
     from types import SimpleNamespace
 
     from kapsel import config, models  # noqa: F401
-    from kapsel.simulation import SOLVERS
+    from kapsel.typespec import SOLVERS
     inp = fdm_input(tmp_path, eq=LE_CH, ch="implicit_scheme", particles=2, rate=0.05)
     cfg = config.load(inp)
     cfg = dataclasses.replace(cfg, phase=dataclasses.replace(cfg.phase, z=0.05))
@@ -289,7 +290,7 @@ def _phi_star_reference(m, xp):
     particle and of its images across y displaced by the frame's own degree_oblique g0
     (Relative_coord_check_stepover_Y), min(sum, 1), then to the oblique grid (A2a_oblique,
     linear)."""
-    from kapsel.fluid.oblique import to_oblique
+    from kapsel.mesh.regrid import to_oblique
     from kapsel.particles.profile import g as profile
     mac, spm = m.mac, m.spm
     L = spm.box

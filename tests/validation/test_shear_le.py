@@ -7,9 +7,10 @@ import os
 import numpy as np
 import pytest
 
-from kapsel.fluid.oblique import (ObliqueSpectralNS, ShearFlow, lees_edwards_displacement,
-                                  lees_edwards_wrap, shift_rows, to_oblique, to_rectangular)
-from kapsel.grid import Grid
+from kapsel.fluid.oblique import ObliqueSpectralNS
+from kapsel.frame import ShearFlow, lees_edwards_displacement, lees_edwards_wrap
+from kapsel.mesh.regrid import shift_rows, to_oblique, to_rectangular
+from kapsel.mesh.grid import Grid
 from kapsel.particles.forces import pair_forces
 from kapsel.particles.spm import SPM
 from kapsel.particles.state import ParticleState
@@ -252,7 +253,7 @@ def test_field_sources_do_not_depend_on_the_order_they_are_asked_in(tmp_path):
     """The snapshot's u, tau and pressure of a sheared run are the same whether the kinetic
     energy E (which adds the shear flow to a velocity field) is asked for before them or
     between them: the sources share one deviation field, which nothing else may change."""
-    from kapsel.parallel.pencil import Gathered
+    from kapsel.mesh.pencil import Gathered
 
     def fields(order):
         m = build(shear_input(tmp_path / "-".join(order), particles=2))

@@ -106,8 +106,9 @@ def test_oblique_spectral_state_truncated_every_step():
     """The Lees-Edwards spectral step starts from the 2/3-truncated state (as the original's
     Zeta_k2advection_k_OBL): a mode outside the band put in by add_solenoidal is gone after
     one step, not decaying by the viscous factor only."""
-    from kapsel.fluid.oblique import ObliqueSpectralNS, ShearFlow
-    from kapsel.grid import Grid
+    from kapsel.fluid.oblique import ObliqueSpectralNS
+    from kapsel.frame import ShearFlow
+    from kapsel.mesh.grid import Grid
     g = Grid((16, 16, 16))
     f = ObliqueSpectralNS(g, 1.0, 1.0, 0.05, ShearFlow("DC", 0.02))
     x = g.coordinates()[0]

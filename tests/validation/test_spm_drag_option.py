@@ -38,7 +38,7 @@ def test_profile_radius_and_its_range():
 def _hasimoto_ratio(profile, L=24, A=4.0, xi=2.0):
     """V / V_Hasimoto of a sphere pulled by F = (1, 0, 0), auto dt factor 1 at L^3."""
     from kapsel.fluid.spectral import SpectralNS
-    from kapsel.grid import Grid
+    from kapsel.mesh.grid import Grid
     from kapsel.particles.spm import SPM
     from kapsel.particles.state import ParticleState
     from kapsel.timestep import auto_dt

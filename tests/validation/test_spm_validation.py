@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from kapsel.particles.spm import SPM
-from kapsel.grid import Grid
+from kapsel.mesh.grid import Grid
 from kapsel.particles.state import ParticleState
 
 from builders import (_auto_dt, _spectral, _spheres, A, DT_FACTOR, exchanged_momentum,

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from kapsel import config
-from kapsel.grid import Grid
+from kapsel.mesh.grid import Grid
 from kapsel.config import PhaseField
 from kapsel.particles.profile import Stencil, particle_profiles, total_phi
 from kapsel.particles.walls import FlatWall
@@ -185,7 +185,7 @@ def _ex14_model(tmp_path, scheme, particles=0, surface=False):
     cfg = config.load(path)
     assert cfg.phase.ch_solver == scheme and cfg.switches.wall is not None
     from kapsel import models  # noqa: F401
-    from kapsel.simulation import SOLVERS
+    from kapsel.typespec import SOLVERS
     return SOLVERS[cfg.type](cfg, types.SimpleNamespace(seed=2, quiet=True, threads=1), None)
 
 

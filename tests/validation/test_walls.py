@@ -17,7 +17,7 @@ import pytest
 from kapsel import config
 from kapsel.fluid.mac import MACSolver
 from kapsel.fluid.spectral import SpectralNS
-from kapsel.grid import Grid
+from kapsel.mesh.grid import Grid
 from kapsel.models.fdm import _ModelH_SPM
 from kapsel.particles import forces as pf
 from kapsel.particles import quaternion as quat
@@ -226,7 +226,7 @@ def test_particles_settle_between_walls_in_a_run(tmp_path, eq):
     cfg = config.load(str(tmp_path / "in.udf"))
     args = types.SimpleNamespace(seed=3, quiet=True, threads=1)
     from kapsel import models  # noqa: F401
-    from kapsel.simulation import SOLVERS
+    from kapsel.typespec import SOLVERS
     model = SOLVERS[eq](cfg, args, None)
     p = model.particles
     assert p.n == 2 and np.all(p.R[:, 2] > 2 + 4) and np.all(p.R[:, 2] < 30 - 4)

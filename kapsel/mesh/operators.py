@@ -7,7 +7,7 @@ Scalars have shape (NX, NY, NZ), vectors (3, NX, NY, NZ), indexed [x, y, z]; flo
 All operators are whole-array numpy: periodic shifts are done with slice copies into
 caller-supplied ``out=`` / ``work=`` buffers (no ``np.roll`` temporaries, no loops over points).
 ``laplacian``, ``advection``, ``div_b`` and ``grad_b`` run as compiled single sweeps
-(kapsel.fluid.stencils, bit-identical) on C-contiguous float64 arrays once kapsel.fluid.compiled
+(kapsel.mesh.stencils, bit-identical) on C-contiguous float64 arrays once kapsel.mesh.compiled
 has loaded them.
 ``out`` must not alias the input.  Every operator but the original's non-conservative forms
 (``advection_nc*``, ``viscous_variable_nc``) is a difference of periodic fluxes, so its sum
@@ -120,7 +120,7 @@ def _buf(out, shape):
 
 
 def _compiled(*arrays):
-    """True when the compiled kernels (kapsel.fluid.stencils, bit-identical to the numpy
+    """True when the compiled kernels (kapsel.mesh.stencils, bit-identical to the numpy
     passes) take these arrays: float64, C-contiguous, 3 grid axes of at least 1 point."""
     return _c.stencils is not None and all(a.dtype == np.float64 and a.flags.c_contiguous
                                   for a in arrays)

@@ -2,7 +2,7 @@
 shifted along x by a y-dependent amount, periodic, ``linear`` (2 points) or ``spline``
 (periodic cubic B-spline), switch.ns_solver.OBL_INT (the original's Transform_obl_u,
 A2a_oblique, A_oblique2a).  The bottom of the discrete calculus: numpy and scipy only; the
-layouts (kapsel.grid, kapsel.parallel.pencil) and the oblique solvers (kapsel.fluid.oblique)
+layouts (kapsel.mesh.grid, kapsel.mesh.pencil) and the oblique solvers (kapsel.fluid.oblique)
 stand on it."""
 from __future__ import annotations
 
@@ -12,7 +12,7 @@ __all__ = ["INTERPOLATIONS", "shift_rows", "to_rectangular", "to_oblique"]
 
 INTERPOLATIONS = ("linear", "spline")
 
-#: kapsel.regrid_kernels once the compiled kernels are enabled (kapsel.fluid.compiled): the
+#: kapsel.mesh.regrid_kernels once the compiled kernels are enabled (kapsel.mesh.compiled): the
 #: same shifts in one pass, the same bits; None: the numpy passes below
 kernels = None
 

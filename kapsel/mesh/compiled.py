@@ -1,7 +1,7 @@
 """The compiled (numba) kernels, loaded on demand.
 
-``kapsel.fluid.spectral_kernels`` (fused spectral passes), ``kapsel.fluid.stencils`` (MAC
-stencils) and ``kapsel.regrid_kernels`` (the Lees-Edwards row shifts) are bit-identical to the numpy passes they replace, so a run may switch to them at
+``kapsel.fluid.spectral_kernels`` (fused spectral passes), ``kapsel.mesh.stencils`` (MAC
+stencils) and ``kapsel.mesh.regrid_kernels`` (the Lees-Edwards row shifts) are bit-identical to the numpy passes they replace, so a run may switch to them at
 any step without changing a single bit of its results.  What they cost is start-up: importing
 numba and loading the cached machine code takes about 0.65 s of CPU per process (0.2 s import,
 0.45 s to initialise numba's code generator on the first cached function; measured on the
@@ -17,13 +17,19 @@ sample (1 s), and it pays back only after some 30-150 steps (32^3-64^3).  Hence:
 """
 from __future__ import annotations
 
+import importlib
 import os
 
-spectral = None     # kapsel.fluid.spectral_kernels once enabled
-stencils = None     # kapsel.fluid.stencils once enabled
+spectral = None     # kapsel.fluid.spectral_kernels once enabled (kapsel.fluid.spectral provides it)
+stencils = None     # kapsel.mesh.stencils once enabled
 
 AFTER_STEPS = 10
 MIN_REMAINING = 50
+
+# slot -> the module of compiled kernels that fills it; a module with kernels of its own
+# names them with ``provide`` (the switch knows no module above kapsel.mesh)
+_PROVIDERS = {"stencils": __name__.rsplit(".", 1)[0] + ".stencils"}
+_enabled = False
 
 
 def mode() -> str:
@@ -31,30 +37,41 @@ def mode() -> str:
     return m if m in ("0", "1", "auto") else "auto"
 
 
+def provide(slot: str, module: str) -> None:
+    """``module`` (its dotted name) holds the compiled kernels of ``slot`` (this module's
+    attribute the numpy passes look at); loaded at once if the kernels are enabled."""
+    _PROVIDERS[slot] = module
+    if _enabled:
+        globals()[slot] = importlib.import_module(module)
+
+
 def enable() -> bool:
     """Load the compiled kernels (True), or leave the numpy passes if numba is missing or
     KAPSEL_PY_COMPILED=0 (False)."""
-    global spectral, stencils
-    if spectral is not None:
+    global _enabled
+    if _enabled:
         return True
     if mode() == "0":
         return False
     try:
-        from . import spectral_kernels, stencils as st
-        from .. import regrid, regrid_kernels
+        loaded = {slot: importlib.import_module(m) for slot, m in _PROVIDERS.items()}
+        from . import regrid, regrid_kernels
     except ImportError:     # pragma: no cover - numba missing
         return False
-    spectral, stencils = spectral_kernels, st
+    globals().update(loaded)
     regrid.kernels = regrid_kernels
+    _enabled = True
     return True
 
 
 def disable() -> None:
     """Back to the numpy passes (tests compare the two)."""
-    global spectral, stencils
-    from .. import regrid
-    spectral = stencils = None
+    global _enabled
+    from . import regrid
+    for slot in _PROVIDERS:
+        globals()[slot] = None
     regrid.kernels = None
+    _enabled = False
 
 
 def want(step_done: int, remaining: int) -> bool:

@@ -1,10 +1,10 @@
-"""The row shifts of kapsel.regrid in one compiled pass per field (numba).
+"""The row shifts of kapsel.mesh.regrid in one compiled pass per field (numba).
 
 ``shift_rows`` gathers each output point from 2 (linear) or 4 (cubic B-spline) points of its
 x row and weights them; numpy does that as whole-array index arithmetic, gathers and
 temporaries (four to eight passes over the field).  These kernels do the same floating-point
 operations in the same order, point by point: the results are bit-identical.  Loaded with the
-other compiled kernels (kapsel.fluid.compiled.enable sets ``kapsel.regrid.kernels``).
+other compiled kernels (kapsel.mesh.compiled.enable sets ``kapsel.mesh.regrid.kernels``).
 """
 from __future__ import annotations
 

@@ -1,6 +1,10 @@
 """Particles owned by ranks: ownership, halos, migration, reverse sums, gather.
 
-A particle is *owned* by the rank whose real-space block (kapsel.parallel.pencil: x split
+A layout names its particle table (``particle_table``; :func:`owned_table`): the whole mesh
+on one process (kapsel.mesh.grid.Grid) has a ``WholeTable``, whose every operation below is
+an identity; the ranks' blocks (kapsel.mesh.pencil.PencilGrid) have ``Owned``.
+
+A particle is *owned* by the rank whose real-space block (kapsel.mesh.pencil: x split
 over PX, y over PY, z whole) holds the base point of its profile stencil, floor(R / DX) (the
 particles couple on the rectangular grid, the Lees-Edwards types too: kapsel.particles.spm),
 so ownership is unambiguous.  Each rank holds its owned particles and *ghosts*: copies of
@@ -27,7 +31,7 @@ of the halo is widened by the largest distance of a bead from its body's first b
 (``span``), so the pair partners of every bead of a body reach the body's owner.
 
 The local table (one ``ParticleState``) keeps the owned rows first, in global-id order,
-then the ghosts by (owner, global id).  Per step (kapsel.particles.spm, ``SPM._step_owned``):
+then the ghosts by (owner, global id).  Per step (kapsel.particles.spm, ``SPM.step``):
 
 * ``reverse_sum``: the ghosts' partial coupling sums (force, torque over this rank's part
   of their stencils) go to their owners, which add the contributions of the ranks in rank
@@ -50,10 +54,11 @@ import math
 
 import numpy as np
 
-from ..particles.state import VECTOR_FIELDS, ParticleState
-from .pencil import block, stencil_meets
+from .state import VECTOR_FIELDS, ParticleState
+from ..mesh.pencil import block, stencil_meets
 
-__all__ = ["Owned", "COLUMNS", "pack", "unpack", "release", "restore"]
+__all__ = ["Owned", "WholeTable", "owned_table", "COLUMNS", "pack", "unpack", "release",
+           "restore"]
 
 COLUMNS = ([(name, 3) for name in VECTOR_FIELDS] + [("q", 4), ("q_old", 4)]
            + [("species", 1), ("radius", 1), ("mass", 1), ("inertia", 1)])
@@ -309,7 +314,7 @@ class Owned:
         if bodies is not None:
             return bodies.local(gid, self.extra[:n])
         if pins is not None:
-            from ..particles.motion import Pinned
+            from .motion import Pinned
             return Pinned(np.flatnonzero(np.isin(gid, pins.pin)),
                           np.flatnonzero(np.isin(gid, pins.pin_rot)))
         return None
@@ -391,3 +396,89 @@ class Owned:
         out = np.empty((len(gid), W - WIDTH))
         out[gid] = rec[:, WIDTH:]
         return out
+
+
+def owned_table(layout, offsets, dx, cutoff=0.0, images=None, bodies=None, extra_width=0):
+    """The particle table of ``layout`` (its ``particle_table``): ``offsets`` the profile
+    stencil's (S, 3) grid steps, ``cutoff`` the pair forces' range, ``images`` the
+    Lees-Edwards image shift, ``bodies`` (body of every bead, first beads) for rigid bodies
+    owned whole, ``extra_width`` their per-bead record columns."""
+    return TABLES[layout.particle_table](layout, offsets, dx, cutoff, images, bodies=bodies,
+                                         extra_width=extra_width)
+
+
+class WholeTable:
+    """The particle table of a run on one process, as kapsel.particles.ownership.Owned is a
+    rank's (same methods): every row is owned here, in global-id order, and there are no
+    ghosts, so the table is the whole table; migration, halos, reverse sums to the owners
+    and gathers are identities, the minima over the ranks are the local values, this
+    process's rows of a per-particle array (the thermal impulses) are all of them, and the
+    constraints and self-propulsion of the owned rows are the whole table's."""
+
+    me, P = 0, 1
+    partial = False         # the table is the whole one (its sums need no sum over ranks)
+
+    def __init__(self, layout=None, offsets=None, dx=None, cutoff=0.0, images=None,
+                 bodies=None, extra_width=0):
+        self.n_own = 0
+        self.gid = np.zeros(0, dtype=np.int64)
+        self._whole = None
+
+    def scatter(self, whole, constraints=None, extra=None):
+        """This process's table of the whole table: ``whole`` itself."""
+        self.n_own = whole.n
+        self.gid = np.arange(whole.n, dtype=np.int64)
+        self._whole = whole
+        return whole
+
+    def release(self, whole):
+        """The whole table stays whole (it is this process's own)."""
+
+    def exchange(self, p, constraints=None, extra=None):
+        """Migration and new halos after the move: none (``p`` itself)."""
+        return p
+
+    def owned_view(self, p):
+        """The owned rows of the table: all of them (``p``)."""
+        return p
+
+    def local_constraints(self, bodies, pins):
+        """The rigid bodies / pins of the owned rows: the whole table's constraints as they
+        are now (RigidBodies or motion.Pinned, None without)."""
+        return getattr(self._whole, "constraints", None)
+
+    def local_janus(self, janus):
+        """The self-propulsion (kapsel.particles.janus.Janus) of the table's rows: ``janus``."""
+        return janus
+
+    def own_rows(self, a):
+        """This process's rows of an array over all particles (N, ...): ``a``."""
+        return a
+
+    def reverse_sum(self, values):
+        """Totals of the owned rows of per-particle partial sums: ``values``."""
+        return values
+
+    def sum_to_owners(self, full, F, T):
+        """(F, T) of the coupled rows summed on their owners: (F, T) (``full``: the map of
+        the coupled rows onto the table, not needed)."""
+        return F, T
+
+    def refresh(self, *arrays) -> None:
+        """The owners' rows copied into the ghosts: there are none."""
+
+    def allmin(self, *x):
+        return tuple(float(v) for v in x)
+
+    def gather(self, p, whole, everyone=False, extra=None):
+        """The owned rows into the whole table: ``p`` is the whole table (nothing to do; the
+        rigid bodies' state is the whole table's: None)."""
+        return None
+
+    def other_forces(self, forces, p, reduce):
+        """(F, T) of the non-hydrodynamic forces of the owned rows: ``forces(p)``."""
+        res = forces(p)
+        return res[0], res[1]
+
+
+TABLES = {"whole": WholeTable, "blocks": Owned}

@@ -5,22 +5,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.sparse.linalg import LinearOperator, bicgstab
 
-from .grid import FourierDiagonal  # noqa: F401  (the FFT preconditioners, by their old name)
-
-
-class SolverDidNotConverge(RuntimeError):
-    """BiCGSTAB did not reach ``tolerance`` within ``maximum_iteration`` (manual table 2)."""
-
-    def __init__(self, iterations, residual, message=None, what="BiCGSTAB"):
-        self.iterations = int(iterations)
-        self.residual = float(residual)
-        super().__init__(message or (
-            "%s did not converge in %d iterations: relative residual %.3e; reduce the time "
-            "step or raise maximum_iteration" % (what, self.iterations, self.residual)))
-
-
-class UnstableTimeStep(ValueError):
-    """dt above an explicit scheme's stability limit."""
+from ..errors import SolverDidNotConverge
 
 
 def solve_correction(A, b, x0, tolerance, maximum_iteration, M=None, what="BiCGSTAB",

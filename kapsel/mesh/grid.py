@@ -44,7 +44,7 @@ try:  # pragma: no cover - import guard
 except ImportError:  # pragma: no cover
     pyfftw = None
 
-__all__ = ["FourierDiagonal", "Grid", "LazyPlan", "ScalarSolve", "WholeTable"]
+__all__ = ["FourierDiagonal", "Grid", "LazyPlan", "ScalarSolve"]
 
 
 class LazyPlan:
@@ -170,7 +170,7 @@ def _aligned_zeros(shape, dtype, align: int) -> np.ndarray:
 
 class Grid:
     """Mesh of shape (NX, NY, NZ) with spacing ``dx``, its wavenumbers and FFT plans; the
-    layout of a run on one process (kapsel.parallel.pencil.PencilGrid: over MPI ranks),
+    layout of a run on one process (kapsel.mesh.pencil.PencilGrid: over MPI ranks),
     whose sums, maxima, gathers and local blocks are identities.
 
     Attributes
@@ -208,7 +208,7 @@ class Grid:
         self.threads = max(1, int(threads))
         nx, ny, nz = self.shape
         self.cshape = (nx, ny, nz // 2 + 1)
-        # this process's part of the fields: all of them (kapsel.parallel.pencil: a block)
+        # this process's part of the fields: all of them (kapsel.mesh.pencil: a block)
         self.local_shape, self.local_cshape = self.shape, self.cshape
         self.real_range = tuple((0, n) for n in self.shape)
         self.spec_range = tuple((0, n) for n in self.cshape)
@@ -529,10 +529,9 @@ class Grid:
         """Sums over the ranks of per-particle arrays: ``arrays``."""
         return arrays
 
-    def owned_table(self, offsets, dx, cutoff=0.0, images=None, bodies=None, extra_width=0):
-        """The particles' layout (kapsel.parallel.particles.Owned on the ranks' blocks): on
-        one process a ``WholeTable``, every row owned here."""
-        return WholeTable()
+    # the particle table of this layout (kapsel.particles.ownership.TABLES): on one process
+    # the whole table, every row owned here
+    particle_table = "whole"
 
     def near_rows(self, R, offsets, dx, strain=0.0, origin=0.0, images=0.0):
         """The rows of the particles at ``R`` whose stencil (``offsets``, (S, 3) grid
@@ -566,12 +565,12 @@ class Grid:
 
     def to_rectangular(self, f, g, method="linear", origin=0.0):
         """This process's block of a field (c, NX, NY, NZ) of the oblique grid of strain g,
-        re-gridded onto the rectangular grid (kapsel.regrid.to_rectangular)."""
+        re-gridded onto the rectangular grid (kapsel.mesh.regrid.to_rectangular)."""
         from .regrid import to_rectangular
         return to_rectangular(f, g, method, origin)
 
     def to_oblique(self, f, g, method="linear", origin=0.0):
-        """The inverse re-gridding, rectangular -> oblique (kapsel.regrid.to_oblique)."""
+        """The inverse re-gridding, rectangular -> oblique (kapsel.mesh.regrid.to_oblique)."""
         from .regrid import to_oblique
         return to_oblique(f, g, method, origin)
 
@@ -641,84 +640,11 @@ class Grid:
     def auto_dt(self, factor, rho, eta):
         """Automatic time step (manual §5.5), ``kapsel.timestep.auto_dt`` on this mesh:
         dt = factor RHO / (ETA KMAX2) (FORMAT.md)."""
-        from .timestep import auto_dt
+        from ..timestep import auto_dt
         return auto_dt(factor, rho, eta, self.dx, self.shape)
 
     def __repr__(self):
         return f"Grid(shape={self.shape}, dx={self.dx}, threads={self.threads})"
-
-
-class WholeTable:
-    """The particle table of a run on one process, as kapsel.parallel.particles.Owned is a
-    rank's (same methods): every row is owned here, in global-id order, and there are no
-    ghosts, so the table is the whole table; migration, halos, reverse sums to the owners
-    and gathers are identities, the minima over the ranks are the local values, this
-    process's rows of a per-particle array (the thermal impulses) are all of them, and the
-    constraints and self-propulsion of the owned rows are the whole table's."""
-
-    me, P = 0, 1
-    partial = False         # the table is the whole one (its sums need no sum over ranks)
-
-    def __init__(self):
-        self.n_own = 0
-        self.gid = np.zeros(0, dtype=np.int64)
-        self._whole = None
-
-    def scatter(self, whole, constraints=None, extra=None):
-        """This process's table of the whole table: ``whole`` itself."""
-        self.n_own = whole.n
-        self.gid = np.arange(whole.n, dtype=np.int64)
-        self._whole = whole
-        return whole
-
-    def release(self, whole):
-        """The whole table stays whole (it is this process's own)."""
-
-    def exchange(self, p, constraints=None, extra=None):
-        """Migration and new halos after the move: none (``p`` itself)."""
-        return p
-
-    def owned_view(self, p):
-        """The owned rows of the table: all of them (``p``)."""
-        return p
-
-    def local_constraints(self, bodies, pins):
-        """The rigid bodies / pins of the owned rows: the whole table's constraints as they
-        are now (RigidBodies or motion.Pinned, None without)."""
-        return getattr(self._whole, "constraints", None)
-
-    def local_janus(self, janus):
-        """The self-propulsion (kapsel.particles.janus.Janus) of the table's rows: ``janus``."""
-        return janus
-
-    def own_rows(self, a):
-        """This process's rows of an array over all particles (N, ...): ``a``."""
-        return a
-
-    def reverse_sum(self, values):
-        """Totals of the owned rows of per-particle partial sums: ``values``."""
-        return values
-
-    def sum_to_owners(self, full, F, T):
-        """(F, T) of the coupled rows summed on their owners: (F, T) (``full``: the map of
-        the coupled rows onto the table, not needed)."""
-        return F, T
-
-    def refresh(self, *arrays) -> None:
-        """The owners' rows copied into the ghosts: there are none."""
-
-    def allmin(self, *x):
-        return tuple(float(v) for v in x)
-
-    def gather(self, p, whole, everyone=False, extra=None):
-        """The owned rows into the whole table: ``p`` is the whole table (nothing to do; the
-        rigid bodies' state is the whole table's: None)."""
-        return None
-
-    def other_forces(self, forces, p, reduce):
-        """(F, T) of the non-hydrodynamic forces of the owned rows: ``forces(p)``."""
-        res = forces(p)
-        return res[0], res[1]
 
 
 def _measure_planners(shapes=((32, 32, 32), (64, 64, 64)), repeat=20):  # pragma: no cover

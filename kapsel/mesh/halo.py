@@ -1,5 +1,5 @@
 """Halo exchange of real-space blocks: the stencils of the finite-difference types on a
-distributed grid (kapsel.parallel.pencil.PencilGrid: x split over px ranks, y over py, z
+distributed grid (kapsel.mesh.pencil.PencilGrid: x split over px ranks, y over py, z
 whole).
 
 ``Halo(grid, width).pad(a)`` returns the block ``a`` (..., nx, ny, nz) widened by ``width``
@@ -7,9 +7,9 @@ ghost layers on both sides of every split direction, filled from the periodic ne
 ranks: x first (MPI_Sendrecv with the left and right ranks of the column, preallocated
 contiguous buffers), then y on the x-widened array, so that the corner ghosts come along.
 A direction held by one rank is not widened: the periodic kernels wrap it locally, so on
-one process (kapsel.grid.Grid, px = py = 1) ``pad`` and ``keep`` are identities.
+one process (kapsel.mesh.grid.Grid, px = py = 1) ``pad`` and ``keep`` are identities.
 
-The stencil operators of the serial solvers (kapsel.fluid.stencils, kapsel.fluid.operators:
+The stencil operators of the serial solvers (kapsel.mesh.stencils, kapsel.mesh.operators:
 periodic by index wrap or shifted copies) then run unchanged on the padded block and
 ``interior`` keeps the block's points: a point within ``width`` of the block's edge sees the
 neighbour's values where the serial run sees them, so for operators of reach <= width the

@@ -1,6 +1,6 @@
-"""Pencil-decomposed real-to-complex FFTs over MPI: the distributed ``kapsel.grid.Grid``.
+"""Pencil-decomposed real-to-complex FFTs over MPI: the distributed ``kapsel.mesh.grid.Grid``.
 
-Layout (fields indexed [x, y, z], z fastest, as in kapsel.grid), on a px x py process grid
+Layout (fields indexed [x, y, z], z fastest, as in kapsel.mesh.grid), on a px x py process grid
 (the original's ``-X px -Y py``; rank = cx py + cy):
 
     real space      (NX / px, NY / py, NZ)      x split over px, y over py, z whole
@@ -33,7 +33,7 @@ import math
 import numpy as np
 import pyfftw
 
-from ..grid import Grid, auto_planner
+from .grid import Grid, auto_planner
 
 __all__ = ["Gathered", "PencilDiagonal", "PencilGrid", "PencilScalarSolve", "block",
            "stencil_meets"]
@@ -257,7 +257,7 @@ class _Pipeline:
 
 
 class PencilScalarSolve:
-    """``kapsel.grid.ScalarSolve`` on a distributed grid: this rank's block in ``rhs``, the
+    """``kapsel.mesh.grid.ScalarSolve`` on a distributed grid: this rank's block in ``rhs``, the
     symbol cut to this rank's Fourier block with the c2r's 1/N folded in (``symbol``), the
     pencil FFTs."""
 
@@ -279,7 +279,7 @@ class PencilScalarSolve:
 
 
 class PencilDiagonal:
-    """``kapsel.linalg.FourierDiagonal`` on a distributed grid: v -> FFT^-1[m(k) FFT(v)] for
+    """``kapsel.mesh.linalg.FourierDiagonal`` on a distributed grid: v -> FFT^-1[m(k) FFT(v)] for
     v holding one or more fields of this rank's block (flattened), ``m`` on this rank's
     Fourier block (``local=True``) or on the whole half spectrum (NX, NY, NZ//2 + 1)."""
 
@@ -306,7 +306,7 @@ class PencilDiagonal:
 
 
 class PencilGrid(Grid):
-    """``kapsel.grid.Grid`` distributed over ``comm`` on a px x py process grid (module
+    """``kapsel.mesh.grid.Grid`` distributed over ``comm`` on a px x py process grid (module
     docstring).  ``shape``, ``size``, ``box`` are global; arrays (``empty_real``,
     ``empty_complex``, ``kx`` ... ``dealias``) are this rank's blocks; ``forward`` /
     ``backward`` are collective (every rank calls them in the same order)."""
@@ -445,12 +445,9 @@ class PencilGrid(Grid):
         self.comm.Allgather(v, buf)
         return [float(sum(col)) for col in buf.T.tolist()]
 
-    def owned_table(self, offsets, dx, cutoff=0.0, images=None, bodies=None, extra_width=0):
-        """The particles owned by the ranks of this layout, with their ghosts
-        (kapsel.parallel.particles.Owned)."""
-        from .particles import Owned
-        return Owned(self, offsets, dx, cutoff, images, bodies=bodies,
-                     extra_width=extra_width)
+    # the particle table of this layout (kapsel.particles.ownership.TABLES): the particles
+    # owned by the ranks' blocks, with their ghosts
+    particle_table = "blocks"
 
     def near_rows(self, R, offsets, dx, strain=0.0, origin=0.0, images=0.0):
         """The rows of the particles at ``R`` whose stencil (``offsets``, (S, 3) grid
@@ -514,7 +511,7 @@ class PencilGrid(Grid):
 
     def dots(self, *pairs) -> list:
         """The dot products a.b of pairs of local blocks, summed over the ranks (``sums``):
-        the Krylov solver's (kapsel.linalg.bicgstab_dot)."""
+        the Krylov solver's (kapsel.mesh.linalg.bicgstab_dot)."""
         return self.sums([float(np.dot(a, b)) for a, b in pairs])
 
     def scalar_solver(self, threads=1, backend=None):
@@ -557,19 +554,19 @@ class PencilGrid(Grid):
 
     def to_rectangular(self, f, g, method="linear", origin=0.0):
         """This rank's block of a field (c, NX, NY, NZ) of the oblique grid of strain g
-        re-gridded onto the rectangular grid: kapsel.regrid.to_rectangular of the
+        re-gridded onto the rectangular grid: kapsel.mesh.regrid.to_rectangular of the
         whole field, cut to the block (the same bits).  The x shift of a row needs the whole
         row: each component's blocks of this rank's column (comm_x) are gathered along x
         (one (NX, NY / py, NZ) slab at a time), shifted and cut to the block again."""
         return self._shift_rows(f, g * (np.arange(self.shape[1]) - origin), method)
 
     def to_oblique(self, f, g, method="linear", origin=0.0):
-        """The inverse re-gridding, rectangular -> oblique (kapsel.regrid.to_oblique),
+        """The inverse re-gridding, rectangular -> oblique (kapsel.mesh.regrid.to_oblique),
         as ``to_rectangular``."""
         return self._shift_rows(f, -g * (np.arange(self.shape[1]) - origin), method)
 
     def _shift_rows(self, f, shift, method):
-        from ..regrid import shift_rows
+        from .regrid import shift_rows
         f = np.asarray(f, dtype=float)
         if f.ndim == 4:
             return np.stack([self._shift_rows(c, shift, method) for c in f])

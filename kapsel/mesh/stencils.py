@@ -1,10 +1,10 @@
-"""Compiled (numba) stencil kernels of the MAC solver (kapsel.fluid.mac, kapsel.fluid.operators).
+"""Compiled (numba) stencil kernels of the MAC solver (kapsel.fluid.mac, kapsel.mesh.operators).
 
 One sweep over the grid per operator, periodic neighbours by index wrap, no shifted copies:
-the numpy versions in kapsel.fluid.operators make 10-60 whole-field slice copies per call.
+the numpy versions in kapsel.mesh.operators make 10-60 whole-field slice copies per call.
 Every kernel does the same floating-point operations in the same order as the code it
 replaces, so results are bit-identical (tests/unit/test_mac.py).  ``cache=True``: compiled once
-per machine, kept in __pycache__; loaded on demand by kapsel.fluid.compiled.
+per machine, kept in __pycache__; loaded on demand by kapsel.mesh.compiled.
 """
 from __future__ import annotations
 
