@@ -71,6 +71,12 @@ SCENES = {
     "el64": ("Electrolyte 64^3, 8 particles (salt, Z -10)", dict(
         _ns(6, 8, 4.0, "Electrolyte"),
         **{f"{SP}.Surface_charge": -10.0, "constitutive_eq.Electrolyte.kBT": 1.0}), 200, 20),
+    "sns64": ("Shear_Navier_Stokes (zigzag) 64^3, 8 particles",
+              _ns(6, 8, 4.0, "Shear_Navier_Stokes"), 200, 20),
+    "lef64": ("Shear_Navier_Stokes_Lees_Edwards_FDM 64^3, 8 particles (DC 0.01)",
+              _ns(6, 8, 4.0, "Shear_Navier_Stokes_Lees_Edwards_FDM"), 200, 20),
+    "lech64": ("Shear_NS_LE_CH_FDM 64^3, 8 particles (DC 0.01)",
+               _ns(6, 8, 4.0, "Shear_NS_LE_CH_FDM"), 200, 20),
     "sns128x1000": ("Shear_Navier_Stokes (zigzag) 128^3, 1000 particles (A 2)",
                     _ns(7, 1000, 2.0, "Shear_Navier_Stokes"), 20, 10),
     "le128x1000": ("Shear_Navier_Stokes_Lees_Edwards 128^3, 1000 particles (A 2)",

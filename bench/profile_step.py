@@ -77,7 +77,10 @@ def build(name, np_override=None, threads=1):
     import udf
     from kapsel import config, models  # noqa: F401
     from kapsel.cli import build_parser
-    from kapsel.typespec import SOLVERS
+    from kapsel import typespec
+    SOLVERS = getattr(typespec, "SOLVERS", None)
+    if not SOLVERS:         # a tree before the registry moved (before/after comparisons)
+        from kapsel.simulation import SOLVERS
     edits = dict(SCENES[name][1])
     if np_override:
         edits.update({f"mesh.NP{ax}": np_override for ax in "XYZ"})
@@ -107,12 +110,13 @@ def main(argv=None):
     a = ap.parse_args(argv)
     try:
         from kapsel.mesh import compiled
-    except ImportError:     # a tree before kapsel.mesh.compiled (before/after comparisons)
-        compiled = None
-    if compiled is not None and compiled.enable():   # as a long CLI run from step 10 on (KAPSEL_PY_COMPILED=0: never)
+        from kapsel.mesh import stencils as st
+    except ImportError:     # a tree before kapsel.mesh (before/after comparisons)
+        from kapsel.fluid import compiled, stencils as st
+    import kapsel.fluid.spectral  # noqa: F401  (provides its kernels to the switch)
+    if compiled.enable():   # as a long CLI run from step 10 on (KAPSEL_PY_COMPILED=0: never)
         import numpy as np
         from kapsel.fluid import spectral_kernels as sk
-        from kapsel.mesh import stencils as st
         z, f = np.zeros((3, 4, 4, 4)), np.zeros((4, 4, 4))
         st.div_b(z, 1.0, f)                 # numba's code generator loaded before the RSS base
         sk.cross(z, z, z.copy())

@@ -33,6 +33,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..state import ModelState
+
 __all__ = ["Ions", "bulk_densities"]
 
 
@@ -47,19 +49,22 @@ def bulk_densities(valency, debye_length, eps, kBT):
 class Ions:
     """Ion densities c (S, NX, NY, NZ) on ``grid`` and the electrostatics of the particles.
 
-    valency, onsager : per species;  eps : Dielectric_cst;  kBT;  dt.
+    valency, onsager : per species;  eps : Dielectric_cst;  kBT;  dt;  state : the model's
+    kapsel.state.ModelState, which holds c (``ion_c``).
     Call ``set_particles(idx, phi_i, r, Z, A, xi)`` whenever the particles moved (SPM
     stencil arrays), then ``potential()``, ``step(u, E)``, ``coulomb_force(E)``.
     """
 
-    def __init__(self, grid, valency, onsager, eps, kBT, dt):
+    def __init__(self, grid, valency, onsager, eps, kBT, dt, state=None):
         self.grid = g = grid
         self.z = np.asarray(valency, dtype=float)
         self.L = np.asarray(onsager, dtype=float)
         self.S = len(self.z)
         self.eps, self.kBT, self.dt = float(eps), float(kBT), float(dt)
         self.dv = g.dx ** 3
-        self.c = np.zeros((self.S,) + g.shape)
+        # the densities live in the model's state (kapsel.state.ModelState)
+        self.state = ModelState() if state is None else state
+        self.c = self.state.field("ion_c", lambda: np.zeros((self.S,) + g.shape))
         self.counts = np.zeros(self.S)           # N_s held fixed by rescale
         self.phi = np.zeros(g.shape)
         self.rho_surf = np.zeros(g.shape)

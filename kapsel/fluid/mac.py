@@ -53,6 +53,7 @@ from ..errors import SolverDidNotConverge, UnstableTimeStep
 from ..mesh.linalg import solve_correction
 from ..mesh.halo import Halo
 from ..mesh import operators as op
+from ..state import ModelState
 
 try:  # pragma: no cover - import guard
     import pyfftw
@@ -100,11 +101,13 @@ class MACSolver:
     process; sums, dot products and maxima are over the ranks in a fixed order.
     Attributes: ``pressure`` (last p^{n+1}), ``u_old`` (u^{n-1}, settable for restarts),
     ``iterations`` / ``residual`` of the last BiCGSTAB solve (residual is NaN when converged).
+    ``state``: the model's kapsel.state.ModelState, where ``pressure``, ``u_old`` and the
+    explicit scheme's ``n_old`` live (a solver of its own by default).
     """
 
     def __init__(self, layout, rho, eta, dt, scheme="explicit_scheme", tolerance=1e-9,
                  maximum_iteration=1000, threads=1, fft="pyfftw", linear="sparse",
-                 preconditioner="fft"):
+                 preconditioner="fft", state=None):
         if scheme not in ("explicit_scheme", "implicit_scheme"):
             raise ValueError("scheme must be 'explicit_scheme' or 'implicit_scheme', not %r"
                              % (scheme,))
@@ -135,13 +138,15 @@ class MACSolver:
         fft_threads = self.threads if np.prod(self.shape) >= 64 ** 3 else 1
         self._poisson = self._make_poisson(fft_threads, fft)
         vshape = (3,) + self.fshape
-        self.pressure = np.zeros(self.fshape)    # p^{n+1} at the cell centres
-        self._u_old = np.zeros(vshape)
-        self._have_old = False
+        self.state = ModelState() if state is None else state
+        # p^{n+1} at the cell centres; u^{n-1} (held once a step or a restart set it)
+        self.pressure = self.state.field("pressure", lambda: np.zeros(self.fshape))
+        self._u_old = self.state.field("u_old", lambda: np.zeros(vshape), held=False)
         self._v1 = np.empty(vshape)
         self._v2 = np.empty(vshape)
         self._s = np.empty(self.fshape)
-        self._n_old = None          # explicit: (u.grad)u - f of the last step (AB2)
+        self._n_old = None          # explicit: (u.grad)u - f of the last step (AB2, state n_old)
+        self._wn = None
         self.step_count = 0         # steps done (a restart sets it): the original's jikan.ts
         self._pattern = None
         self._eta_grad = None       # D eta of the step's viscosity field (viscosity_change)
@@ -168,24 +173,31 @@ class MACSolver:
     @u_old.setter
     def u_old(self, value):
         self._u_old[...] = value
-        self._have_old = True
+        self.state.mark("u_old")
 
     @property
     def has_u_old(self) -> bool:
         """Whether u^{n-1} is set (a step was made, or a restart gave U_OLD)."""
-        return self._have_old
+        return self.state.holds("u_old")
 
     @property
     def advection_old(self):
         """The explicit scheme's AB2 history n^{n-1} = (u.grad)u - f of the last step, None
         before the first step."""
-        return self._n_old if self._have_n_old else None
+        return self.state.get("n_old")
+
+    def _advection_history(self, like):
+        """n^{n-1}'s array in the state (made on first use) and its scratch."""
+        if self._n_old is None:
+            self._n_old = self.state.field("n_old", lambda: np.empty_like(like), held=False)
+            self._wn = np.empty_like(like)
+        return self._n_old
 
     def restore_advection(self, n_old) -> None:
         """Set the AB2 history n^{n-1} (a restart's exact state)."""
-        self._n_old = np.array(n_old)
-        self._wn = np.empty_like(self._n_old)
-        self._have_n_old = True
+        n_old = np.asarray(n_old)
+        self._advection_history(n_old)[...] = n_old
+        self.state.mark("n_old")
 
     def stable_dt(self, u=None, eta_field=None):
         """Largest stable dt: explicit diffusion (3D FTCS) DX^2 / (6 nu_max) and, when u is
@@ -283,9 +295,9 @@ class MACSolver:
         ``iterations``; raises SolverDidNotConverge (implicit)."""
         if u.shape != (3,) + self.fshape or u.dtype != np.float64:
             raise ValueError("u must be float64 of shape %s" % (((3,) + self.fshape),))
-        if not self._have_old:
+        if not self.state.holds("u_old"):
             self._u_old[...] = u
-            self._have_old = True
+            self.state.mark("u_old")
         self._eta_pad = None                  # eta_field is widened once per step
         self._eta_grad = None if eta_field is None else self._viscosity_gradient(eta_field)
         if self.scheme == "explicit_scheme":
@@ -366,24 +378,20 @@ class MACSolver:
         if force is not None:
             n -= force
         lap = self._viscous(u, eta_field, self._v2)
-        if self._n_old is None:
-            self._n_old = np.empty_like(u)
-            self._wn = np.empty_like(u)
+        n_old = self._advection_history(u)
         w = self._wn
-        if self.step_count >= 2 and self._have_n_old:
+        if self.step_count >= 2 and self.state.holds("n_old"):
             np.multiply(n, 1.5 * dt, out=w)
-            w -= (0.5 * dt) * self._n_old
+            w -= (0.5 * dt) * n_old
             u -= w
         else:
             u -= dt * n
-        self._n_old[...] = n
-        self._have_n_old = True
+        n_old[...] = n
+        self.state.mark("n_old")
         u += dt * lap
         np.subtract(n, lap, out=w)           # n - nu lap u^n
         self._pressure(u, w)
         u -= self._grad_p(self.pressure) * (dt / self.rho)
-
-    _have_n_old = False
 
     # ------------------------------------------------------------------ implicit
     def _step_implicit(self, u, force, eta_field):

@@ -48,7 +48,6 @@ original's oblique formulation).  The interface the SPM driver uses is the one o
 (``frame_strain``, ``shear_rate_now``, ``background``, ``wrap_particles``).
 
 Interpolation between oblique and rectangular grids (kapsel.mesh.regrid: ``to_rectangular``,
-Interpolation between oblique and rectangular grids (kapsel.mesh.regrid: ``to_rectangular``,
 ``to_oblique``, ``shift_rows``): along x per row, ``linear`` (2 points) or ``spline`` (periodic cubic
 B-spline interpolant), ``switch.ns_solver.OBL_INT``.
 """
@@ -184,9 +183,9 @@ class ObliqueSpectralNS(_ObliqueFrame, SpectralNS):
     """
 
     def __init__(self, grid: Grid, rho, eta, dt, shear: ShearFlow, fix_cell=(False,) * 3,
-                 advection=True, t0=0.0, frame_strain0=None):
+                 advection=True, t0=0.0, frame_strain0=None, state=None):
         super().__init__(grid, rho, eta, dt, fix_cell=fix_cell, scheme="etd1",
-                         advection=advection)
+                         advection=advection, state=state)
         self._init_frame(shear, grid.box, dt, t0, frame_strain0)
         # the vector scratch of this solver's own step (truncated u^ / N, vorticity, N; _n
         # also the contravariant increments of add_solenoidal and the force)
@@ -481,10 +480,10 @@ class ObliqueMAC(_ObliqueFrame, MACSolver):
 
     def __init__(self, layout, rho, eta, dt, shear: ShearFlow, scheme="explicit_scheme",
                  tolerance=1e-9, maximum_iteration=1000, threads=1, interpolation="linear",
-                 t0=0.0, frame_strain0=None):
+                 t0=0.0, frame_strain0=None, state=None):
         MACSolver.__init__(self, layout, rho, eta, dt, scheme=scheme, tolerance=tolerance,
                            maximum_iteration=maximum_iteration, threads=threads,
-                           linear="matfree")
+                           linear="matfree", state=state)
         try:                          # the variable-viscosity term (reach 2)
             self.halo2 = Halo(self.grid, 2)
         except ValueError:            # blocks of one point: refused by the model
@@ -662,9 +661,10 @@ class ObliqueMAC(_ObliqueFrame, MACSolver):
         u[...] = self._shift(u, sh)
         uo = cartesian(self._u_old, g_old)
         self._u_old[...] = contravariant(self._shift(uo, sh), g_new)
-        if self._have_n_old:          # the explicit scheme's advection history alike
-            no = cartesian(self._n_old, g_old)
-            self._n_old[...] = contravariant(self._shift(no, sh), g_new)
+        n_old = self.state.get("n_old")
+        if n_old is not None:         # the explicit scheme's advection history alike
+            no = cartesian(n_old, g_old)
+            n_old[...] = contravariant(self._shift(no, sh), g_new)
         self.pressure[...] = self._shift(self.pressure, sh + 0.5 * n * self.s)  # cell centres
         self.remaps += n
         self.remap_count += 1

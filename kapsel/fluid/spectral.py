@@ -45,6 +45,7 @@ import numpy as np
 
 from ..mesh.grid import Grid
 from ..mesh import compiled as _compiled
+from ..state import ModelState
 
 _compiled.provide("spectral", __name__.rsplit(".", 1)[0] + ".spectral_kernels")
 
@@ -123,7 +124,7 @@ class SpectralNS:
     """
 
     def __init__(self, grid: Grid, rho, eta, dt, fix_cell=(False, False, False), scheme="etd1",
-                 force=None, advection=True):
+                 force=None, advection=True, state=None):
         if scheme not in ("etd1", "etd2"):
             raise ValueError("scheme must be 'etd1' or 'etd2'")
         self.grid = grid
@@ -139,7 +140,9 @@ class SpectralNS:
             raise ValueError("fix_cell must have 3 flags")
         self.advection = bool(advection)
         g = grid
-        self.u_hat = g.zeros_complex()
+        # u_hat lives in the model's state (kapsel.state.ModelState), as ETD2's N^{n-1}
+        self.state = ModelState() if state is None else state
+        self.u_hat = self.state.field("u_hat", g.zeros_complex)
         # scratch: N^n, N^{n-1} (complex vectors); u, omega (real vectors: omega becomes
         # u x omega in place in the compiled pass); two complex scalars (each component of
         # the truncated u_hat and of omega passes through one on its way to real space) and
@@ -155,7 +158,6 @@ class SpectralNS:
         self._t = g.empty_complex(None)
         self._r = (_real_view(self._s, g), _real_view(self._t, g))
         self._fh = None                 # FFT of a per-step force (``step(force)``), on use
-        self._have_old = False
         self.step_index = 0
 
         self._ikx = 1j * g.kx
@@ -223,11 +225,11 @@ class SpectralNS:
         """u_hat <- P[FFT(u)] (real (3, NX, NY, NZ)); restarts ETD2 with an ETD1 step."""
         self.grid.forward(np.asarray(u, dtype=float), out=self.u_hat)
         self.grid.project(self.u_hat, tmp=(self._s, self._t))
-        self._have_old = False
+        self.state.put("nl_old", None)
 
     def set_velocity_hat(self, u_hat):
         np.copyto(self.u_hat, u_hat)
-        self._have_old = False
+        self.state.put("nl_old", None)
 
     def velocity(self, out=None):
         """u in real space: into ``out`` (returned) or a new array."""
@@ -316,13 +318,13 @@ class SpectralNS:
         uh = self.u_hat
         K = _compiled.spectral
         if self.advection and K is not None:    # fused: projection + ETD update
-            if self.scheme == "etd2" and self._have_old:
+            if self.scheme == "etd2" and self.state.holds("nl_old"):
                 K.project_etd2(nl, self._nl_old, uh, self._E, self._a2, self._b2,
                                       *self._k1, self.grid.inv_k2)
             else:
                 K.project_etd1(nl, uh, self._E, self._a1, *self._k1,
                                       self.grid.inv_k2, self.scheme == "etd2")
-        elif self.scheme == "etd2" and self._have_old:
+        elif self.scheme == "etd2" and self.state.holds("nl_old"):
             uh *= self._E
             self._add_weighted(nl, self._a2)
             self._add_weighted(self._nl_old, self._b2, sign=-1)
@@ -340,7 +342,7 @@ class SpectralNS:
             self._add_weighted(fh, self._f1)
         if self.scheme == "etd2":
             self._nl, self._nl_old = self._nl_old, self._nl
-            self._have_old = True
+            self.state.put("nl_old", self._nl_old)      # N^{n-1} of the next step
         if self.after_update is not None:
             self.after_update(uh)
         self.apply_fix_cell()

@@ -14,6 +14,7 @@ from ..config import ConfigError, RunConfig
 from ..typespec import sheared as sheared_type
 from ..particles.interactions import make_forces  # noqa: F401  (the models' import)
 from ..particles.state import ParticleState
+from ..state import ModelState
 
 
 def time_step(cfg: RunConfig) -> float:
@@ -235,6 +236,9 @@ class Model:
         # rigidity imposition, no FFT plans); such a model is never advanced
         self.dry = bool(getattr(args, "check", False))
         self.dt = time_step(cfg)
+        # the fields the model carries from step to step, in one place (its solvers keep
+        # their persistent arrays here; the restart reads and writes them by name)
+        self.state = ModelState()
         self.spm_drag = getattr(args, "spm_drag", None) or "original"
         self.time = 0.0
         self.step_index = 0

@@ -90,7 +90,8 @@ class ElectrolyteModel(SpectralModel):
         f, el = cfg.fluid, cfg.electrolyte
         self.el = el
         self.grid = self.make_grid(cfg)
-        self.fluid = SpectralNS(self.grid, f.RHO, f.ETA, self.dt, fix_cell=cfg.switches.fix_cell)
+        self.fluid = SpectralNS(self.grid, f.RHO, f.ETA, self.dt, fix_cell=cfg.switches.fix_cell,
+                                state=self.state)
         self.particles = make_particles(cfg, self.rng)
         spm_class = type("IonSPM", (_IonSPM, SPM), {"model": self})
         self.spm = spm_class(self.fluid, self.particles, self.spm_radius(), cfg.particles.A_XI,
@@ -101,7 +102,8 @@ class ElectrolyteModel(SpectralModel):
         p = self.particles
         self.charges = np.array([cfg.particles.species[s].surface_charge for s in p.species],
                                 dtype=float)
-        self.ions = Ions(self.grid, el.valency, el.onsager, el.dielectric, f.kBT, self.dt)
+        self.ions = Ions(self.grid, el.valency, el.onsager, el.dielectric, f.kBT, self.dt,
+                         state=self.state)
         self._dt_limit = self._ion_limit()
         self._u = self.grid.empty_real()
         if self.dry:      # --check: no profiles, no ion densities; the signs of the ion

@@ -68,6 +68,7 @@ class FDMModel(Model):
                                    cfg, self.particles, strain=self._pair_strain(),
                                    wall=self.wall, overlap_limit=OVERLAP_LIMIT),
                                noise=make_noise(cfg, self.particles, seed), wall=self.wall,
+                               u=self.state.field("u", lambda: np.zeros((3,) + self.mac.fshape)),
                                impose=not self.sheared_start, dry=self.dry)
         self.spm.interpolation = getattr(self, "interpolation", "linear")   # (OBL_INT)
         if self.sheared_start:
@@ -76,19 +77,21 @@ class FDMModel(Model):
         self.u = self.spm.u
         self.phi = self.spm.phi() if self.particles.n and not self.dry else None
 
-        # phase field
+        # phase field (psi, psi^{n-1}, the capillary force of the last step and the profile
+        # at its start: in the state)
         self.ch = None
         self.psi = None
-        self.last_force = None       # the raw capillary force of the last step
-        self._phi_prev = None        # the particle profile at the start of the last step
+        self.last_force = None
+        self._phi_prev = None
         self.eta_field = None
         if cfg.has_phase_field:
             ph = cfg.phase
             # FFT preconditioner: exact inverse of the linear part; 3-5x fewer BiCGSTAB
             # iterations than none (the original's choice) at the same tolerance
-            self.ch_kwargs = dict(threads=threads, xi=cfg.particles.A_XI, preconditioner="fft")
+            self.ch_kwargs = dict(threads=threads, xi=cfg.particles.A_XI, preconditioner="fft",
+                                  state=self.state)
             self.ch = self._make_ch(self.dt)
-            self.psi = self.ch.initial_field(self.phi)
+            self.psi = self.state.field("psi", lambda: self.ch.initial_field(self.phi))
             self.substeps = 1
             if ph.ch_solver == "explicit_scheme":
                 limit = self.ch.stable_dt(self.psi, self.phi)
@@ -124,7 +127,7 @@ class FDMModel(Model):
         f = cfg.fluid
         return MACSolver(self.grid, f.RHO, f.ETA, self.dt, scheme=f.ns_solver,
                          tolerance=f.tolerance, maximum_iteration=f.maximum_iteration,
-                         threads=self.threads)
+                         threads=self.threads, state=self.state)
 
     def _make_ch(self, dt):
         """The Cahn-Hilliard solver of the type with time step dt, on the layout."""
@@ -135,6 +138,25 @@ class FDMModel(Model):
         except ValueError as e:
             raise ConfigError(str(e), path=f"constitutive_eq.{self.cfg.type}.Potential."
                               f"Landau.psi_0_wall.user_specify.psi_0_wall[]") from None
+
+    @property
+    def last_force(self):
+        """The raw capillary force of the last step (the state's ``capillary_force``; the
+        restart's STRESS_OLD, of the other sign)."""
+        return self.state.get("capillary_force")
+
+    @last_force.setter
+    def last_force(self, value):
+        self.state.put("capillary_force", value)
+
+    @property
+    def _phi_prev(self):
+        """The particle profile at the start of the last step (the state's ``phi_prev``)."""
+        return self.state.get("phi_prev")
+
+    @_phi_prev.setter
+    def _phi_prev(self, value):
+        self.state.put("phi_prev", value)
 
     def _after_fluid(self):
         """Hook between the fluid-particle step and the Cahn-Hilliard step."""
@@ -264,23 +286,20 @@ class FDMModel(Model):
         return super()._gathered_source(name)
 
     # ------------------------------------------------------------------ whole fields
+    # a restart's field -> the state's (N_OLD: the explicit scheme's last advection, AB2)
+    _RESTART_FIELDS = {"U": "u", "U_OLD": "u_old", "PSI": "psi", "PHI_PREV": "phi_prev",
+                       "N_OLD": "n_old"}
+
     def _restart_field(self, name):
-        """This rank's block of a field of the restart (all of it in a plain run)."""
-        if name == "U":
-            return self.u
-        if name == "U_OLD":
-            return self.mac.u_old
-        if name == "PSI":
-            return self.psi
-        if name == "PSI_OLD":
-            return self.ch.psi_old if self.ch.psi_old is not None else self.psi
-        if name == "PHI_PREV":
-            return self._phi_prev
-        if name == "N_OLD":             # the explicit scheme's last advection (AB2)
-            return self.mac.advection_old
+        """This rank's block of a field of the restart (all of it in a plain run), from the
+        state."""
+        st = self.state
+        if name == "PSI_OLD":           # psi^n before the first step
+            return st.get("psi_old") if st.holds("psi_old") else st["psi"]
         if name == "STRESS_OLD":     # the original's sign: +psi grad mu / RHO
-            return -self.last_force if self.last_force is not None else np.zeros_like(self.u)
-        raise KeyError(name)
+            f = st.get("capillary_force")
+            return -f if f is not None else np.zeros_like(st["u"])
+        return st[self._RESTART_FIELDS[name]]
 
     def _whole(self, name):
         """The whole field ``name`` (_restart_field): in a distributed run gathered to rank

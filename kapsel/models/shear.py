@@ -114,7 +114,7 @@ class ShearLEModel(SpectralModel):
         self.interpolation = check_interpolation(cfg)
         self.grid = self.make_grid(cfg)
         self.fluid = ObliqueSpectralNS(self.grid, f.RHO, f.ETA, self.dt, shear_flow(cfg),
-                                       fix_cell=cfg.switches.fix_cell)
+                                       fix_cell=cfg.switches.fix_cell, state=self.state)
         self.particles = make_particles(cfg, self.rng)
         fluid = self.fluid
         forces = make_forces(cfg, self.particles, strain=lambda: fluid.frame_strain,
@@ -339,7 +339,7 @@ class ShearFDMModel(FDMModel):
         return ObliqueMAC(self.grid, f.RHO, f.ETA, self.dt, shear_flow(cfg),
                           scheme=f.ns_solver, tolerance=f.tolerance,
                           maximum_iteration=f.maximum_iteration, threads=self.threads,
-                          interpolation=self.interpolation)
+                          interpolation=self.interpolation, state=self.state)
 
     def _fix_cell(self, cfg):
         """The original forces FIX_CELL.y ON for the sheared types (PHYSICS-EXTRA §1.2)."""

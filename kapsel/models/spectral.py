@@ -19,7 +19,8 @@ class SpectralModel(Model):
         super().__init__(cfg, args)
         f, seed = cfg.fluid, self.seed
         self.grid = self.make_grid(cfg)
-        self.fluid = SpectralNS(self.grid, f.RHO, f.ETA, self.dt, fix_cell=cfg.switches.fix_cell)
+        self.fluid = SpectralNS(self.grid, f.RHO, f.ETA, self.dt, fix_cell=cfg.switches.fix_cell,
+                                state=self.state)
         from ..particles.walls import make_wall
         self.particles = make_particles(cfg, self.rng)
         self.wall = make_wall(cfg)

@@ -85,6 +85,7 @@ from ..mesh.grid import Grid
 from ..mesh.halo import Halo
 from ..errors import SolverDidNotConverge, UnstableTimeStep  # noqa: F401
 from ..mesh.linalg import solve_correction  # noqa: F401
+from ..state import ModelState
 
 __all__ = ["CahnHilliard", "chemical_potential", "free_energy", "capillary_force",
            "discrete_k2", "div_coef_grad", "neutral_value", "wetting_angle", "SolverDidNotConverge", "UnstableTimeStep"]
@@ -278,7 +279,7 @@ class CahnHilliard:
     """
 
     def __init__(self, layout, params, dt, threads=1, *, xi=1.0, psi_bar=None, kBT=1.0,
-                 preconditioner=None, wall=None):
+                 preconditioner=None, wall=None, state=None):
         shape = tuple(int(n) for n in layout.shape)
         if len(shape) != 3 or min(shape) < 1:
             raise ValueError("shape must be (NX, NY, NZ)")
@@ -325,7 +326,10 @@ class CahnHilliard:
         self._wall_pen = self._wall_static = None
         if wall is not None:
             self._set_wall(wall)
-        self.psi_old = None          # psi^{n-1} (restart PSI_OLD); None before the first step
+        # psi^{n-1} (restart PSI_OLD) in the model's state (kapsel.state.ModelState); None
+        # before the first step
+        self.state = ModelState() if state is None else state
+        self.psi_old = None
         self.iterations = 0
         self.residual = 0.0
         # the modes of this process's block of the half spectrum (which holds every value
@@ -576,6 +580,15 @@ class CahnHilliard:
                 "(kappa K^2 (f'' + alpha K^2) dt <= 2); lower the time increment, sub-step "
                 "or use implicit_scheme" % (self.dt, lim, self.scheme))
         return lim
+
+    @property
+    def psi_old(self):
+        """psi^{n-1}, the state's ``psi_old`` (None before the first step)."""
+        return self.state.get("psi_old")
+
+    @psi_old.setter
+    def psi_old(self, value):
+        self.state.put("psi_old", value)
 
     # ------------------------------------------------------------------ step
     def step(self, psi, u=None, phi=None, euler=False):
