@@ -48,8 +48,9 @@ def make_input(d: Path, edits: dict) -> Path:
 
 # stage of a profiled function (own time), by file and name; first match wins
 STAGES = (
-    ("FFT", ("grid.py:forward", "grid.py:backward_raw", "grid.py:rfft_scalar",
-             "grid.py:irfft_scalar", "mac.py:solve", "pyfftw", "pocketfft", "scipy/fft")),
+    ("FFT", ("grid.py:forward", "grid.py:backward", "grid.py:rfft_scalar",
+             "grid.py:irfft_scalar", "grid.py:_run_scalar", "grid.py:_aligned", "mac.py:solve",
+             "pyfftw", "pocketfft", "scipy/fft", "pencil.py:forward", "pencil.py:backward")),
     ("linear solver", ("_isolve", "linalg.py", "_sparsetools", "mac.py:mv", "_interface.py",
                        "mac.py:_assemble", "stencils.py:implicit_matvec", "method 'dot'",
                        "cahn_hilliard.py:mv", "cahn_hilliard.py:solve")),
