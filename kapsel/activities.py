@@ -93,8 +93,10 @@ class StressTable(Activity):
 
 
 class CompiledSwitch(Activity):
-    """The compiled kernels switched on once the run has shown it is long enough
-    (kapsel.mesh.compiled.want); they give the same bits as the numpy ones."""
+    """The compiled kernels switched on once the run has shown they pay for their loading
+    in the steps it has left (kapsel.mesh.compiled.want, with the CPU time a step has taken
+    since the first one); they give the same bits as the numpy ones, so when (and on which
+    rank) they switch on changes no result."""
 
     name = "compiled kernels"
     every_rank = True
@@ -104,11 +106,19 @@ class CompiledSwitch(Activity):
         from .mesh import compiled
         self.start, self.total = start_step, total
         self.on = compiled.mode() == "1" and (compiled.enable() or True)
+        self._t0 = None             # (step, CPU seconds) after the first step
 
     def __call__(self, loop):
+        import time
         from .mesh import compiled
-        step = loop.model.step_index
-        if not self.on and compiled.want(step - self.start, self.total - step):
+        if self.on:
+            return
+        step, now = loop.model.step_index, time.process_time()
+        if self._t0 is None:        # the first step plans the FFTs: timed from its end
+            self._t0 = (step, now)
+            return
+        step_cpu = (now - self._t0[1]) / max(step - self._t0[0], 1)
+        if compiled.want(step - self.start, self.total - step, step_cpu):
             self.on = compiled.enable() or True
 
 

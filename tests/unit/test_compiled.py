@@ -47,6 +47,13 @@ def test_want_policy(monkeypatch):
     assert not compiled.want(compiled.AFTER_STEPS - 1, 1000)
     assert not compiled.want(compiled.AFTER_STEPS, compiled.MIN_REMAINING - 1)
     assert compiled.want(compiled.AFTER_STEPS, compiled.MIN_REMAINING)
+    # with the measured CPU time of a step: only when the steps left repay the loading
+    pays = compiled.LOAD_CPU / compiled.SAVING
+    assert not compiled.want(compiled.AFTER_STEPS, 190, step_cpu=0.004)    # 32^3, 200 steps
+    assert compiled.want(compiled.AFTER_STEPS, 190, step_cpu=0.030)        # 64^3, 200 steps
+    assert compiled.want(compiled.AFTER_STEPS, 990, step_cpu=0.004)        # 32^3, 1000 steps
+    assert compiled.want(compiled.AFTER_STEPS, 1000, step_cpu=1.001 * pays / 1000)
+    assert not compiled.want(compiled.AFTER_STEPS, 1000, step_cpu=0.999 * pays / 1000)
     monkeypatch.setenv("KAPSEL_PY_COMPILED", "0")
     assert not compiled.want(10 ** 6, 10 ** 6) and not compiled.enable()
     monkeypatch.setenv("KAPSEL_PY_COMPILED", "1")
