@@ -93,10 +93,9 @@ class StressTable(Activity):
 
 
 class CompiledSwitch(Activity):
-    """The compiled kernels switched on once the run has shown they pay for their loading
-    in the steps it has left (kapsel.mesh.compiled.want, with the CPU time a step has taken
-    since the first one); they give the same bits as the numpy ones, so when (and on which
-    rank) they switch on changes no result."""
+    """The compiled kernels switched on once the run's steps left repay their loading
+    (kapsel.mesh.compiled.want: by the steps and the mesh points, no clock); they give the
+    same numbers as the numpy ones."""
 
     name = "compiled kernels"
     every_rank = True
@@ -106,19 +105,15 @@ class CompiledSwitch(Activity):
         from .mesh import compiled
         self.start, self.total = start_step, total
         self.on = compiled.mode() == "1" and (compiled.enable() or True)
-        self._t0 = None             # (step, CPU seconds) after the first step
 
     def __call__(self, loop):
-        import time
+        import math
         from .mesh import compiled
         if self.on:
             return
-        step, now = loop.model.step_index, time.process_time()
-        if self._t0 is None:        # the first step plans the FFTs: timed from its end
-            self._t0 = (step, now)
-            return
-        step_cpu = (now - self._t0[1]) / max(step - self._t0[0], 1)
-        if compiled.want(step - self.start, self.total - step, step_cpu):
+        step = loop.model.step_index
+        points = math.prod(loop.model.cfg.mesh.shape)
+        if compiled.want(step - self.start, self.total - step, points):
             self.on = compiled.enable() or True
 
 

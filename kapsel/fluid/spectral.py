@@ -291,6 +291,15 @@ class SpectralNS:
         g.project(nl, tmp=(self._s, self._t))
         return nl
 
+    def projected_nonlinear(self):
+        """P[u x omega] in _nl with the same bits whether the compiled kernels are loaded or
+        not (the compiled ``_nonlinear`` leaves the projection to the fused ETD update; a
+        step of its own, as the Electrolyte's explicit Euler step, projects it here)."""
+        nl = self._nonlinear()
+        if self.advection and _compiled.spectral is not None:
+            self.grid.project(nl, tmp=(self._s, self._t))
+        return nl
+
     def _cross_forward(self, u, w, nl):
         """nl = FFT(u x w), each component transformed as soon as it is made (one real
         scalars of scratch; u and w are destroyed), the products of ``cross``."""

@@ -12,15 +12,17 @@ sample (1 s), and it pays back only after some 30-150 steps (32^3-64^3).  Hence:
 * ``spectral`` / ``stencils`` are None (numpy passes) until ``enable()`` loads them;
 * the time loop (kapsel.activities.CompiledSwitch) calls ``enable()`` once a run has done
   ``AFTER_STEPS`` steps, still has at least ``MIN_REMAINING`` to go, and the kernels pay for
-  their loading in the steps left: ``remaining * SAVING * step_cpu >= LOAD_CPU``, with
-  ``step_cpu`` the CPU seconds a step took so far (numpy passes, snapshots included).  So a
-  short or small run never pays (the 32^3 Navier_Stokes run of 200 steps: 3.1 ms a step and
-  101 MB peak with the numpy passes, 4.4 ms and 201 MB with the kernels loaded at step 10,
-  bench_vs_original.py, 2026-12-04), and long ones run compiled from there on;
-* SAVING is the fraction of a step the kernels save, at 32^3 (bench/profile_step.py --np 5,
-  KAPSEL_PY_COMPILED=0 against 1, 2026-12-04): Navier_Stokes 0.60, Lees-Edwards 0.56,
-  NS_FDM 0.39, LE_FDM 0.37, squirmers 0.29, zigzag 0.27, NSCH_FDM 0.15, Electrolyte 0.13;
-  0.25 is taken (a marginal run of the last two loads them a few tenths of a second early);
+  their loading in the steps left: ``remaining * points * SAVING_PER_POINT >= LOAD_CPU``
+  (``points``: the whole mesh's).  So a short or small run never pays (the 32^3
+  Navier_Stokes run of 200 steps: 3.1 ms a step and 101 MB peak with the numpy passes, 4.4 ms
+  and 201 MB with the kernels loaded at step 10, bench_vs_original.py, 2026-12-04), and long
+  ones run compiled from there on.  The rule uses no clock: when a run switches depends on
+  its input alone (the kernels give the numpy passes' numbers, but not always the sign of a
+  zero: a run must not depend on the machine's load);
+* SAVING_PER_POINT is the CPU time the kernels save per mesh point and step, at 32^3
+  (bench/profile_step.py --np 5, KAPSEL_PY_COMPILED=0 against 1, 2026-12-04, ns per point):
+  Lees-Edwards 186, LE_FDM 150, NSCH_FDM 82, squirmers 82, NS_FDM 79, Navier_Stokes 73,
+  zigzag 49, Electrolyte 37; 40 ns is taken;
 * the kernels also cost memory: numba and its code generator take about 100 MB of resident
   memory once loaded;
 * ``KAPSEL_PY_COMPILED``: ``auto`` (default, as above), ``1`` (from the start), ``0`` (never).
@@ -35,8 +37,8 @@ stencils = None     # kapsel.mesh.stencils once enabled
 
 AFTER_STEPS = 10
 MIN_REMAINING = 50
-LOAD_CPU = 0.65     # s of CPU to import numba and load the cached kernels (docstring)
-SAVING = 0.25       # the fraction of a step's CPU time the kernels save (docstring)
+LOAD_CPU = 0.65             # s of CPU to import numba and load the cached kernels
+SAVING_PER_POINT = 40e-9    # s of CPU saved per mesh point and step (docstring)
 
 # slot -> the module of compiled kernels that fills it; a module with kernels of its own
 # names them with ``provide`` (the switch knows no module above kapsel.mesh)
@@ -86,12 +88,12 @@ def disable() -> None:
     _enabled = False
 
 
-def want(step_done: int, remaining: int, step_cpu: float | None = None) -> bool:
-    """Whether the time loop should enable the kernels now (module docstring); ``step_cpu``:
-    the CPU seconds per step measured so far (None: the step counts alone decide)."""
+def want(step_done: int, remaining: int, points: int | None = None) -> bool:
+    """Whether the time loop should enable the kernels now (module docstring); ``points``:
+    the whole mesh's (None: the step counts alone decide)."""
     m = mode()
     if m == "1":
         return True
     if m != "auto" or step_done < AFTER_STEPS or remaining < MIN_REMAINING:
         return False
-    return step_cpu is None or remaining * SAVING * step_cpu >= LOAD_CPU
+    return points is None or remaining * points * SAVING_PER_POINT >= LOAD_CPU

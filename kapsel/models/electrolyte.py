@@ -172,8 +172,7 @@ class ElectrolyteModel(SpectralModel):
         ions, fl, g = self.ions, self.fluid, self.grid
         ions.potential(truncate=True)
         fl.velocity(out=self._u)
-        nl = fl._nonlinear()                 # u x omega (projected below), k = 0 mode 0
-        g.project(nl)
+        nl = fl.projected_nonlinear()        # P[u x omega], k = 0 mode 0
         uh = fl.u_hat
         nl -= (fl.nu * g.k2) * uh
         nl *= self.dt

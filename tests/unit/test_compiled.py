@@ -8,7 +8,7 @@ from kapsel.mesh import compiled
 from kapsel.typespec import SOLVERS
 from udf import UDFManager
 
-from builders import Args, fdm_sample
+from builders import Args, electrolyte_input, fdm_sample
 
 
 def _run(path, kernels, switch_at, steps=4):
@@ -33,9 +33,22 @@ def _run(path, kernels, switch_at, steps=4):
 @pytest.mark.parametrize("eq,ns", [("Navier_Stokes", "explicit_scheme"),
                                    ("Navier_Stokes_FDM", "implicit_scheme"),
                                    ("Navier_Stokes_Cahn_Hilliard_FDM", "explicit_scheme"),
-                                   ("Shear_Navier_Stokes_Lees_Edwards", "explicit_scheme")])
+                                   ("Shear_Navier_Stokes_Lees_Edwards", "explicit_scheme"),
+                                   ("Shear_Navier_Stokes", "explicit_scheme")])
 def test_switching_to_compiled_kernels_is_bit_identical(tmp_path, eq, ns, compiled_kernels):
     path = fdm_sample(tmp_path, eq=eq, ns=ns)
+    a = _run(path, compiled_kernels, switch_at=None)
+    b = _run(path, compiled_kernels, switch_at=2)
+    for x, y in zip(a, b):
+        assert np.array_equal(x, y)
+
+
+@pytest.mark.parametrize("salt,field", [(True, "DC"), (False, "OFF")])
+def test_switching_electrolyte_to_compiled_kernels_is_bit_identical(tmp_path, salt, field,
+                                                                   compiled_kernels):
+    """The Electrolyte fluid step projects the nonlinear term once on either path (the numpy
+    path used to project it twice: a run's bits depended on when the kernels loaded)."""
+    path = electrolyte_input(str(tmp_path), salt=salt, field=field)
     a = _run(path, compiled_kernels, switch_at=None)
     b = _run(path, compiled_kernels, switch_at=2)
     for x, y in zip(a, b):
@@ -47,13 +60,13 @@ def test_want_policy(monkeypatch):
     assert not compiled.want(compiled.AFTER_STEPS - 1, 1000)
     assert not compiled.want(compiled.AFTER_STEPS, compiled.MIN_REMAINING - 1)
     assert compiled.want(compiled.AFTER_STEPS, compiled.MIN_REMAINING)
-    # with the measured CPU time of a step: only when the steps left repay the loading
-    pays = compiled.LOAD_CPU / compiled.SAVING
-    assert not compiled.want(compiled.AFTER_STEPS, 190, step_cpu=0.004)    # 32^3, 200 steps
-    assert compiled.want(compiled.AFTER_STEPS, 190, step_cpu=0.030)        # 64^3, 200 steps
-    assert compiled.want(compiled.AFTER_STEPS, 990, step_cpu=0.004)        # 32^3, 1000 steps
-    assert compiled.want(compiled.AFTER_STEPS, 1000, step_cpu=1.001 * pays / 1000)
-    assert not compiled.want(compiled.AFTER_STEPS, 1000, step_cpu=0.999 * pays / 1000)
+    # with the mesh: only when the steps left repay the loading
+    assert not compiled.want(compiled.AFTER_STEPS, 190, points=32 ** 3)    # 32^3, 200 steps
+    assert compiled.want(compiled.AFTER_STEPS, 190, points=64 ** 3)        # 64^3, 200 steps
+    assert compiled.want(compiled.AFTER_STEPS, 990, points=32 ** 3)        # 32^3, 1000 steps
+    pays = compiled.LOAD_CPU / compiled.SAVING_PER_POINT                   # steps x points
+    assert compiled.want(compiled.AFTER_STEPS, 1000, points=int(1.001 * pays / 1000))
+    assert not compiled.want(compiled.AFTER_STEPS, 1000, points=int(0.999 * pays / 1000))
     monkeypatch.setenv("KAPSEL_PY_COMPILED", "0")
     assert not compiled.want(10 ** 6, 10 ** 6) and not compiled.enable()
     monkeypatch.setenv("KAPSEL_PY_COMPILED", "1")
