@@ -68,13 +68,15 @@ class Ions:
         self.counts = np.zeros(self.S)           # N_s held fixed by rescale
         self.phi = np.zeros(g.shape)
         self.rho_surf = np.zeros(g.shape)
-        self.normal = np.zeros((3,) + g.shape)
-        self._has_normal = np.zeros(g.shape, dtype=bool)
-        self._inv_n2 = np.zeros(g.shape)
-        # buffers
+        # the surface normal where it is not zero (the particles' shells): flat indices,
+        # n (3, P) and 1 / |n|^2 there
+        self._normal_at = np.zeros(0, dtype=np.intp)
+        self._normal = np.zeros((3, 0))
+        self._inv_n2 = np.zeros(0)
+        # buffers: scalar complex scratch, one vector field (the flux J, and the Coulomb
+        # force between steps); the transforms go component by component through them
         self._ch = g.empty_complex(None)
-        self._vh = g.empty_complex()
-        self._v = g.empty_real()
+        self._cs = g.empty_complex(None)
         self._J = g.empty_real()
         self._rho = g.empty_real(None)
         self.psi_hat = g.empty_complex(None)
@@ -101,35 +103,48 @@ class Ions:
         Z = np.asarray(Z, dtype=float)
         self.rho_surf[...] = np.bincount(idx.ravel(), weights=(Z[:, None] * slope).ravel(),
                                          minlength=size).reshape(g.shape)
-        total = float(np.abs(self.rho_surf).sum()) * self.dv
+        total = float(np.abs(self.rho_surf, out=self._t).sum()) * self.dv
         scale = float(np.abs(Z).sum()) / total
         self.rho_surf *= scale
         self._idx, self._r = idx, r
         self._q = (scale * Z)[:, None] * slope            # each particle's own charge
+        # n summed over the shell points only, in the stencils' order (the sums of the
+        # whole-mesh bincount but for its added zeros), kept where |n|^2 > 0
+        on = idx[shell]
         with np.errstate(invalid="ignore", divide="ignore"):
-            rhat = np.where(shell[..., None], r / dist[..., None], 0.0)
-        for c in range(3):
-            self.normal[c] = np.bincount(idx.ravel(), weights=rhat[..., c].ravel(),
-                                         minlength=size).reshape(g.shape)
-        n2 = np.einsum("c...,c...->...", self.normal, self.normal)
-        self._has_normal = n2 > 0.0
-        self._inv_n2[...] = 0.0
-        np.divide(1.0, n2, out=self._inv_n2, where=self._has_normal)
+            rhat = r[shell] / dist[shell][:, None]
+        at, slot = np.unique(on, return_inverse=True)
+        normal = np.stack([np.bincount(slot, weights=rhat[:, c], minlength=at.size)
+                           for c in range(3)])
+        n2 = np.einsum("cp,cp->p", normal, normal)
+        keep = n2 > 0.0
+        self._normal_at, self._normal = at[keep], np.ascontiguousarray(normal[:, keep])
+        self._inv_n2 = 1.0 / n2[keep]
 
     def no_particles(self):
         self._idx = self._q = self._r = None
         self.phi[...] = 0.0
         self.rho_surf[...] = 0.0
-        self.normal[...] = 0.0
-        self._has_normal[...] = False
-        self._inv_n2[...] = 0.0
+        self._normal_at = np.zeros(0, dtype=np.intp)
+        self._normal = np.zeros((3, 0))
+        self._inv_n2 = np.zeros(0)
+
+    @property
+    def normal(self):
+        """The surface normal n (3, NX, NY, NZ) on the whole mesh (a new array; zero off
+        the particles' shells)."""
+        out = np.zeros((3, self.grid.size))
+        out[:, self._normal_at] = self._normal
+        return out.reshape((3,) + self.grid.shape)
 
     # ------------------------------------------------------------------ charges
     def fluid_counts(self, c=None):
         """N_s = DX^3 sum_x (1 - phi) c_s, (S,)."""
         c = self.c if c is None else c
         w = 1.0 - self.phi
-        return np.array([float(np.sum(w * c[s])) for s in range(self.S)]) * self.dv
+        t = self._t
+        return np.array([float(np.sum(np.multiply(w, c[s], out=t)))
+                         for s in range(self.S)]) * self.dv
 
     def ionic_charge(self, c=None):
         """sum_s z_s c_s (1 - phi)."""
@@ -161,10 +176,17 @@ class Ions:
         self.psi_hat /= self.eps
         if truncate:
             self.psi_hat *= self._mask
-        for d in range(3):
-            np.multiply(self.psi_hat, self._ik[d], out=self._vh[d])
-        g.irfft(self._vh, out=self.grad_psi)
+        self._gradient(self.psi_hat, self.grad_psi)
         return self.psi_hat
+
+    def _gradient(self, f_hat, out):
+        """out = grad f (3, NX, NY, NZ) of f_hat, each component i k_d f_hat / N made in a
+        scalar scratch and transformed (the bits of the vector transform)."""
+        g, s = self.grid, self._cs
+        for d in range(3):
+            np.multiply(f_hat, self._ik[d], out=s)
+            s *= 1.0 / g.size
+            g.backward_scalar_raw(s, out[d])
 
     def potential_real(self):
         """Psi in real space (of the last ``potential``)."""
@@ -176,15 +198,13 @@ class Ions:
         grad Psi of the last ``potential`` and the external field E."""
         g = self.grid
         E = np.asarray(E, dtype=float)
-        J, v = self._J, self._v
+        J = self._J
         for s in range(self.S):
             c = self.c[s]
             g.rfft_scalar(c, out=self._ch)
             self._ch *= self._mask
             g.irfft_scalar(self._ch, out=c)          # c_s truncated in place, as the
-            for d in range(3):                       # original's (Rhs_NS_solute)
-                np.multiply(self._ch, self._ik[d], out=self._vh[d])
-            g.irfft(self._vh, out=J)                       # grad c
+            self._gradient(self._ch, J)              # original's (Rhs_NS_solute); grad c
             a, b = self.L[s] * self.kBT, self.L[s] * self.z[s]
             for d in range(3):
                 J[d] *= a
@@ -192,22 +212,29 @@ class Ions:
                 self._t *= c
                 self._t *= b
                 J[d] += self._t
-            # impermeable surfaces: J <- J - n (J.n)/|n|^2
+            # impermeable surfaces: J <- J - n (J.n)/|n|^2 where n is not zero
             t = self._t
-            np.multiply(J[0], self.normal[0], out=t)
-            t += J[1] * self.normal[1]
-            t += J[2] * self.normal[2]
-            t *= self._inv_n2
-            for d in range(3):
-                J[d] -= t * self.normal[d]
+            at, n = self._normal_at, self._normal
+            if at.size:
+                Jf = J.reshape(3, -1)
+                Jn = Jf[:, at]
+                tn = Jn[0] * n[0]
+                tn += Jn[1] * n[1]
+                tn += Jn[2] * n[2]
+                tn *= self._inv_n2
+                for d in range(3):
+                    Jf[d, at] = Jn[d] - tn * n[d]
             if u is not None:
                 for d in range(3):
-                    np.multiply(c, u[d], out=v[d])
-                    J[d] -= v[d]
-            g.rfft(J, out=self._vh)
-            np.multiply(self._vh[0], self._ik[0], out=self._ch)
-            self._ch += self._vh[1] * self._ik[1]
-            self._ch += self._vh[2] * self._ik[2]
+                    np.multiply(c, u[d], out=t)
+                    J[d] -= t
+            for d in range(3):                       # ch = i k . FFT(J)
+                g.rfft_scalar(J[d], out=self._cs)
+                if d == 0:
+                    np.multiply(self._cs, self._ik[0], out=self._ch)
+                else:
+                    self._cs *= self._ik[d]
+                    self._ch += self._cs
             self._ch *= self._mask
             self._ch[0, 0, 0] = 0.0                         # exact: the mean of div J is 0
             g.irfft_scalar(self._ch, out=t)
@@ -225,8 +252,8 @@ class Ions:
         """Coulomb force density of the ions' charge, sum_s z_s c_s (1 - phi) (E - grad Psi),
         (3, NX, NY, NZ), with grad Psi of the last ``potential``; the particles' own charge
         gets its force from ``particle_force``."""
-        out = self._v if out is None else out
-        rho = self._rho - self.rho_surf
+        out = self._J if out is None else out         # J is free between steps
+        rho = np.subtract(self._rho, self.rho_surf, out=self._t)
         for d in range(3):
             np.subtract(E[d], self.grad_psi[d], out=out[d])
             out[d] *= rho

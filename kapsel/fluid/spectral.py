@@ -180,13 +180,13 @@ class SpectralNS:
     def _weights(self) -> dict:
         """The ETD weights of eq 8 (z = -nu k^2 dt), made on first use: a fluid built for
         ``kapsel-py --check`` never steps.  E = e^z; a1 = dt phi1 mask (ETD1 / first step); a2 = dt (phi1 + phi2) mask and
-        b2 = dt phi2 mask (ETD2 weights of N^n and N^{n-1}); mask_n = mask / N (truncation
-        and the 1/N of the c2r)."""
+        b2 = dt phi2 mask (ETD2 weights of N^n and N^{n-1}).  A step of its own (the
+        Electrolyte's explicit Euler) never makes them."""
         g = self.grid
         z = -self.nu * g.k2 * self.dt
         p1 = phi1(z)
         mask = g.dealias_f
-        w = {"E": np.exp(z), "a1": self.dt * p1 * mask, "mask_n": mask / g.size}
+        w = {"E": np.exp(z), "a1": self.dt * p1 * mask}
         if self.scheme == "etd2":
             p2 = phi2(z)
             w["a2"] = self.dt * (p1 + p2) * mask
@@ -202,7 +202,10 @@ class SpectralNS:
     _a1 = property(lambda self: self._weights["a1"])
     _a2 = property(lambda self: self._weights["a2"])
     _b2 = property(lambda self: self._weights["b2"])
-    _mask_n = property(lambda self: self._weights["mask_n"])
+    @functools.cached_property
+    def _mask_n(self):
+        """mask / N: the 2/3 truncation and the 1/N of the c2r, made on first use."""
+        return self.grid.dealias_f / self.grid.size
 
     # ------------------------------------------------------------------ state
     def set_force(self, force):

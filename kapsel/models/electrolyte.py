@@ -105,7 +105,6 @@ class ElectrolyteModel(SpectralModel):
         self.ions = Ions(self.grid, el.valency, el.onsager, el.dielectric, f.kBT, self.dt,
                          state=self.state)
         self._dt_limit = self._ion_limit()
-        self._u = self.grid.empty_real()
         if self.dry:      # --check: no profiles, no ion densities; the signs of the ion
             vfree = self.grid.volume    # numbers do not depend on the free volume
         else:
@@ -171,16 +170,19 @@ class ElectrolyteModel(SpectralModel):
         from the state at t^n (fluid_solver.cxx NSsolute_solver_Euler)."""
         ions, fl, g = self.ions, self.fluid, self.grid
         ions.potential(truncate=True)
-        fl.velocity(out=self._u)
-        nl = fl.projected_nonlinear()        # P[u x omega], k = 0 mode 0
+        u = fl.velocity(out=fl.scratch_real()[0])   # u^n, in the solver's scratch: the
+        ions.step(u, self.field_now())               # ions first, then the fluid (the two
+        nl = fl.projected_nonlinear()        # steps are independent); P[u x omega], k = 0 0
         uh = fl.u_hat
-        nl -= (fl.nu * g.k2) * uh
+        nuk2, s = fl.nu * g.k2, fl._s
+        for c in range(3):                   # nl -= nu k^2 u_hat, a component at a time
+            np.multiply(nuk2, uh[c], out=s)
+            nl[c] -= s
         nl *= self.dt
         uh += nl
         uh *= g.dealias_f
         fl.apply_fix_cell()
         fl.step_index += 1
-        ions.step(self._u, self.field_now())
         if self.dt > 2 * self._dt_limit:         # past the ion step's limit: name it first
             what = self._ions_broke()
             if what is not None:
