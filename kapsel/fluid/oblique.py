@@ -187,11 +187,11 @@ class ObliqueSpectralNS(_ObliqueFrame, SpectralNS):
         super().__init__(grid, rho, eta, dt, fix_cell=fix_cell, scheme="etd1",
                          advection=advection, state=state)
         self._init_frame(shear, grid.box, dt, t0, frame_strain0)
-        # the vector scratch of this solver's own step (truncated u^ / N, vorticity, N; _n
-        # also the contravariant increments of add_solenoidal and the force)
-        self._uh = grid.empty_complex()
-        self._wh = grid.empty_complex()
+        # scratch of this solver's own step: N (real; also the contravariant increments of
+        # add_solenoidal and the force), and a third complex scalar beside _s and _t (the
+        # truncated u^ / N and the vorticity are made and transformed a component at a time)
         self._n = grid.empty_real()
+        self._c3 = grid.empty_complex(None)
         k = grid
         self._k11 = k.kx * k.kx
         self._k12 = k.kx * k.ky
@@ -244,10 +244,24 @@ class ObliqueSpectralNS(_ObliqueFrame, SpectralNS):
         """Cartesian deviation velocity on the oblique grid."""
         if out is None:
             out = self.grid.empty_real()
-        uh = self._uh
-        np.multiply(self.u_hat, 1.0 / self.grid.size, out=uh)
-        uh[0] += self.frame_strain * uh[1]
-        return self.grid.backward_raw(uh, out)
+        gr, s, t, inv = self.grid, self._s, self._t, 1.0 / self.grid.size
+        np.multiply(self.u_hat[0], inv, out=s)
+        np.multiply(self.u_hat[1], inv, out=t)
+        s += self.frame_strain * t                  # Cartesian u_1 = u^1 + g u^2
+        gr.backward_scalar_raw(s, out[0])
+        gr.backward_scalar_raw(t, out[1])
+        np.multiply(self.u_hat[2], inv, out=s)
+        gr.backward_scalar_raw(s, out[2])
+        return out
+
+    def _cartesian_hat(self, c, g, out, tmp):
+        """Component c of the truncated Cartesian u^ / N (u_1 = u^1 + g u^2) into ``out``
+        (``tmp``: scratch for c = 0)."""
+        np.multiply(self.u_hat[c], self._mask_n, out=out)
+        if c == 0:
+            np.multiply(self.u_hat[1], self._mask_n, out=tmp)
+            out += g * tmp
+        return out
 
     def velocity_rectangular(self, method="linear"):
         """Full velocity U + u^ (Cartesian) on the rectangular grid (for field output)."""
@@ -264,23 +278,19 @@ class ObliqueSpectralNS(_ObliqueFrame, SpectralNS):
         gr = self.grid
         nl = self._nl
         if self.advection:
-            uh, wh, t = self._uh, self._wh, self._t
-            np.multiply(self.u_hat, self._mask_n, out=uh)
-            uh[0] += g * uh[1]                       # Cartesian components
-            Ky = gr.ky - g * gr.kx                    # physical K_y
-            ikx, iky, ikz = self._ikx, 1j * Ky, self._ikz
-            np.multiply(iky, uh[2], out=wh[0])
-            np.multiply(ikz, uh[1], out=t)
-            wh[0] -= t
-            np.multiply(ikz, uh[0], out=wh[1])
-            np.multiply(ikx, uh[2], out=t)
-            wh[1] -= t
-            np.multiply(ikx, uh[1], out=wh[2])
-            np.multiply(iky, uh[0], out=t)
-            wh[2] -= t
+            a, b, wc = self._s, self._t, self._c3     # complex scalars
+            cart = self._cartesian_hat
             u, w, n = self._u, self._w, self._n
-            gr.backward_raw(uh, u)
-            gr.backward_raw(wh, w)
+            for c in range(3):                        # u: the truncated Cartesian velocity
+                gr.backward_scalar_raw(cart(c, g, a, b), u[c])
+            Ky = gr.ky - g * gr.kx                    # physical K_y
+            ik = (self._ikx, 1j * Ky, self._ikz)
+            for c in range(3):                        # w_c = i k_p u_q - i k_q u_p
+                p, q = (c + 1) % 3, (c + 2) % 3
+                np.multiply(ik[p], cart(q, g, a, b), out=wc)
+                np.multiply(ik[q], cart(p, g, a, b), out=b)
+                wc -= b
+                gr.backward_scalar_raw(wc, w[c])
             K = _compiled.spectral
             if K is not None:
                 K.cross(u, w, n)                      # bit-identical, one pass
@@ -317,16 +327,18 @@ class ObliqueSpectralNS(_ObliqueFrame, SpectralNS):
         E = np.exp(z, out=z)
         uh = self.u_hat
         uh *= E
-        tmp = self._uh
-        np.multiply(nl, w1, out=tmp)
-        uh += tmp
+        tmp = self._c3
+        for c in range(3):
+            np.multiply(nl[c], w1, out=tmp)
+            uh[c] += tmp
         if force is not None:
-            fh = self._wh
+            fh = nl                                   # free from here on
             self.grid.forward(contravariant(np.asarray(force, dtype=float), g0, out=self._n),
                               out=fh)
             self.project_metric(fh, g0)
-            np.multiply(fh, w1, out=tmp)
-            uh += tmp
+            for c in range(3):
+                np.multiply(fh[c], w1, out=tmp)
+                uh[c] += tmp
         self.time = t0 + dt
         self.apply_fix_cell()
         self.step_index += 1
@@ -409,7 +421,7 @@ class ObliqueSpectralNS(_ObliqueFrame, SpectralNS):
         """u^ += P^G[FFT(contravariant(du))] for a Cartesian increment du on the oblique grid
         (not truncated, as the original's Solenoidal_uk_OBL)."""
         g = self.frame_strain
-        d = self._wh
+        d = self._nl          # free between steps
         self.grid.forward(contravariant(np.asarray(du, dtype=float), g, out=self._n), out=d)
         if project:
             self.project_metric(d, g)

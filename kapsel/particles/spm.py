@@ -404,6 +404,7 @@ class SPM:
     def _coupling_u(self):
         """The field the particles couple to: u* (rect: on the rectangular grid)."""
         if self.rect:
+            self._uc = None                 # the last step's, freed before the new one is made
             self._uc = self._to_rect(self.u)
             return self._uc
         return self.u
@@ -472,6 +473,7 @@ class SPM:
             du = self._rigidity(self._coupling_u() if self.rect and self.n_global else u)
         finally:
             self._deviation = False
+        self._uc = None                     # rect: done with u* (memory for the re-gridding)
         self._add_solenoidal(self._to_oblique(du) if self.rect and self.n_global else du,
                              start=True)
         if self.p.n and self.wall is None:
@@ -604,6 +606,8 @@ class SPM:
                                               self.rotation, dP, dL, first=first)
             self.owned.refresh(self.p.v, self.p.omega)   # the owners' velocities to ghosts
             du = self._rigidity(uc, sampled=us)
+            if self.rect:                   # u* on the rectangular grid is done with: its
+                uc = self._uc = None        # memory serves the re-gridding below
             # rect: the increment back on the oblique grid (Transform_obl_u cartesian2oblique)
             self._add_solenoidal(self._to_oblique(du) if self.rect else du)
             self._du_stepped = True
