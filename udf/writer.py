@@ -116,10 +116,11 @@ def format_value(v, t, ndim: int, single: bool = False) -> str:
     return "".join(map(str, out))
 
 
-# numbers formatted at a time: format_array holds about 55 bytes of work per number (the
-# text and its masks), so a restart's velocity field (10^8 numbers, 1.3 GB of text at
-# 256 x 256 x 512) is formatted in blocks of rows, each written before the next is formed
-# (_Blocks): the whole text is never held (2^18 numbers: about 15 MB of work)
+# numbers formatted at a time: format_array holds about 7 bytes of work per byte of text
+# (the text and its masks, some 25 bytes a number), so a restart's velocity field (10^8
+# numbers, 1.3 GB of text at 256 x 256 x 512) is formatted in blocks of rows, each written
+# before the next is formed (_Blocks), and a row larger than a block in blocks of its own
+# rows: the whole text is never held (2^18 numbers: about 45 MB of work)
 CHUNK_NUMBERS = 1 << 18
 
 
@@ -137,8 +138,15 @@ class _Blocks:
         for s in range(0, len(self.v), self.rows):
             if s:
                 yield self.sep
-            yield _Raw(format_array(self.v[s:s + self.rows], self.t, self.ndim,
-                                    self.single).buf[1:-1])
+            if self.rows == 1 and self.ndim > 1 and self.v[s].size > CHUNK_NUMBERS:
+                # a row larger than a block (a short first axis: the species of a
+                # Concentration[]) is itself written in blocks of its rows
+                inner: list = []
+                _emit_array(inner, self.v[s], self.t, self.ndim - 1, self.single)
+                yield inner[0]
+            else:
+                yield _Raw(format_array(self.v[s:s + self.rows], self.t, self.ndim,
+                                        self.single).buf[1:-1])
         yield "]"
 
     def __str__(self):

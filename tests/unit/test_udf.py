@@ -401,7 +401,8 @@ def test_large_arrays_are_written_in_blocks_with_the_same_bytes(monkeypatch):
     from udf.schema import Primitive
     rng = np.random.default_rng(1)
     t = Primitive("double")
-    for shape, ndim in (((37,), 1), ((9, 7), 2), ((5, 4, 3), 3)):
+    for shape, ndim in (((37,), 1), ((9, 7), 2), ((5, 4, 3), 3), ((2, 5, 4, 3), 4),
+                        ((1, 3, 4, 6), 4)):
         arr = rng.normal(size=shape)
         monkeypatch.setattr(W, "CHUNK_NUMBERS", 1 << 40)
         whole = W.format_value(arr, t, ndim)
@@ -423,8 +424,7 @@ def test_large_array_text_is_written_block_by_block(monkeypatch):
     arr = np.random.default_rng(2).normal(size=(128, 128, 128))
     t = Primitive("double")
     monkeypatch.setattr(W, "CHUNK_NUMBERS", 1 << 16)
-    pieces = []
-    W._emit(pieces, arr, t, 3, False)
+
     class Sink:              # a file that keeps only a hash of what it is given
         def __init__(self):
             self.n, self.h = 0, hashlib.sha256()
@@ -433,11 +433,16 @@ def test_large_array_text_is_written_block_by_block(monkeypatch):
             self.n += len(b)
             self.h.update(b)
 
-    fh = Sink()
-    tracemalloc.start()
-    W.write_pieces(fh, pieces)
-    peak = tracemalloc.get_traced_memory()[1]
-    tracemalloc.stop()
-    assert peak < 0.5 * fh.n, (peak, fh.n)
-    text = "".join(map(str, pieces)).encode()
-    assert fh.h.digest() == hashlib.sha256(text).digest()
+    # and a field whose first axis is short (two species of 2^20 numbers each: rows larger
+    # than a block are split in turn)
+    for arr, ndim in ((arr, 3), (arr.reshape(2, 64, 128, 128), 4)):
+        pieces = []
+        W._emit(pieces, arr, t, ndim, False)
+        fh = Sink()
+        tracemalloc.start()
+        W.write_pieces(fh, pieces)
+        peak = tracemalloc.get_traced_memory()[1]
+        tracemalloc.stop()
+        assert peak < 0.5 * fh.n, (ndim, peak, fh.n)
+        text = "".join(map(str, pieces)).encode()
+        assert fh.h.digest() == hashlib.sha256(text).digest()
