@@ -1003,10 +1003,14 @@ def _field_output(r: _Reader, mesh: Mesh, eq_type: str = "") -> FieldOutput:
 # written): Navier_Stokes 128^3 431 MB without particles, 494 / 597 MB with 1000 / 4000
 # particles of A = 2 DX (184-point stencils), 586 MB with 1000 of A = 4 (720 points): each
 # stencil point about 172 B, each particle 2.7 kB besides, the dense fields 14 B per point;
-# an 8^3 run 92 MB (the program).  With a margin of about 10 %.
+# an 8^3 run 92 MB (the program).  With a margin of about 10 %.  A run long enough for the
+# compiled kernels (kapsel.mesh.compiled) also holds numba and its code generator, about
+# 100 MB more: 2026-12-04, 20-step runs with KAPSEL_PY_COMPILED=1 at 128^3 with 1000
+# particles of A = 2 (bench_vs_original.py): Navier_Stokes 592 MB (estimate 628), zigzag 657
+# (668), Lees-Edwards 788 (828), Electrolyte 969 (1030).
 BYTES_PER_STENCIL_POINT = 190
 BYTES_PER_PARTICLE = 3000           # state and records, besides the stencil
-PROGRAM_BYTES = 100 * 2 ** 20       # the interpreter, numpy, scipy, h5py, pyFFTW (RSS)
+PROGRAM_BYTES = 200 * 2 ** 20       # the interpreter, numpy, scipy, h5py, pyFFTW, numba (RSS)
 MEMORY_ENV = "KAPSEL_PY_MEMORY_LIMIT_GB"
 
 

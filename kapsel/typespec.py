@@ -31,8 +31,8 @@ class TypeSpec:
     # peak memory per mesh point (bytes; the run's peak RSS less the program's own, measured
     # with /usr/bin/time on 64^3 and 128^3 runs of samples/input.udf 2026-12-02, ~10 % added),
     # and what particles add per point (their dense fields) besides their stencils
-    # (kapsel.config.memory_estimate); Electrolyte's from 2026-12-04 (profile_step --memory
-    # el128x1000: 332 bytes per point with 1000 particles, after its step was trimmed)
+    # (kapsel.config.memory_estimate); Electrolyte's and Lees-Edwards' from 2026-12-04, after
+    # their steps were trimmed (kapsel.config: the runs behind PROGRAM_BYTES)
     bytes_per_point: int = 180
     bytes_per_point_particles: int = 16
 
@@ -46,8 +46,8 @@ TYPES = {s.name: s for s in (
     TypeSpec("Shear_Navier_Stokes", "spectral", sheared=True, self_propelled=True,
              bytes_per_point=200),
     TypeSpec("Shear_Navier_Stokes_Lees_Edwards", "spectral", sheared=True,
-             bytes_per_point=350),
-    TypeSpec("Electrolyte", "spectral", ions=True, distributed=False, bytes_per_point=350),
+             bytes_per_point=280),
+    TypeSpec("Electrolyte", "spectral", ions=True, distributed=False, bytes_per_point=380),
     TypeSpec("Navier_Stokes_FDM", "fdm", walls=True, bytes_per_point=400,
              bytes_per_point_particles=64),
     TypeSpec("Navier_Stokes_Cahn_Hilliard_FDM", "fdm", phase=True, walls=True, surface_z=True,
