@@ -179,9 +179,9 @@ def test_check_of_a_large_real_input_is_cheap(tmp_path, name, where):
 
 
 def test_a_run_larger_than_the_machine_is_refused_by_the_check(tmp_path):
-    """ex02 needs about 7 GB (6.28-6.40 GB measured, 2026-12-02) (the estimate is calibrated on measured runs: kapsel.typespec
-    bytes_per_point, kapsel.config): with a 4 GB limit --check refuses it, exit 2, naming
-    the mesh, the need and the limit."""
+    """ex02 needs about 7 GB (6.28-6.40 GB measured 2026-12-02; the estimate is calibrated
+    on measured runs: kapsel.typespec bytes_per_point, kapsel.config): with a 4 GB limit
+    --check refuses it, exit 2, naming the mesh, the need and the limit."""
     src = os.path.join(SAMPLES, "kapsel-udf", "ex02")
     for f in os.listdir(src):
         shutil.copy(os.path.join(src, f), tmp_path / f)
