@@ -282,6 +282,10 @@ class RunConfig:
 
 
 # ---------------------------------------------------------------------------------------
+# the sizes a parameter read by _Reader.positive / non_negative / finite may have (or 0)
+SMALLEST, LARGEST = 1e-30, 1e30
+
+
 class _Reader:
     """Reads values by path, remembers where they came from for messages, and collects the
     problems of the input so that the user gets all of them at once.
@@ -371,18 +375,27 @@ class _Reader:
         v = self.get(path)
         if not v > 0 or not math.isfinite(v):
             self.fail(path, v, "must be a positive number")
-        return v
+        return self._in_range(path, v)
 
     def non_negative(self, path):
         v = self.get(path)
         if not v >= 0 or not math.isfinite(v):
             self.fail(path, v, "must be zero or positive")
-        return v
+        return self._in_range(path, v)
 
     def finite(self, path):
         v = self.get(path)
         if not math.isfinite(v):
             self.fail(path, v, "must be a finite number")
+        return self._in_range(path, v)
+
+    def _in_range(self, path, v):
+        """A parameter's size within [SMALLEST, LARGEST] (or 0): no physical input comes
+        near the limits, and beyond them the set-up's arithmetic (a stencil's volume, the
+        Debye length's ion densities, 1 / RHO ...) overflows or divides by zero."""
+        if v != 0 and not SMALLEST <= abs(v) <= LARGEST:
+            self.fail(path, v, f"must be 0 or between {SMALLEST:g} and {LARGEST:g} in size "
+                               f"(beyond, the run's arithmetic overflows)")
         return v
 
 

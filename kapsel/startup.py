@@ -225,11 +225,15 @@ class _DirLock:
 
 def written_dirs(args, cfg=None) -> list[str]:
     """Every directory a run writes into: that of -O (with the FDM types' field files and
-    the .dat tables), that of -R, and output.AVS's Out_dir."""
+    the .dat tables), that of -R, and output.AVS's Out_dir (with its avs/ of the legacy
+    AVS files)."""
     paths = [os.path.dirname(os.path.abspath(p)) for p in (args.output, args.restart)]
     if cfg is not None and cfg.output.fields is not None:
         from .io.writers import field_directory
-        paths.append(os.path.abspath(field_directory(cfg, args)))
+        out_dir = os.path.abspath(field_directory(cfg, args))
+        paths.append(out_dir)
+        if cfg.output.fields.FileType != "EXTENDED":
+            paths.append(os.path.join(out_dir, "avs"))
     return sorted({os.path.realpath(d) for d in paths})
 
 
@@ -409,6 +413,9 @@ def build_model(cfg, args, doc, resumed: bool, origin: dict | None = None):
                 origin["source"] = (args.input, saved.text_fingerprint,
                                     saved.step if saved.checkpoint_of is None
                                     else saved.checkpoint_of)
+            adopted = getattr(args, "adopted_run_id", None)
+            if not model.run_id_known and adopted:      # no state file: output.udf's run
+                model.run_id, model.run_id_known = adopted, True
             if saved.exact and "seed" in saved.exact:
                 # the time line's seed (its noise state is restored), the one output.udf's
                 # first line names, not one drawn for this continuation
@@ -505,6 +512,7 @@ def build(args, locks: list | None = None, overrides: dict | None = None):
     if code:
         raise problem if problem is not None else BadInput("", code)
     args.seed = dist.bcast(args.seed)
+    args.adopted_run_id = dist.bcast(getattr(args, "adopted_run_id", None))
     if _not_distributed(checked[0]):
         args.dist = dist = OneRank()      # one rank (refused with more): a plain run
     cfg, doc, define, resumed, seed_drawn = checked
@@ -559,6 +567,15 @@ def _check_inputs(args, locks, dist, overrides=None):
         problem = existing_outputs(args, cfg)
         if problem:
             raise BadInput(problem)
+    args.adopted_run_id = None
+    if resumed and args.seed is None and writes and not args.overwrite:
+        # a continuation whose restart has no usable state file (its seed and run id are
+        # there otherwise) appends to the output.udf of its time line: that file's seed
+        # and run id go on, so its first line stays true
+        from .io.records import run_line
+        named = run_line(args.output) if os.path.exists(args.output) else None
+        if named is not None:
+            args.adopted_run_id, args.seed = named
     seed_drawn = args.seed is None
     if args.seed is None:   # drawn here, reported once the input is known to be good
         import secrets

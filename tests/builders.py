@@ -966,9 +966,10 @@ CORPUS = {
     "tolerance_unreachable.udf": ("CH_solver tolerance exponent -300 (10^-300: never reached)",
                                   ["tolerance_unreachable.udf:7:1013:", "tolerance = -300.0",
                                    "below -15"]),
-    "dx_huge_auto_dt_zero.udf": ("DX = 1e300: the automatic dt underflows to 0",
+    "dx_huge_auto_dt_zero.udf": ("DX = 1e300: beyond any physical size (the automatic dt "
+                                 "would underflow to 0)",
                                  ["dx_huge_auto_dt_zero.udf:26:25:", "DX = 1e+300",
-                                  "not a finite positive time step"]),
+                                  "between 1e-30 and 1e+30"]),
     "maximum_iteration_zero.udf": ("CH_solver maximum_iteration 0",
                                    ["maximum_iteration_zero.udf:7:1031:",
                                     "implicit_scheme.maximum_iteration = 0", "at least 1"]),

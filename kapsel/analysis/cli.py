@@ -28,6 +28,9 @@ def cmd_sq(a) -> int:
                                    snapshot_times, structure_factor)
     if not os.path.isdir(a.directory):
         return _fail(f"{a.directory}: not a directory")
+    import math
+    if not (a.dx > 0 and math.isfinite(a.dx)):
+        return _fail(f"--dx {a.dx}: the grid spacing must be a positive number")
     table = a.table or os.path.join(a.directory, "sq.txt")
     plot = a.plot or os.path.join(a.directory, "sq.png")
     for flag, path in (("--table", table), ("--plot", plot)):

@@ -36,6 +36,30 @@ def default_cutoff(positions, box) -> float:
     return 0.5 * (1 + np.sqrt(2)) * float(np.median(d[:, 1]))
 
 
+def _frame_problem(fr) -> str | None:
+    """Why a frame cannot be analysed (None when it can): coordinates and box lengths must
+    be finite, the box lengths positive."""
+    if not np.isfinite(fr.positions).all():
+        return "a coordinate is not a finite number"
+    if fr.box is not None:
+        L = np.asarray(fr.box, dtype=float)
+        if not (np.isfinite(L).all() and (L > 0).all()):
+            return f"the box {L.tolist()} has a length that is not a positive number"
+    return None
+
+
+def _wrapped(fr):
+    """The frame's positions wrapped into its periodic box (as kapsel.analysis.cna does)."""
+    if fr.box is None:
+        return fr.positions
+    L = np.broadcast_to(np.asarray(fr.box, dtype=float), (3,))
+    per = np.broadcast_to(np.asarray(fr.periodic, dtype=bool), (3,))
+    p = np.array(fr.positions, dtype=float, copy=True)
+    p[:, per] = np.mod(p[:, per], L[per])
+    p[:, per] = np.where(p[:, per] >= L[per], 0.0, p[:, per])
+    return p
+
+
 def run(a) -> int:
     from .cli import _output_problem
     if a.labels:
@@ -63,7 +87,21 @@ def run(a) -> int:
         if len(fr.positions) < 2:
             print(f"{rec:6d}  (fewer than 2 particles)")
             continue
-        rc = a.cutoff or default_cutoff(fr.positions, fr.box)
+        problem = _frame_problem(fr)
+        if problem:
+            print(f"kapsel-py analyze cna: error: record {rec}: {problem}", file=sys.stderr)
+            return 2
+        try:
+            rc = a.cutoff or default_cutoff(_wrapped(fr), fr.box)
+        except ValueError as e:
+            print(f"kapsel-py analyze cna: error: record {rec}: {e}", file=sys.stderr)
+            return 2
+        if not (np.isfinite(rc) and rc > 0):
+            why = "a given --cutoff" if a.cutoff else "particles on top of each other? give --cutoff"
+            print(f"kapsel-py analyze cna: error: record {rec}: the cutoff {rc:g} is not a "
+                  f"positive number ({why})",
+                  file=sys.stderr)
+            return 2
         if fr.box is not None and np.any(fr.periodic) and \
                 2 * rc >= float(np.min(np.asarray(fr.box)[np.asarray(fr.periodic)])):
             L = float(np.min(np.asarray(fr.box)[np.asarray(fr.periodic)]))
@@ -75,7 +113,11 @@ def run(a) -> int:
             return 2
         with warnings.catch_warnings(record=True) as w:
             warnings.simplefilter("always")
-            labels = C.cna(fr.positions, fr.box, rc, periodic=fr.periodic)
+            try:
+                labels = C.cna(fr.positions, fr.box, rc, periodic=fr.periodic)
+            except ValueError as e:
+                print(f"kapsel-py analyze cna: error: record {rec}: {e}", file=sys.stderr)
+                return 2
         for item in w:
             print(f"warning (record {rec}): {item.message}", file=sys.stderr)
         cnt = C.counts(labels)

@@ -98,4 +98,8 @@ def read_psi(path: str) -> np.ndarray:
     check_regular(path)
     with h5py.File(path, "r") as f:
         name = "PSI" if "PSI" in f else next(iter(f.keys()))
-        return np.ascontiguousarray(np.asarray(f[name]).T)
+        psi = np.asarray(f[name])
+    if psi.ndim != 3 or psi.dtype.kind not in "fiu" or 0 in psi.shape:
+        raise ValueError(f"its dataset {name} is not a 3-D numeric field (shape "
+                         f"{psi.shape}, type {psi.dtype})")
+    return np.ascontiguousarray(psi.T)

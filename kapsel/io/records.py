@@ -150,6 +150,23 @@ def run_id(path: str) -> str | None:
     return None
 
 
+def run_line(path: str) -> tuple[str, int] | None:
+    """(run id, seed) named by the first line of an output.udf written by kapsel-py, else
+    None."""
+    try:
+        with open_regular(path) as fh:
+            first = fh.readline(400).decode("utf-8", "replace")
+    except OSError:
+        return None
+    if not first.startswith("// " + RUN_MARK):
+        return None
+    head, _, rest = first[3 + len(RUN_MARK):].partition(", random seed ")
+    try:
+        return head.strip(), int(rest.split()[0])
+    except (ValueError, IndexError):
+        return None
+
+
 class TableLog:
     """A text table next to output.udf, one line per snapshot (``step t`` then ``columns``);
     for quantities the define.udf records have no place for.  Each row is appended whole

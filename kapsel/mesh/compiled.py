@@ -72,6 +72,12 @@ def enable() -> bool:
         from . import regrid, regrid_kernels
     except ImportError:     # pragma: no cover - numba missing
         return False
+    except (OSError, MemoryError) as e:     # numba's code generator cannot be loaded (out
+        import sys                          # of memory under ulimit -v): the numpy passes
+        why = str(e).splitlines()[0] if str(e) else type(e).__name__
+        print(f"#the compiled kernels could not be loaded ({why}); the run goes on with the "
+              f"numpy passes (the same numbers, slower)", file=sys.stderr)
+        return False
     globals().update(loaded)
     regrid.kernels = regrid_kernels
     _enabled = True

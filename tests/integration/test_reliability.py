@@ -203,6 +203,34 @@ def test_4_two_runs_with_one_avs_out_dir(tmp_path):
         first.wait()
 
 
+def test_4_the_legacy_avs_subdirectory_is_under_the_lock(tmp_path):
+    """Legacy AVS writes <Out_dir>/avs/*.dat: a second run whose -O and -R are in that
+    directory is refused while the first holds its locks (re-audit 2026-12-04)."""
+    from kapsel import config
+    from kapsel.startup import lock_output_dirs
+    d = small(tmp_path, "a", eq="Navier_Stokes")
+    shared = tmp_path / "fields"
+    put(d, "input.udf", "input.udf", output__AVS="ON", output__ON__FileType="BINARY",
+        output__ON__Out_dir=str(shared))
+    cfg = config.load(str(d / "input.udf"))
+
+    class Args:
+        output, restart, quiet = str(d / "output.udf"), str(d / "restart.udf"), True
+    held, problem = lock_output_dirs(Args, cfg)
+    assert problem is None
+    try:
+        class Other:
+            output = str(shared / "avs" / "output.udf")
+            restart = str(shared / "avs" / "restart.udf")
+            quiet = True
+        again, problem = lock_output_dirs(Other, None)
+        assert again is None
+        assert "another kapsel-py run is writing into" in problem and "avs" in problem
+    finally:
+        for h in held:
+            h.close()
+
+
 # ------------------------------------------------- 5. \include of a FIFO or a device
 @pytest.mark.parametrize("target", ["fifo", "/dev/zero"])
 def test_5_include_of_a_fifo_or_device_is_refused(tmp_path, target):
@@ -329,15 +357,49 @@ def test_7_failed_row_append_is_cut_back(tmp_path, monkeypatch):
 
 
 # ------------------------------------------------- 8, 9. bad values
-@pytest.mark.parametrize("value", [1e308, 1e23])
+@pytest.mark.parametrize("value,says", [(1e308, "between 1e-30 and 1e+30"),
+                                        (1e23, "does not fit in the box")])
 @pytest.mark.parametrize("check", [True, False])
-def test_8_huge_radius_is_refused(tmp_path, value, check, capsys, monkeypatch):
+def test_8_huge_radius_is_refused(tmp_path, value, says, check, capsys, monkeypatch):
     d = small(tmp_path)
     put(d, "input.udf", "bad.udf", A=value)
     code, err = main_in(d, capsys, monkeypatch, "-Ibad.udf", "-Ooutput.udf", "-Ddefine.udf",
                         "-Rrestart.udf", *(["--check"] if check else []))
     assert code == 2
-    assert "does not fit in the box" in one_line(err)
+    assert says in one_line(err)
+
+
+@pytest.mark.parametrize("path,value", [
+    ("A", 1e308),                       # with user_specify placement: overflowed in the cells
+    ("constitutive_eq.Electrolyte.kBT", 1e308),
+    ("constitutive_eq.Electrolyte.Add_salt.salt.Debye_length", 1e308),
+    ("constitutive_eq.Electrolyte.Add_salt.salt.Debye_length", 1e-308),
+    ("constitutive_eq.Electrolyte.Add_salt.salt.Onsager_coeff_positive_ion", 1e308),
+    ("constitutive_eq.Electrolyte.Dielectric_cst", 1e-308),
+    ("constitutive_eq.Electrolyte.RHO", 1e-308),
+    ("constitutive_eq.Electrolyte.Electric_field.ON.DC.Ex", 1e308),
+    ("object_type.spherical_particle.Particle_spec[0].MASS_RATIO", 5e-324)])
+@pytest.mark.parametrize("check", [True, False])
+def test_8_a_parameter_beyond_any_physical_size_is_one_line(tmp_path, path, value, check,
+                                                            capsys, monkeypatch):
+    """The class of the audit's extreme values (re-audit 2026-12-04: tracebacks of
+    OverflowError, ZeroDivisionError, ValueError in the set-up): every number the input
+    check reads as a parameter is 0 or between 1e-30 and 1e30 in size, refused in one line
+    naming it, before anything is written (Electrolyte with user-placed particles: the
+    types and paths of the audit)."""
+    from builders import electrolyte_input as el_input
+    d = tmp_path / "el"
+    el_input(d, npx=3, A=2.0)
+    u = UDFManager(str(d / "input.udf"))
+    u.put(1.0, "A_XI")
+    u.put(value, path)
+    u.write(str(d / "bad.udf"))
+    code, err = main_in(d, capsys, monkeypatch, "-Ibad.udf", "-Ooutput.udf", "-Ddefine.udf",
+                        "-Rrestart.udf", *(["--check"] if check else []))
+    assert code == 2, err
+    line = one_line(err)
+    assert path.rsplit(".", 1)[-1] in line and "between 1e-30 and 1e+30" in line
+    assert not (d / "output.udf").exists()
 
 
 @pytest.mark.parametrize("check", [True, False])
@@ -389,6 +451,35 @@ def test_10_analyze_cna_on_a_small_box(tmp_path, capsys):
                    'A 0 0 1.5\n')
     assert main(["analyze", "cna", str(xyz)]) == 2
     assert "not below half the periodic box" in one_line(capsys.readouterr().err)
+
+
+def test_10_analyze_bad_dx_fields_and_frames_are_one_line(tmp_path, capsys):
+    """The re-audit's variations (2026-12-04): `sq` with --dx 0, a snapshot whose dataset
+    is not a 3-D field (skipped); `cna` with a coordinate far outside its periodic box
+    (wrapped), a vanishing box, a non-positive --cutoff."""
+    import h5py
+    d = tmp_path / "sq"
+    d.mkdir()
+    with h5py.File(d / "orderparam_0.h5", "w") as f:
+        f["PSI"] = np.random.default_rng(0).standard_normal((8, 8, 8))
+    with h5py.File(d / "orderparam_1.h5", "w") as f:
+        f["PSI"] = np.ones(5)
+    assert main(["analyze", "sq", str(d), "--dx", "0"]) == 2
+    assert "--dx" in one_line(capsys.readouterr().err)
+    assert main(["analyze", "sq", str(d), "--plot", str(tmp_path / "sq.png")]) == 0
+    err = capsys.readouterr().err
+    assert "orderparam_1.h5 is skipped" in err and "not a 3-D numeric field" in err
+    far = tmp_path / "far.xyz"
+    far.write_text('2\nLattice="3 0 0 0 3 0 0 0 3"\nA 0 0 0\nA 1e308 0 0\n')
+    assert main(["analyze", "cna", str(far)]) == 0
+    assert "Traceback" not in capsys.readouterr().err
+    tiny = tmp_path / "tiny.xyz"
+    tiny.write_text('3\nLattice="1e-300 0 0 0 1e-300 0 0 0 1e-300"\nA 0 0 0\nA 0 0 0\n'
+                    'A 0 0 0\n')
+    assert main(["analyze", "cna", str(tiny)]) == 2
+    assert "not a positive number" in one_line(capsys.readouterr().err)
+    assert main(["analyze", "cna", str(far), "--cutoff", "-1"]) == 2
+    assert "not a positive number" in one_line(capsys.readouterr().err)
 
 
 # ------------------------------------------------- 11. temporaries and the seed
@@ -454,6 +545,57 @@ def test_11_continuation_without_seed_keeps_the_runs_seed(tmp_path, capsys, monk
     assert RUN_MARK in first and "random seed 11 " in first
     with np.load(d / "restart.udf.state.npz") as z:
         assert str(z["seed"]).strip('"') == "11"
+
+
+@pytest.mark.parametrize("state", ["damaged", "missing"])
+def test_11_continuation_without_a_usable_state_file_keeps_output_udfs_seed(
+        tmp_path, state, capsys, monkeypatch):
+    """A continuation whose restart has no usable state file (damaged, or a copy of
+    restart.udf without it) and no --seed takes the seed and run id output.udf's first line
+    names, so that line stays true of the run it appends to (re-audit 2026-12-04: a fresh
+    seed was drawn and written into the new state file)."""
+    from kapsel.io.records import run_line
+    d = small(tmp_path, gts=2, nsnap=2, kBT=0.5)
+    assert cli(d, "input.udf") == 0                  # --seed 11
+    put(d, "restart.udf", "cont.udf", output__Num_snap=4)
+    if state == "damaged":
+        put(d, "restart.udf", "restart.udf", output__Num_snap=4)
+        (d / "restart.udf.state.npz").write_bytes(b"garbage")
+        src = "restart.udf"
+    else:
+        src = "cont.udf"
+    named = run_line(str(d / "output.udf"))
+    assert named is not None and named[1] == 11
+    code, err = main_in(d, capsys, monkeypatch, f"-I{src}", "-Ooutput.udf",
+                        "-Ddefine.udf", "-Rrestart.udf", "--quiet")
+    assert code == 0, err
+    assert run_line(str(d / "output.udf")) == named
+    with np.load(d / "restart.udf.state.npz") as z:
+        assert str(z["seed"]).strip('"') == "11"
+        assert str(z["run_id"]).strip('"') == named[0]
+
+
+def test_a_compiled_kernel_load_that_fails_leaves_the_numpy_passes(monkeypatch, capsys):
+    """numba's code generator failing to load (out of memory under ulimit -v: an OSError
+    from llvmlite) is one note and the numpy passes (the same numbers), not a write failure
+    (re-audit 2026-12-04)."""
+    import importlib
+    from kapsel.mesh import compiled
+    was = compiled._enabled
+    compiled.disable()
+
+    def fail(name, *a, **k):
+        raise OSError("Could not find/load shared object file 'libllvmlite.so'")
+    monkeypatch.setattr(importlib, "import_module", fail)
+    monkeypatch.setenv("KAPSEL_PY_COMPILED", "auto")
+    try:
+        assert compiled.enable() is False
+        assert compiled.spectral is None and compiled.stencils is None
+        assert "the numpy passes" in one_line(capsys.readouterr().err)
+    finally:
+        monkeypatch.undo()
+        if was:
+            compiled.enable()
 
 
 def test_a_fifo_in_place_of_a_snapshot_file_is_not_opened(tmp_path):
