@@ -968,7 +968,7 @@ CORPUS = {
                                    "below -15"]),
     "dx_huge_auto_dt_zero.udf": ("DX = 1e300: beyond any physical size (the automatic dt "
                                  "would underflow to 0)",
-                                 ["dx_huge_auto_dt_zero.udf:26:25:", "DX = 1e+300",
+                                 ["dx_huge_auto_dt_zero.udf:7:", "DX = 1e+300",
                                   "between 1e-30 and 1e+30"]),
     "maximum_iteration_zero.udf": ("CH_solver maximum_iteration 0",
                                    ["maximum_iteration_zero.udf:7:1031:",
