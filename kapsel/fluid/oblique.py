@@ -247,7 +247,7 @@ class ObliqueSpectralNS(_ObliqueFrame, SpectralNS):
         gr, s, t, inv = self.grid, self._s, self._t, 1.0 / self.grid.size
         np.multiply(self.u_hat[0], inv, out=s)
         np.multiply(self.u_hat[1], inv, out=t)
-        s += self.frame_strain * t                  # Cartesian u_1 = u^1 + g u^2
+        s += np.multiply(t, self.frame_strain, out=self._c3)   # u_1 = u^1 + g u^2
         gr.backward_scalar_raw(s, out[0])
         gr.backward_scalar_raw(t, out[1])
         np.multiply(self.u_hat[2], inv, out=s)
@@ -260,7 +260,8 @@ class ObliqueSpectralNS(_ObliqueFrame, SpectralNS):
         np.multiply(self.u_hat[c], self._mask_n, out=out)
         if c == 0:
             np.multiply(self.u_hat[1], self._mask_n, out=tmp)
-            out += g * tmp
+            tmp *= g                    # g u^2 (no temporary: the same products)
+            out += tmp
         return out
 
     def velocity_rectangular(self, method="linear"):
