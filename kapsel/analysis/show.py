@@ -68,6 +68,20 @@ def snapshot_files(run_dir: str) -> dict[int, dict]:
     return found
 
 
+def _unreadable(fields: dict) -> str | None:
+    """Why one of the field files {kind: path} cannot be read (None when all can): not a
+    regular file (a FIFO, a device), or not an HDF5 file (a torn write)."""
+    import h5py
+    for path in fields.values():
+        try:
+            check_regular(path)
+            with h5py.File(path, "r"):
+                pass
+        except OSError as e:
+            return f"{path} cannot be read ({e.strerror or str(e).splitlines()[0]})"
+    return None
+
+
 def read_field(path: str, kind: str) -> np.ndarray:
     """psi, or |u|, as a float64 array indexed [x, y, z] (the files are stored z, y, x)."""
     import h5py
@@ -328,6 +342,11 @@ def run(a) -> int:
         if files and fields is None:
             print(f"kapsel-py analyze show: record {i} (t = {rec.t[i]:g}) has no field "
                   f"snapshot file; drawing its particles only", file=sys.stderr)
+        unreadable = _unreadable(fields or {})
+        if unreadable:              # a read problem is not a write failure of the picture
+            print(f"kapsel-py analyze show: {unreadable}; drawing record {i}'s particles "
+                  f"only", file=sys.stderr)
+            fields = None
         name = f"show_{n}.png" if n is not None else f"show_record{i}.png"
         try:
             pic = render(os.path.join(out_dir, name), rec, i, fields, a.z, table)

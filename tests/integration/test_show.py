@@ -146,3 +146,19 @@ def test_periodic_and_lees_edwards_images():
     assert {(cx, cy) for cx, cy, *_ in sheared} == {(1, 1), (17, 1), (5, 17)}
     assert all(cut for *_, cut in sheared)
     assert not any(cut for *_, cut in show.particle_circles(R, 2.0, box, 12.0))
+
+
+def test_show_with_an_unreadable_field_file_draws_the_particles(tmp_path, monkeypatch, capsys):
+    """A field file that cannot be read (a FIFO in its place, or torn) is said as a read
+    problem and the record drawn with its particles only, not reported as a failed write of
+    the picture (re-audit 2026-12-04)."""
+    short_run(tmp_path, monkeypatch)
+    last = sorted(tmp_path.glob("orderparam_2.h5")) or sorted(tmp_path.glob("*_2.h5"))
+    assert last
+    last[0].unlink()
+    os.mkfifo(last[0])
+    assert cli.main(["analyze", "show", str(tmp_path)]) == 0
+    err = capsys.readouterr().err
+    assert f"{last[0]} cannot be read" in err and "particles only" in err
+    assert "cannot write" not in err
+    assert (tmp_path / "show_2.png").exists()
