@@ -294,14 +294,28 @@ class SpectralNS:
         g.project(nl, tmp=(self._s, self._t))
         return nl
 
-    def projected_nonlinear(self):
-        """P[u x omega] in _nl with the same bits whether the compiled kernels are loaded or
-        not (the compiled ``_nonlinear`` leaves the projection to the fused ETD update; a
-        step of its own, as the Electrolyte's explicit Euler step, projects it here)."""
+    def euler_step(self):
+        """u_hat <- T[u_hat + dt (P[u x omega] - nu k^2 u_hat)]: the explicit Euler step of the
+        Electrolyte type (fluid_solver.cxx NSsolute_solver_Euler), instead of ``step``.  The
+        same bits whether the compiled kernels are loaded or not: the compiled
+        ``_nonlinear`` leaves the projection to the fused ETD update, so it is done here."""
         nl = self._nonlinear()
         if self.advection and _compiled.spectral is not None:
             self.grid.project(nl, tmp=(self._s, self._t))
-        return nl
+        uh, s = self.u_hat, self._s
+        for c in range(3):                   # nl -= nu k^2 u_hat, a component at a time
+            np.multiply(self._nu_k2, uh[c], out=s)
+            nl[c] -= s
+        nl *= self.dt
+        uh += nl
+        uh *= self.grid.dealias_f
+        self.apply_fix_cell()
+        self.step_index += 1
+
+    @functools.cached_property
+    def _nu_k2(self):
+        """nu k^2 (the viscous rate of each mode), made on first use (``euler_step``)."""
+        return self.nu * self.grid.k2
 
     def _cross_forward(self, u, w, nl):
         """nl = FFT(u x w), each component transformed as soon as it is made (one real

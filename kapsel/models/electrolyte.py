@@ -168,21 +168,11 @@ class ElectrolyteModel(SpectralModel):
     def fluid_and_ions(self):
         """Step 1 of the module docstring: the ions' and the fluid's explicit Euler steps
         from the state at t^n (fluid_solver.cxx NSsolute_solver_Euler)."""
-        ions, fl, g = self.ions, self.fluid, self.grid
+        ions, fl = self.ions, self.fluid
         ions.potential(truncate=True)
         u = fl.velocity(out=fl.scratch_real()[0])   # u^n, in the solver's scratch: the
         ions.step(u, self.field_now())               # ions first, then the fluid (the two
-        nl = fl.projected_nonlinear()        # steps are independent); P[u x omega], k = 0 0
-        uh = fl.u_hat
-        nuk2, s = fl.nu * g.k2, fl._s
-        for c in range(3):                   # nl -= nu k^2 u_hat, a component at a time
-            np.multiply(nuk2, uh[c], out=s)
-            nl[c] -= s
-        nl *= self.dt
-        uh += nl
-        uh *= g.dealias_f
-        fl.apply_fix_cell()
-        fl.step_index += 1
+        fl.euler_step()                              # steps are independent)
         if self.dt > 2 * self._dt_limit:         # past the ion step's limit: name it first
             what = self._ions_broke()
             if what is not None:
