@@ -138,29 +138,30 @@ def run_comment(run_id: str, seed: int) -> str:
     return f"{RUN_MARK}{run_id}, random seed {seed} (rerun with --seed {seed} to reproduce)"
 
 
-def run_id(path: str) -> str | None:
-    """The run id in the first line of an output.udf written by kapsel-py, else None."""
-    try:
-        with open_regular(path) as fh:
-            first = fh.readline(400).decode("utf-8", "replace")
-    except OSError:
-        return None
-    if first.startswith("// " + RUN_MARK):
-        return first[3 + len(RUN_MARK):].split(",")[0].strip() or None
-    return None
-
-
-def run_line(path: str) -> tuple[str, int] | None:
-    """(run id, seed) named by the first line of an output.udf written by kapsel-py, else
+def _run_mark(path: str) -> str | None:
+    """What follows RUN_MARK on the first line of an output.udf written by kapsel-py, else
     None."""
     try:
         with open_regular(path) as fh:
             first = fh.readline(400).decode("utf-8", "replace")
     except OSError:
         return None
-    if not first.startswith("// " + RUN_MARK):
+    return first[3 + len(RUN_MARK):] if first.startswith("// " + RUN_MARK) else None
+
+
+def run_id(path: str) -> str | None:
+    """The run id in the first line of an output.udf written by kapsel-py, else None."""
+    mark = _run_mark(path)
+    return (mark.split(",")[0].strip() or None) if mark is not None else None
+
+
+def run_line(path: str) -> tuple[str, int] | None:
+    """(run id, seed) named by the first line of an output.udf written by kapsel-py, else
+    None."""
+    mark = _run_mark(path)
+    if mark is None:
         return None
-    head, _, rest = first[3 + len(RUN_MARK):].partition(", random seed ")
+    head, _, rest = mark.partition(", random seed ")
     try:
         return head.strip(), int(rest.split()[0])
     except (ValueError, IndexError):
