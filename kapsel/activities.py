@@ -100,20 +100,18 @@ class CompiledSwitch(Activity):
     name = "compiled kernels"
     every_rank = True
 
-    def __init__(self, start_step, total):
+    def __init__(self, start_step, total, points):
         super().__init__()
         from .mesh import compiled
-        self.start, self.total = start_step, total
+        self.start, self.total, self.points = start_step, total, points
         self.on = compiled.mode() == "1" and (compiled.enable() or True)
 
     def __call__(self, loop):
-        import math
         from .mesh import compiled
         if self.on:
             return
         step = loop.model.step_index
-        points = math.prod(loop.model.cfg.mesh.shape)
-        if compiled.want(step - self.start, self.total - step, points):
+        if compiled.want(step - self.start, self.total - step, self.points):
             self.on = compiled.enable() or True
 
 

@@ -122,7 +122,8 @@ class TimeLoop:
         self.table = act.StressTable(model, args.quiet) if model.sheared else None
         if self.table is not None:
             self.between.append(self.table)
-        self.between += [act.CompiledSwitch(self.start, self.total), self.progress]
+        points = int(np.prod(model.cfg.mesh.shape))     # the whole mesh's
+        self.between += [act.CompiledSwitch(self.start, self.total, points), self.progress]
         if resumed and self.writes and source is not None and _same_file(source[0],
                                                                          args.restart):
             self.restart.continues(source[1], self.start, source[2])
