@@ -68,11 +68,7 @@ class Ions:
         self.counts = np.zeros(self.S)           # N_s held fixed by rescale
         self.phi = np.zeros(g.shape)
         self.rho_surf = np.zeros(g.shape)
-        # the surface normal where it is not zero (the particles' shells): flat indices,
-        # n (3, P) and 1 / |n|^2 there
-        self._normal_at = np.zeros(0, dtype=np.intp)
-        self._normal = np.zeros((3, 0))
-        self._inv_n2 = np.zeros(0)
+        self._no_normal()
         # buffers: scalar complex scratch, one vector field (the flux J, and the Coulomb
         # force between steps); the transforms go component by component through them
         self._ch = g.empty_complex(None)
@@ -125,6 +121,11 @@ class Ions:
         self._idx = self._q = self._r = None
         self.phi[...] = 0.0
         self.rho_surf[...] = 0.0
+        self._no_normal()
+
+    def _no_normal(self):
+        """The surface normal is kept where it is not zero (the particles' shells): flat
+        indices, n (3, P) and 1 / |n|^2 there; none of them without particles."""
         self._normal_at = np.zeros(0, dtype=np.intp)
         self._normal = np.zeros((3, 0))
         self._inv_n2 = np.zeros(0)
