@@ -8,6 +8,7 @@
 from __future__ import annotations
 
 import argparse
+import math
 import os
 import sys
 
@@ -28,7 +29,6 @@ def cmd_sq(a) -> int:
                                    snapshot_times, structure_factor)
     if not os.path.isdir(a.directory):
         return _fail(f"{a.directory}: not a directory")
-    import math
     if not (a.dx > 0 and math.isfinite(a.dx)):
         return _fail(f"--dx {a.dx}: the grid spacing must be a positive number")
     table = a.table or os.path.join(a.directory, "sq.txt")
