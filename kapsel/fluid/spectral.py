@@ -40,6 +40,7 @@ made once (SIMD-aligned, used in place by the FFTW plans of ``Grid``).
 from __future__ import annotations
 
 import functools
+import time
 
 import numpy as np
 
@@ -50,6 +51,39 @@ from ..state import ModelState
 _compiled.provide("spectral", __name__.rsplit(".", 1)[0] + ".spectral_kernels")
 
 __all__ = ["SpectralNS", "SpectralProjector", "phi1", "phi2"]
+
+# the projection kernels chosen for a half-spectrum shape (``projection_kernels``)
+_PROJECTIONS: dict = {}
+TIME_BELOW = 32 << 20   # bytes of a complex vector field below which the two forms are timed
+
+
+def projection_kernels(K, grid):
+    """(project_etd1, project_etd2, project_add) of the compiled kernels ``K`` in the form
+    that is faster at this grid's half-spectrum shape: the point-by-point sweep or the
+    sweep by blocks of rows, which give the same bits (kapsel.fluid.spectral_kernels).
+    Timed once per shape and process, on two scratch fields, when a complex vector field
+    is under ``TIME_BELOW`` bytes (where the fields stay in the caches and the point sweep
+    can be several times slower); larger, memory-bound fields take the point sweep."""
+    shape = tuple(grid.local_cshape)
+    if shape not in _PROJECTIONS:
+        forms = ((K.project_etd1, K.project_etd2, K.project_add),
+                 (K.project_etd1_rows, K.project_etd2_rows, K.project_add_rows))
+        best = 0
+        if 3 * 16 * int(np.prod(shape)) < TIME_BELOW:
+            d, u = grid.zeros_complex(), grid.zeros_complex()
+            d[...] = 1.0
+            u[...] = 0.0
+            w = np.ones(shape)
+            k = [np.ones(n) for n in shape]
+            times = [[], []]
+            for _ in range(3):
+                for i, form in enumerate(forms):
+                    t0 = time.perf_counter()
+                    form[2](d, u, w, *k, w)
+                    times[i].append(time.perf_counter() - t0)
+            best = int(min(times[1]) < min(times[0]))
+        _PROJECTIONS[shape] = forms[best]
+    return _PROJECTIONS[shape]
 
 
 def cross_in_place(u, w, n):
@@ -344,12 +378,13 @@ class SpectralNS:
         uh = self.u_hat
         K = _compiled.spectral
         if self.advection and K is not None:    # fused: projection + ETD update
+            etd1, etd2, _ = projection_kernels(K, self.grid)
             if self.scheme == "etd2" and self.state.holds("nl_old"):
-                K.project_etd2(nl, self._nl_old, uh, self._E, self._a2, self._b2,
-                                      *self._k1, self.grid.inv_k2)
+                etd2(nl, self._nl_old, uh, self._E, self._a2, self._b2, *self._k1,
+                     self.grid.inv_k2)
             else:
-                K.project_etd1(nl, uh, self._E, self._a1, *self._k1,
-                                      self.grid.inv_k2, self.scheme == "etd2")
+                etd1(nl, uh, self._E, self._a1, *self._k1, self.grid.inv_k2,
+                     self.scheme == "etd2")
         elif self.scheme == "etd2" and self.state.holds("nl_old"):
             uh *= self._E
             self._add_weighted(nl, self._a2)
@@ -406,9 +441,10 @@ class SpectralNS:
         kept.  ``du`` may be ``grid.real_buf`` or any array; it is not modified."""
         d = self._nl          # free between steps (ETD2: the older of the two, overwritten next)
         self.grid.forward(du, out=d)
-        if project and _compiled.spectral is not None:
-            _compiled.spectral.project_add(d, self.u_hat, self.grid.dealias_f, *self._k1,
-                                           self.grid.inv_k2)
+        K = _compiled.spectral
+        if project and K is not None:
+            projection_kernels(K, self.grid)[2](d, self.u_hat, self.grid.dealias_f, *self._k1,
+                                               self.grid.inv_k2)
             return
         d *= self.grid.dealias_f
         if project:
