@@ -30,9 +30,18 @@ $(VENV)/.installed-test: pyproject.toml
 $(VENV)/.installed-bench: pyproject.toml
 	$(call pip_install,bench,kapsel-py + benchmark tools: matplotlib)
 
-install: $(VENV)/.installed-plot
+# the numba kernels compiled ahead of time for this machine (kapsel/build_kernels.py): runs
+# load them without numba; remade when a kernel's source changes.  A failed build leaves the
+# JIT (the same numbers), so it does not stop the install.  (Listed after the venv
+# install in each target: make builds the prerequisites in order.)
+KERNEL_SRC := kapsel/fluid/spectral_kernels.py kapsel/mesh/stencils.py kapsel/mesh/regrid_kernels.py kapsel/build_kernels.py
+kapsel/mesh/_aot_kernels.json: $(KERNEL_SRC)
+	@echo "Compiling the kernels ahead of time (python -m kapsel.build_kernels)"
+	@$(BIN)/python -m kapsel.build_kernels || true
 
-run: $(VENV)/.installed-plot
+install: $(VENV)/.installed-plot kapsel/mesh/_aot_kernels.json
+
+run: $(VENV)/.installed-plot kapsel/mesh/_aot_kernels.json
 	@echo "Running the manual's sample (samples/input.udf: Navier_Stokes_Cahn_Hilliard_FDM, 32^3, 8 particles, 1000 steps)"
 	@cd samples && t0=$$(date +%s.%N) \
 	  && $(abspath $(BIN))/kapsel-py -Iinput.udf -Ooutput.udf -Ddefine.udf -Rrestart.udf --overwrite --seed 1 \
@@ -43,7 +52,7 @@ run: $(VENV)/.installed-plot
 
 # strace (Debian's package) injects kills and ENOSPC at exact system calls
 # (tests/integration/test_kill_points.py; skipped where it cannot be installed)
-test: $(VENV)/.installed-test
+test: $(VENV)/.installed-test kapsel/mesh/_aot_kernels.json
 	@command -v strace > /dev/null 2>&1 || { echo "Installing strace (apt-get) for the kill-point tests"; \
 	  { apt-get update -qq && apt-get install -y -qq strace; } > $(VENV)/apt-strace.log 2>&1 \
 	  || echo "strace could not be installed (log: $(VENV)/apt-strace.log): the kill-point tests are skipped"; }
@@ -63,4 +72,4 @@ bench: $(VENV)/.installed-bench
 	$(BIN)/python bench/stability_map.py
 
 clean:
-	rm -rf $(VENV) build *.egg-info
+	rm -rf $(VENV) build *.egg-info kapsel/mesh/_aot_kernels*

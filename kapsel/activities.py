@@ -93,9 +93,10 @@ class StressTable(Activity):
 
 
 class CompiledSwitch(Activity):
-    """The compiled kernels switched on once the run's steps left repay their loading
-    (kapsel.mesh.compiled.want: by the steps and the mesh points, no clock); they give the
-    same numbers as the numpy ones."""
+    """The compiled kernels switched on before the first step when they are built ahead of
+    time (kapsel.mesh.compiled.from_start), else once the run's steps left repay their
+    loading by numba (kapsel.mesh.compiled.want: by the steps and the mesh points, no
+    clock); they give the same numbers as the numpy ones."""
 
     name = "compiled kernels"
     every_rank = True
@@ -104,7 +105,7 @@ class CompiledSwitch(Activity):
         super().__init__()
         from .mesh import compiled
         self.start, self.total, self.points = start_step, total, points
-        self.on = compiled.mode() == "1" and (compiled.enable() or True)
+        self.on = compiled.from_start() and (compiled.enable() or True)
 
     def __call__(self, loop):
         from .mesh import compiled

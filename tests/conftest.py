@@ -49,19 +49,24 @@ SLOW_VARIANTS = {
 
 
 class CompiledKernels:
-    """The compiled kernels (kapsel.mesh.compiled) switched on or off inside a test."""
+    """The compiled kernels (kapsel.mesh.compiled) switched on or off inside a test: the
+    ahead-of-time build (``kind`` 'aot') or numba's JIT ('jit')."""
 
-    def __init__(self, compiled):
+    def __init__(self, compiled, kind="jit"):
         self._compiled = compiled
+        self.kind = kind
 
     def on(self):
-        """Load them; the test is skipped where numba is missing."""
+        """Load them; the test is skipped where numba is missing.  Every call must have
+        gone to the ahead-of-time code: none fell back to the JIT (``off`` checks)."""
         if not self._compiled.enable():
             pytest.skip("numba not installed")
 
     def off(self):
         """Back to the numpy passes."""
         self._compiled.disable()
+        assert not self._compiled.fallbacks, (
+            f"calls the ahead-of-time kernels could not take: {self._compiled.fallbacks}")
 
     def both(self, compute):
         """``compute()`` with the compiled kernels, then with the numpy passes: the two
@@ -72,13 +77,22 @@ class CompiledKernels:
         return first, compute()
 
 
-@pytest.fixture
-def compiled_kernels():
+@pytest.fixture(params=["aot", "jit"])
+def compiled_kernels(request, monkeypatch):
     """The compiled on / off switch of the tests that compare the compiled kernels with the
-    numpy passes: off at the start and again after the test, whatever it did."""
+    numpy passes: off at the start and again after the test, whatever it did.  Each such test
+    runs twice: with the ahead-of-time build (``python -m kapsel.build_kernels``; skipped
+    where it is not built) and with numba's JIT."""
     from kapsel.mesh import compiled
     compiled.disable()
-    yield CompiledKernels(compiled)
+    monkeypatch.setattr(compiled, "fallbacks", [])
+    if request.param == "aot":
+        if not compiled.aot_slots():
+            pytest.skip("the kernels are not compiled ahead of time (python -m "
+                        "kapsel.build_kernels)")
+    else:
+        monkeypatch.setattr(compiled, "_aot_record", {})
+    yield CompiledKernels(compiled, request.param)
     compiled.disable()
 
 

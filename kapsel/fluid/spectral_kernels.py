@@ -28,6 +28,21 @@ __all__ = ["truncated_component", "vorticity_component", "cross", "cross_into", 
            "project_etd2", "project_add", "project_etd1_rows", "project_etd2_rows",
            "project_add_rows"]
 
+#: the types each kernel is called with (C-contiguous arrays): what kapsel.build_kernels
+#: compiles ahead of time (kapsel.mesh.compiled loads that build when it is current)
+SIGNATURES = {
+    "truncated_component": "void(complex128[:,:,:,::1], float64[:,:,::1], int64, complex128[:,:,::1])",
+    "vorticity_component": "void(complex128[:,:,:,::1], float64[:,:,::1], float64[::1], float64[::1], float64[::1], int64, complex128[:,:,::1])",
+    "cross_into": "void(float64[:,:,:,::1], float64[:,:,:,::1])",
+    "cross": "void(float64[:,:,:,::1], float64[:,:,:,::1], float64[:,:,:,::1])",
+    "project_etd1": "void(complex128[:,:,:,::1], complex128[:,:,:,::1], float64[:,:,::1], float64[:,:,::1], float64[::1], float64[::1], float64[::1], float64[:,:,::1], boolean)",
+    "project_etd2": "void(complex128[:,:,:,::1], complex128[:,:,:,::1], complex128[:,:,:,::1], float64[:,:,::1], float64[:,:,::1], float64[:,:,::1], float64[::1], float64[::1], float64[::1], float64[:,:,::1])",
+    "project_add": "void(complex128[:,:,:,::1], complex128[:,:,:,::1], float64[:,:,::1], float64[::1], float64[::1], float64[::1], float64[:,:,::1])",
+    "project_etd1_rows": "void(complex128[:,:,:,::1], complex128[:,:,:,::1], float64[:,:,::1], float64[:,:,::1], float64[::1], float64[::1], float64[::1], float64[:,:,::1], boolean)",
+    "project_etd2_rows": "void(complex128[:,:,:,::1], complex128[:,:,:,::1], complex128[:,:,:,::1], float64[:,:,::1], float64[:,:,::1], float64[:,:,::1], float64[::1], float64[::1], float64[::1], float64[:,:,::1])",
+    "project_add_rows": "void(complex128[:,:,:,::1], complex128[:,:,:,::1], float64[:,:,::1], float64[::1], float64[::1], float64[::1], float64[:,:,::1])",
+}
+
 ROWS = 8        # grid rows per block of the *_rows projections
 
 

@@ -12,6 +12,14 @@ from numba import njit
 
 __all__ = ["shift_linear", "shift_spline", "spline_coefficients"]
 
+#: the types each kernel is called with (C-contiguous arrays): what kapsel.build_kernels
+#: compiles ahead of time (kapsel.mesh.compiled loads that build when it is current)
+SIGNATURES = {
+    "spline_coefficients": "void(float64[:,:,::1], float64[:,:,::1])",
+    "shift_linear": "void(float64[:,:,::1], int64[::1], int64[::1], float64[::1], float64[:,:,::1])",
+    "shift_spline": "void(float64[:,:,::1], int64[::1], int64[::1], float64[::1], float64[::1], float64[::1], float64[::1], float64[:,:,::1])",
+}
+
 #: the pole of the cubic B-spline's prefilter, sqrt(3) - 2 (as scipy.ndimage rounds it)
 POLE = -0.267949192431122706472553658494127633
 

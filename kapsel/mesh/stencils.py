@@ -13,6 +13,17 @@ from numba import njit
 __all__ = ["implicit_matvec_nc", "laplacian", "advection", "advection_nc", "div_b",
            "grad_b"]
 
+#: the types each kernel is called with (C-contiguous arrays): what kapsel.build_kernels
+#: compiles ahead of time (kapsel.mesh.compiled loads that build when it is current)
+SIGNATURES = {
+    "implicit_matvec_nc": "void(float64[:,:,:,::1], float64[:,:,:,::1], float64, float64, float64[:,:,:,::1])",
+    "advection_nc": "void(float64[:,:,:,::1], float64, float64[:,:,:,::1])",
+    "laplacian": "void(float64[:,:,:,::1], float64, float64[:,:,:,::1])",
+    "advection": "void(float64[:,:,:,::1], float64, float64[:,:,:,::1])",
+    "div_b": "void(float64[:,:,:,::1], float64, float64[:,:,::1])",
+    "grad_b": "void(float64[:,:,::1], float64, float64[:,:,:,::1])",
+}
+
 
 @njit(cache=True, nogil=True)
 def implicit_matvec_nc(x, ustar, a, c, out):

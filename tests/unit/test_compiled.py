@@ -73,6 +73,63 @@ def test_want_policy(monkeypatch):
     assert compiled.want(0, 0)
 
 
+def test_ahead_of_time_kernels_check_their_arguments(compiled_kernels):
+    """The ahead-of-time machine code trusts its arguments: its wrapper sends a call that
+    does not fit the recorded types (a strided view, another dtype, a float for an int) to
+    the JIT kernel, which gives the same numbers (or numba's typing error), instead of
+    reading the wrong memory."""
+    if compiled_kernels.kind != "aot":
+        pytest.skip("the wrapper of the ahead-of-time build")
+    import kapsel.fluid.spectral  # noqa: F401  (provides the spectral slot)
+    compiled_kernels.on()
+    K = compiled.spectral
+    rng = np.random.default_rng(2)
+    u_hat = rng.standard_normal((3, 6, 8, 5)) + 1j * rng.standard_normal((3, 6, 8, 5))
+    mask = rng.random((6, 8, 5))
+    want = np.empty((6, 8, 5), complex)
+    K.truncated_component(u_hat, mask, 1, want)
+    assert compiled.fallbacks == []
+    assert np.array_equal(want, u_hat[1] * mask)
+    wide = np.zeros((3, 6, 8, 10), complex)
+    wide[..., ::2] = u_hat
+    got = np.empty_like(want)
+    K.truncated_component(wide[..., ::2], mask, 1, got)            # not contiguous
+    assert np.array_equal(got, want)
+    K.truncated_component(u_hat, mask.astype(np.float32), 1, got)  # another dtype
+    with pytest.raises(Exception, match="float64"):               # a float for the int:
+        K.truncated_component(u_hat, mask, 1.0, got)               # numba's typing error
+    assert compiled.fallbacks == [("spectral", "truncated_component")] * 3
+    compiled.fallbacks.clear()
+
+
+def test_ahead_of_time_build_serves_only_current_slots(tmp_path, monkeypatch):
+    """A build is used for a slot only if the slot's source is unchanged since, and only on
+    the processor and Python it was made for; KAPSEL_PY_AOT=0 ignores it."""
+    import json
+    import sys
+    (tmp_path / "kernels.so").write_bytes(b"")
+    rec = {"cpu": compiled.cpu_fingerprint(), "python": list(sys.version_info[:2]),
+           "file": "kernels.so", "numba": "x",
+           "slots": {"stencils": {"module": "kapsel.mesh.stencils", "signatures": {},
+                                  "sha256": compiled.source_sha256("kapsel.mesh.stencils")},
+                     "regrid": {"module": "kapsel.mesh.regrid_kernels", "signatures": {},
+                                "sha256": "0" * 64}}}
+    monkeypatch.setattr(compiled, "AOT_DIR", tmp_path)
+
+    def slots(**changes):
+        (tmp_path / (compiled.AOT_MODULE + ".json")).write_text(json.dumps(dict(rec,
+                                                                                **changes)))
+        monkeypatch.setattr(compiled, "_aot_record", None)
+        return set(compiled.aot_slots())
+    assert slots() == {"stencils"}                     # regrid's source is not the built one
+    assert slots(cpu="another processor") == set()
+    assert slots(python=[2, 7]) == set()
+    assert slots(file="missing.so") == set()
+    monkeypatch.setenv("KAPSEL_PY_AOT", "0")
+    assert slots() == set()
+    monkeypatch.setattr(compiled, "_aot_record", None)
+
+
 @pytest.mark.parametrize("method", ["linear", "spline"])
 @pytest.mark.parametrize("rows", [None, slice(3, 9)])
 def test_compiled_row_shifts_are_bit_identical(method, rows, compiled_kernels):
