@@ -446,3 +446,25 @@ def test_large_array_text_is_written_block_by_block(monkeypatch):
         assert peak < 0.5 * fh.n, (ndim, peak, fh.n)
         text = "".join(map(str, pieces)).encode()
         assert fh.h.digest() == hashlib.sha256(text).digest()
+
+
+def test_a_file_read_again_is_parsed_again_only_when_it_or_an_include_changed(tmp_path):
+    """udf.parser keeps the parses of a process (define.udf is read by the input's check and
+    by both writers): a file read again unchanged gives a fresh copy of the first parse; a
+    change of the file or of a file it includes is read, not the copy."""
+    from udf import parser
+    copy_schema(tmp_path)
+    o = tmp_path / "o.udf"
+    o.write_text('\\include{"define.udf"}\n\\begin{data}\nmesh:{4,5,6}\n\\end{data}\n')
+    first = UDFManager(str(o))
+    assert first.get("mesh.NPX") == 4
+    first.put(7, "mesh.NPX")                               # a change of one document
+    again = UDFManager(str(o))
+    assert again.get("mesh.NPX") == 4                      # not seen by the next one
+    assert any(k[0] == os.path.normpath(str(o)) for k in parser._PARSED)
+    o.write_text('\\include{"define.udf"}\n\\begin{data}\nmesh:{3,5,6}\n\\end{data}\n')
+    assert UDFManager(str(o)).get("mesh.NPX") == 3         # the file changed
+    d = tmp_path / "define.udf"
+    d.write_text(d.read_text().replace("NPX: int", "NPQ: int", 1))
+    with pytest.raises(UDFError, match="NPX"):             # its include changed
+        UDFManager(str(o)).get("mesh.NPX")
