@@ -48,6 +48,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..fluid.spectral import projection_kernels
+from ..mesh import compiled as _compiled
+from .coupling import _scatter
 from .quaternion import to_matrix
 
 __all__ = ["JanusSpec", "Janus", "read_spec", "check_types", "PROPULSIONS"]
@@ -353,13 +356,17 @@ class Janus:
             holder._bufs = (grid.empty_real(), grid.empty_complex(), grid.empty_complex(),
                             grid.empty_real())
         field, uh, c, up = holder._bufs
-        flat = idx.reshape(-1)
-        ff = field.reshape(3, -1)
-        for k in range(3):
-            ff[k] = np.bincount(flat, weights=w[..., k].reshape(-1), minlength=ff.shape[1])
-        grid.forward(field, out=uh)
-        uh *= grid.dealias_f            # the 2/3 rule of the original's Solenoidal_u
-        grid.project(uh)
+        _scatter(np.moveaxis(w, -1, 0), idx, field.size // 3, out=field.reshape(3, -1))
+        K = _compiled.spectral
+        if K is not None:               # fused: uh = 0 + P T c (the numpy passes' numbers)
+            grid.forward(field, out=c)
+            uh.fill(0.0)
+            k1 = tuple(np.ascontiguousarray(k.ravel()) for k in (grid.kx, grid.ky, grid.kz))
+            projection_kernels(K, grid)[2](c, uh, grid.dealias_f, *k1, grid.inv_k2)
+        else:
+            grid.forward(field, out=uh)
+            uh *= grid.dealias_f        # the 2/3 rule of the original's Solenoidal_u
+            grid.project(uh)
         np.multiply(uh, 1.0 / grid.size, out=c)
         grid.backward_raw(c, out=up)
         return uh, up
