@@ -33,7 +33,10 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..mesh import compiled as _compiled
 from ..state import ModelState
+
+_compiled.provide("ions", __name__.rsplit(".", 1)[0] + ".ions_kernels")
 
 __all__ = ["Ions", "bulk_densities"]
 
@@ -81,6 +84,8 @@ class Ions:
         self._mask = g.dealias_f
         self._idx = self._q = self._r = None      # particles' stencil, charges, offsets
         self._ik = (1j * g.kx, 1j * g.ky, 1j * g.kz)
+        # k as contiguous 1-d arrays for the compiled passes (kapsel.fluid.ions_kernels)
+        self._k1 = tuple(np.ascontiguousarray(k.ravel()) for k in (g.kx, g.ky, g.kz))
 
     # ------------------------------------------------------------------ particles
     def set_particles(self, idx, phi_i, r, Z, A, xi):
@@ -184,9 +189,13 @@ class Ions:
         """out = grad f (3, NX, NY, NZ) of f_hat, each component i k_d f_hat / N made in a
         scalar scratch and transformed (the bits of the vector transform)."""
         g, s = self.grid, self._cs
+        K = _compiled.ions
         for d in range(3):
-            np.multiply(f_hat, self._ik[d], out=s)
-            s *= 1.0 / g.size
+            if K is not None:
+                K.gradient_component(f_hat, self._k1[d], d, 1.0 / g.size, s)
+            else:
+                np.multiply(f_hat, self._ik[d], out=s)
+                s *= 1.0 / g.size
             g.backward_scalar_raw(s, out[d])
 
     def potential_real(self):
@@ -200,6 +209,7 @@ class Ions:
         g = self.grid
         E = np.asarray(E, dtype=float)
         J = self._J
+        K = _compiled.ions
         for s in range(self.S):
             c = self.c[s]
             g.rfft_scalar(c, out=self._ch)
@@ -208,6 +218,9 @@ class Ions:
             self._gradient(self._ch, J)              # original's (Rhs_NS_solute); grad c
             a, b = self.L[s] * self.kBT, self.L[s] * self.z[s]
             for d in range(3):
+                if K is not None:                    # the same operations in one pass
+                    K.flux_component(J[d], self.grad_psi[d], E[d], c, a, b)
+                    continue
                 J[d] *= a
                 np.subtract(self.grad_psi[d], E[d], out=self._t)
                 self._t *= c
@@ -227,8 +240,11 @@ class Ions:
                     Jf[d, at] = Jn[d] - tn * n[d]
             if u is not None:
                 for d in range(3):
-                    np.multiply(c, u[d], out=t)
-                    J[d] -= t
+                    if K is not None:
+                        K.advect_component(J[d], c, u[d])
+                    else:
+                        np.multiply(c, u[d], out=t)
+                        J[d] -= t
             for d in range(3):                       # ch = i k . FFT(J)
                 g.rfft_scalar(J[d], out=self._cs)
                 if d == 0:

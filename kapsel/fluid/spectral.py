@@ -58,16 +58,17 @@ TIME_BELOW = 32 << 20   # bytes of a complex vector field below which the two fo
 
 
 def projection_kernels(K, grid):
-    """(project_etd1, project_etd2, project_add) of the compiled kernels ``K`` in the form
-    that is faster at this grid's half-spectrum shape: the point-by-point sweep or the
+    """(project_etd1, project_etd2, project_add, project_euler) of the compiled kernels ``K``
+    in the form that is faster at this grid's half-spectrum shape: the point-by-point sweep or the
     sweep by blocks of rows, which give the same bits (kapsel.fluid.spectral_kernels).
     Timed once per shape and process, on two scratch fields, when a complex vector field
     is under ``TIME_BELOW`` bytes (where the fields stay in the caches and the point sweep
     can be several times slower); larger, memory-bound fields take the point sweep."""
     shape = tuple(grid.local_cshape)
     if shape not in _PROJECTIONS:
-        forms = ((K.project_etd1, K.project_etd2, K.project_add),
-                 (K.project_etd1_rows, K.project_etd2_rows, K.project_add_rows))
+        forms = ((K.project_etd1, K.project_etd2, K.project_add, K.project_euler),
+                 (K.project_etd1_rows, K.project_etd2_rows, K.project_add_rows,
+                  K.project_euler_rows))
         best = 0
         if 3 * 16 * int(np.prod(shape)) < TIME_BELOW:
             d, u = grid.zeros_complex(), grid.zeros_complex()
@@ -332,10 +333,17 @@ class SpectralNS:
         """u_hat <- T[u_hat + dt (P[u x omega] - nu k^2 u_hat)]: the explicit Euler step of the
         Electrolyte type (fluid_solver.cxx NSsolute_solver_Euler), instead of ``step``.  The
         same bits whether the compiled kernels are loaded or not: the compiled
-        ``_nonlinear`` leaves the projection to the fused ETD update, so it is done here."""
+        ``_nonlinear`` leaves the projection to a fused pass, here ``project_euler``
+        (projection and update in one sweep)."""
         nl = self._nonlinear()
-        if self.advection and _compiled.spectral is not None:
-            self.grid.project(nl, tmp=(self._s, self._t))
+        K = _compiled.spectral
+        if K is not None:                    # fused: projection + update, one pass
+            projection_kernels(K, self.grid)[3](nl, self.u_hat, self._nu_k2, self.dt,
+                                                self.grid.dealias_f, *self._k1,
+                                                self.grid.inv_k2, self.advection)
+            self.apply_fix_cell()
+            self.step_index += 1
+            return
         uh, s = self.u_hat, self._s
         for c in range(3):                   # nl -= nu k^2 u_hat, a component at a time
             np.multiply(self._nu_k2, uh[c], out=s)
@@ -378,7 +386,7 @@ class SpectralNS:
         uh = self.u_hat
         K = _compiled.spectral
         if self.advection and K is not None:    # fused: projection + ETD update
-            etd1, etd2, _ = projection_kernels(K, self.grid)
+            etd1, etd2 = projection_kernels(K, self.grid)[:2]
             if self.scheme == "etd2" and self.state.holds("nl_old"):
                 etd2(nl, self._nl_old, uh, self._E, self._a2, self._b2, *self._k1,
                      self.grid.inv_k2)

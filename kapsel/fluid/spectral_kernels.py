@@ -25,8 +25,8 @@ import numpy as np
 from numba import njit
 
 __all__ = ["truncated_component", "vorticity_component", "cross", "cross_into", "project_etd1",
-           "project_etd2", "project_add", "project_etd1_rows", "project_etd2_rows",
-           "project_add_rows"]
+           "project_etd2", "project_add", "project_euler", "project_etd1_rows",
+           "project_etd2_rows", "project_add_rows", "project_euler_rows"]
 
 #: the types each kernel is called with (C-contiguous arrays): what kapsel.build_kernels
 #: compiles ahead of time (kapsel.mesh.compiled loads that build when it is current)
@@ -41,6 +41,8 @@ SIGNATURES = {
     "project_etd1_rows": "void(complex128[:,:,:,::1], complex128[:,:,:,::1], float64[:,:,::1], float64[:,:,::1], float64[::1], float64[::1], float64[::1], float64[:,:,::1], boolean)",
     "project_etd2_rows": "void(complex128[:,:,:,::1], complex128[:,:,:,::1], complex128[:,:,:,::1], float64[:,:,::1], float64[:,:,::1], float64[:,:,::1], float64[::1], float64[::1], float64[::1], float64[:,:,::1])",
     "project_add_rows": "void(complex128[:,:,:,::1], complex128[:,:,:,::1], float64[:,:,::1], float64[::1], float64[::1], float64[::1], float64[:,:,::1])",
+    "project_euler": "void(complex128[:,:,:,::1], complex128[:,:,:,::1], float64[:,:,::1], float64, float64[:,:,::1], float64[::1], float64[::1], float64[::1], float64[:,:,::1], boolean)",
+    "project_euler_rows": "void(complex128[:,:,:,::1], complex128[:,:,:,::1], float64[:,:,::1], float64, float64[:,:,::1], float64[::1], float64[::1], float64[::1], float64[:,:,::1], boolean)",
 }
 
 ROWS = 8        # grid rows per block of the *_rows projections
@@ -199,6 +201,39 @@ def project_add(d, u_hat, mask, kx, ky, kz, inv_k2):
 
 
 @njit(inline="always")
+def _euler_point(u, p, nk, dt, m):
+    """u <- (u + (p - nk u) dt) m for one component at one mode: the Electrolyte's explicit
+    Euler update, as SpectralNS.euler_step's numpy passes compute it."""
+    xr = p.real - nk * u.real
+    xi = p.imag - nk * u.imag
+    return complex((u.real + xr * dt) * m, (u.imag + xi * dt) * m)
+
+
+@njit(cache=True, nogil=True)
+def project_euler(nl, u_hat, nu_k2, dt, mask, kx, ky, kz, inv_k2, project):
+    """nl <- P nl if ``project``;  u_hat <- T[u_hat + dt (nl - nu k^2 u_hat)] (the
+    Electrolyte's explicit Euler, fluid_solver.cxx NSsolute_solver_Euler); nl is left
+    holding P nl."""
+    nx, ny, nzc = mask.shape
+    for i in range(nx):
+        ki = kx[i]
+        for j in range(ny):
+            kj = ky[j]
+            for k in range(nzc):
+                a, b, c = nl[0, i, j, k], nl[1, i, j, k], nl[2, i, j, k]
+                if project:
+                    a, b, c = _project_point(a, b, c, ki, kj, kz[k], inv_k2[i, j, k])
+                    nl[0, i, j, k] = a
+                    nl[1, i, j, k] = b
+                    nl[2, i, j, k] = c
+                nk = nu_k2[i, j, k]
+                m = mask[i, j, k]
+                u_hat[0, i, j, k] = _euler_point(u_hat[0, i, j, k], a, nk, dt, m)
+                u_hat[1, i, j, k] = _euler_point(u_hat[1, i, j, k], b, nk, dt, m)
+                u_hat[2, i, j, k] = _euler_point(u_hat[2, i, j, k], c, nk, dt, m)
+
+
+@njit(inline="always")
 def _pick(c, ki, kj, kz, k):
     return ki if c == 0 else (kj if c == 1 else kz[k])
 
@@ -308,3 +343,29 @@ def project_add_rows(d, u_hat, mask, kx, ky, kz, inv_k2):
                         u = u_hat[c, i, j, k]
                         u_hat[c, i, j, k] = complex(u.real + (a.real * m - sr[j - j0, k] * kc),
                                                     u.imag + (a.imag * m - si[j - j0, k] * kc))
+
+
+@njit(cache=True, nogil=True)
+def project_euler_rows(nl, u_hat, nu_k2, dt, mask, kx, ky, kz, inv_k2, project):
+    """``project_euler`` by blocks of rows (the same bits)."""
+    nx, ny, nzc = mask.shape
+    sr = np.zeros((ROWS, nzc))
+    si = np.zeros((ROWS, nzc))
+    for i in range(nx):
+        ki = kx[i]
+        for j0 in range(0, ny, ROWS):
+            j1 = min(j0 + ROWS, ny)
+            if project:
+                _coefficients(nl, i, j0, j1, ki, ky, kz, inv_k2, None, sr, si)
+            for c in range(3):
+                for j in range(j0, j1):
+                    kj = ky[j]
+                    for k in range(nzc):
+                        p = nl[c, i, j, k]
+                        if project:
+                            kc = _pick(c, ki, kj, kz, k)
+                            p = complex(p.real - sr[j - j0, k] * kc,
+                                        p.imag - si[j - j0, k] * kc)
+                            nl[c, i, j, k] = p
+                        u_hat[c, i, j, k] = _euler_point(u_hat[c, i, j, k], p, nu_k2[i, j, k],
+                                                         dt, mask[i, j, k])
