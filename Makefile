@@ -34,7 +34,7 @@ $(VENV)/.installed-bench: pyproject.toml
 # load them without numba; remade when a kernel's source changes.  A failed build leaves the
 # JIT (the same numbers), so it does not stop the install.  (Listed after the venv
 # install in each target: make builds the prerequisites in order.)
-KERNEL_SRC := kapsel/fluid/spectral_kernels.py kapsel/mesh/stencils.py kapsel/mesh/regrid_kernels.py kapsel/build_kernels.py
+KERNEL_SRC := $(wildcard kapsel/*/*_kernels.py) kapsel/mesh/stencils.py kapsel/build_kernels.py
 kapsel/mesh/_aot_kernels.json: $(KERNEL_SRC)
 	@echo "Compiling the kernels ahead of time (python -m kapsel.build_kernels)"
 	@$(BIN)/python -m kapsel.build_kernels || true
