@@ -80,8 +80,7 @@ def provide(slot: str, module: str) -> None:
     """``module`` (its dotted name) holds the compiled kernels of ``slot`` (this module's
     attribute the numpy passes look at); loaded at once if the kernels are enabled."""
     _PROVIDERS[slot] = module
-    if _enabled:
-        globals()[slot] = _load(slot, module)
+    globals()[slot] = _load(slot, module) if _enabled else globals().get(slot)
 
 
 # ------------------------------------------------------------------ ahead-of-time build

@@ -265,15 +265,15 @@ class ElectrolyteModel(SpectralModel):
         out = super().restart_fields()
         g = self.grid
         ck = np.empty((self.ions.S,) + g.shape[:2] + (2 * g.cshape[2],))
-        for s in range(self.ions.S):
-            h = g.rfft_scalar(self.ions.c[s])
+        for s in range(self.ions.S):          # through the ions' scratch (free between steps)
+            h = g.rfft_scalar(self.ions.c[s], out=self.ions._ch)
             ck[s] = h.view(np.float64).reshape(ck.shape[1:])
         out["Concentration"] = ck
         return out
 
     def exact_state(self) -> dict:
         st = super().exact_state()
-        st["ion_c"] = self.ions.c.copy()
+        st["ion_c"] = self.ions.c          # written at once (no copy: issue 25)
         st["ion_counts"] = self.ions.counts.copy()
         return st
 
