@@ -85,6 +85,13 @@ SCENES = {
     "el128x1000": ("Electrolyte 128^3, 1000 particles (A 2, salt, Z -1)", dict(
         _ns(7, 1000, 2.0, "Electrolyte"),
         **{f"{SP}.Surface_charge": -1.0, "constitutive_eq.Electrolyte.kBT": 1.0}), 20, 10),
+    "sns256x8000": ("Shear_Navier_Stokes (zigzag) 256^3, 8000 particles (A 2)",
+                    _ns(8, 8000, 2.0, "Shear_Navier_Stokes"), 20, 10),
+    "le256x8000": ("Shear_Navier_Stokes_Lees_Edwards 256^3, 8000 particles (A 2)",
+                   _ns(8, 8000, 2.0, "Shear_Navier_Stokes_Lees_Edwards"), 20, 10),
+    "el256x8000": ("Electrolyte 256^3, 8000 particles (A 2, salt, Z -1)", dict(
+        _ns(8, 8000, 2.0, "Electrolyte"),
+        **{f"{SP}.Surface_charge": -1.0, "constitutive_eq.Electrolyte.kBT": 1.0}), 20, 10),
     "squirmer64": ("Navier_Stokes 64^3, 8 squirmers (B1 0.01, alpha -1)", dict(
         _ns(6, 8, 4.0),
         **{f"{SP}.janus_axis": "Z", f"{SP}.janus_propulsion": "SQUIRMER",

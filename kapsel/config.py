@@ -1020,10 +1020,21 @@ def _field_output(r: _Reader, mesh: Mesh, eq_type: str = "") -> FieldOutput:
 # compiled kernels (kapsel.mesh.compiled) also holds numba and its code generator, about
 # 100 MB more: 2026-12-04, 20-step runs with KAPSEL_PY_COMPILED=1 at 128^3 with 1000
 # particles of A = 2 (bench_vs_original.py): Navier_Stokes 592 MB (estimate 628), zigzag 657
-# (668), Lees-Edwards 788 (828), Electrolyte 969 (1030).
+# (668), Lees-Edwards 788 (828), Electrolyte 969 (1030).  With the kernels built ahead of
+# time (no numba in the process; later the same day): Navier_Stokes 493 MB (estimate 538),
+# zigzag 556 (578), Lees-Edwards 687 (738), Electrolyte 831 (896).
 BYTES_PER_STENCIL_POINT = 190
 BYTES_PER_PARTICLE = 3000           # state and records, besides the stencil
 PROGRAM_BYTES = 200 * 2 ** 20       # the interpreter, numpy, scipy, h5py, pyFFTW, numba (RSS)
+PROGRAM_BYTES_AOT = 110 * 2 ** 20   # the same with the kernels built ahead of time: no numba
+
+
+def program_bytes() -> float:
+    """The program's own resident memory: without numba and its code generator when the
+    kernels are built ahead of time (kapsel.mesh.compiled.aot_slots; 2026-12-04, 128^3 with
+    1000 particles: Navier_Stokes 592 -> 493 MB peak)."""
+    from .mesh import compiled
+    return PROGRAM_BYTES_AOT if compiled.aot_slots() else PROGRAM_BYTES
 MEMORY_ENV = "KAPSEL_PY_MEMORY_LIMIT_GB"
 
 
@@ -1105,7 +1116,7 @@ def memory_estimate(mesh: Mesh, eq_type: str, n_particles: int, A=None, xi=None,
     points = float(np.prod(mesh.shape, dtype=float))
     t = spec(eq_type)
     per_point = t.bytes_per_point + (t.bytes_per_point_particles if n_particles else 0)
-    return (PROGRAM_BYTES if program else 0.0) + points * per_point + float(n_particles) * (
+    return (program_bytes() if program else 0.0) + points * per_point + float(n_particles) * (
         BYTES_PER_PARTICLE + BYTES_PER_STENCIL_POINT * _stencil_points(A, xi, mesh.DX))
 
 

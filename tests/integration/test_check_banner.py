@@ -2,6 +2,7 @@
 be (exit 0) or the problems (exit 2), writing nothing; a run starts with the same lines on
 stderr (the banner), which --quiet suppresses."""
 import os
+import re
 import shutil
 import subprocess
 import sys
@@ -190,7 +191,10 @@ def test_a_run_larger_than_the_machine_is_refused_by_the_check(tmp_path):
                         "-Ddefine.udf", "-Rrestart.udf", "--check"], cwd=tmp_path,
                        capture_output=True, text=True, timeout=60, env=env)
     assert r.returncode == 2, r.stdout + r.stderr
-    assert "256 x 256 x 512 mesh needs about 7.04 GB of memory for Navier_Stokes" in r.stderr
+    # 6.95 GB with the kernels built ahead of time (no numba), 7.04 GB without
+    m = re.search(r"256 x 256 x 512 mesh needs about ([0-9.]+) GB of memory for Navier_Stokes",
+                  r.stderr)
+    assert m and 6.8 < float(m.group(1)) < 7.2, r.stderr
     assert "Traceback" not in r.stderr
 
 
