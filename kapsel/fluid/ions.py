@@ -67,7 +67,8 @@ class Ions:
         self.dv = g.dx ** 3
         # the densities live in the model's state (kapsel.state.ModelState)
         self.state = ModelState() if state is None else state
-        self.c = self.state.field("ion_c", lambda: np.zeros((self.S,) + g.shape))
+        # SIMD-aligned, so that the transforms read each species in place (no copy)
+        self.c = self.state.field("ion_c", lambda: g.zeros_real(self.S))
         self.counts = np.zeros(self.S)           # N_s held fixed by rescale
         self.phi = np.zeros(g.shape)
         self.rho_surf = np.zeros(g.shape)
