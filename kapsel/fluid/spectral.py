@@ -239,8 +239,12 @@ class SpectralNS:
     _b2 = property(lambda self: self._weights["b2"])
     @functools.cached_property
     def _mask_n(self):
-        """mask / N: the 2/3 truncation and the 1/N of the c2r, made on first use."""
+        """mask / N: the 2/3 truncation and the 1/N of the c2r, made on first use (by the
+        numpy passes: the compiled ones take the mask and ``_inv_n``, the same numbers
+        without a field of their own)."""
         return self.grid.dealias_f / self.grid.size
+
+    _inv_n = property(lambda self: 1.0 / self.grid.size)
 
     # ------------------------------------------------------------------ state
     def set_force(self, force):
@@ -300,10 +304,10 @@ class SpectralNS:
         K = _compiled.spectral
         if K is not None:
             for c in range(3):
-                K.truncated_component(self.u_hat, self._mask_n, c, s)
+                K.truncated_component(self.u_hat, g.dealias_f, self._inv_n, c, s)
                 g.backward_scalar_raw(s, u[c])         # destroys s
             for c in range(3):
-                K.vorticity_component(self.u_hat, self._mask_n, *self._k1, c, s)
+                K.vorticity_component(self.u_hat, g.dealias_f, self._inv_n, *self._k1, c, s)
                 g.backward_scalar_raw(s, w[c])
             K.cross_into(u, w)                          # w <- u x omega
             g.forward(w, out=nl)
@@ -338,8 +342,8 @@ class SpectralNS:
         nl = self._nonlinear()
         K = _compiled.spectral
         if K is not None:                    # fused: projection + update, one pass
-            projection_kernels(K, self.grid)[3](nl, self.u_hat, self._nu_k2, self.dt,
-                                                self.grid.dealias_f, *self._k1,
+            projection_kernels(K, self.grid)[3](nl, self.u_hat, self.grid.k2, self.nu,
+                                                self.dt, self.grid.dealias_f, *self._k1,
                                                 self.grid.inv_k2, self.advection)
             self.apply_fix_cell()
             self.step_index += 1

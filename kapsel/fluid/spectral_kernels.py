@@ -31,8 +31,8 @@ __all__ = ["truncated_component", "vorticity_component", "cross", "cross_into", 
 #: the types each kernel is called with (C-contiguous arrays): what kapsel.build_kernels
 #: compiles ahead of time (kapsel.mesh.compiled loads that build when it is current)
 SIGNATURES = {
-    "truncated_component": "void(complex128[:,:,:,::1], float64[:,:,::1], int64, complex128[:,:,::1])",
-    "vorticity_component": "void(complex128[:,:,:,::1], float64[:,:,::1], float64[::1], float64[::1], float64[::1], int64, complex128[:,:,::1])",
+    "truncated_component": "void(complex128[:,:,:,::1], float64[:,:,::1], float64, int64, complex128[:,:,::1])",
+    "vorticity_component": "void(complex128[:,:,:,::1], float64[:,:,::1], float64, float64[::1], float64[::1], float64[::1], int64, complex128[:,:,::1])",
     "cross_into": "void(float64[:,:,:,::1], float64[:,:,:,::1])",
     "cross": "void(float64[:,:,:,::1], float64[:,:,:,::1], float64[:,:,:,::1])",
     "project_etd1": "void(complex128[:,:,:,::1], complex128[:,:,:,::1], float64[:,:,::1], float64[:,:,::1], float64[::1], float64[::1], float64[::1], float64[:,:,::1], boolean)",
@@ -41,38 +41,39 @@ SIGNATURES = {
     "project_etd1_rows": "void(complex128[:,:,:,::1], complex128[:,:,:,::1], float64[:,:,::1], float64[:,:,::1], float64[::1], float64[::1], float64[::1], float64[:,:,::1], boolean)",
     "project_etd2_rows": "void(complex128[:,:,:,::1], complex128[:,:,:,::1], complex128[:,:,:,::1], float64[:,:,::1], float64[:,:,::1], float64[:,:,::1], float64[::1], float64[::1], float64[::1], float64[:,:,::1])",
     "project_add_rows": "void(complex128[:,:,:,::1], complex128[:,:,:,::1], float64[:,:,::1], float64[::1], float64[::1], float64[::1], float64[:,:,::1])",
-    "project_euler": "void(complex128[:,:,:,::1], complex128[:,:,:,::1], float64[:,:,::1], float64, float64[:,:,::1], float64[::1], float64[::1], float64[::1], float64[:,:,::1], boolean)",
-    "project_euler_rows": "void(complex128[:,:,:,::1], complex128[:,:,:,::1], float64[:,:,::1], float64, float64[:,:,::1], float64[::1], float64[::1], float64[::1], float64[:,:,::1], boolean)",
+    "project_euler": "void(complex128[:,:,:,::1], complex128[:,:,:,::1], float64[:,:,::1], float64, float64, float64[:,:,::1], float64[::1], float64[::1], float64[::1], float64[:,:,::1], boolean)",
+    "project_euler_rows": "void(complex128[:,:,:,::1], complex128[:,:,:,::1], float64[:,:,::1], float64, float64, float64[:,:,::1], float64[::1], float64[::1], float64[::1], float64[:,:,::1], boolean)",
 }
 
 ROWS = 8        # grid rows per block of the *_rows projections
 
 
 @njit(cache=True, nogil=True)
-def truncated_component(u_hat, mask_n, c, out):
-    """out = u_hat[c] mask_n: component c of the 2/3-truncated velocity (1/N folded in)."""
-    nx, ny, nzc = mask_n.shape
+def truncated_component(u_hat, mask, inv_n, c, out):
+    """out = u_hat[c] (mask inv_n): component c of the 2/3-truncated velocity (1/N folded in;
+    mask inv_n is mask / N to the bit, the mask being 0 or 1)."""
+    nx, ny, nzc = mask.shape
     for i in range(nx):
         for j in range(ny):
             for k in range(nzc):
-                m = mask_n[i, j, k]
+                m = mask[i, j, k] * inv_n
                 a = u_hat[c, i, j, k]
                 out[i, j, k] = complex(a.real * m, a.imag * m)
 
 
 @njit(cache=True, nogil=True)
-def vorticity_component(u_hat, mask_n, kx, ky, kz, c, out):
-    """out = (i k x (u_hat mask_n))[c]: component c of the truncated velocity's vorticity
+def vorticity_component(u_hat, mask, inv_n, kx, ky, kz, c, out):
+    """out = (i k x (u_hat mask inv_n))[c]: component c of the truncated velocity's vorticity
     (a complex times i k as two real products: numpy's complex product with a zero real
     part of i k, up to the sign of zero results)."""
-    nx, ny, nzc = mask_n.shape
+    nx, ny, nzc = mask.shape
     p, q = (c + 1) % 3, (c + 2) % 3          # w_c = i k_p u_q - i k_q u_p
     for i in range(nx):
         for j in range(ny):
             for k in range(nzc):
                 kp = kx[i] if p == 0 else (ky[j] if p == 1 else kz[k])
                 kq = kx[i] if q == 0 else (ky[j] if q == 1 else kz[k])
-                m = mask_n[i, j, k]
+                m = mask[i, j, k] * inv_n
                 a = u_hat[q, i, j, k]
                 b = u_hat[p, i, j, k]
                 ar, ai = a.real * m, a.imag * m
@@ -210,8 +211,8 @@ def _euler_point(u, p, nk, dt, m):
 
 
 @njit(cache=True, nogil=True)
-def project_euler(nl, u_hat, nu_k2, dt, mask, kx, ky, kz, inv_k2, project):
-    """nl <- P nl if ``project``;  u_hat <- T[u_hat + dt (nl - nu k^2 u_hat)] (the
+def project_euler(nl, u_hat, k2, nu, dt, mask, kx, ky, kz, inv_k2, project):
+    """nl <- P nl if ``project``;  u_hat <- T[u_hat + dt (nl - (nu k2) u_hat)] (the
     Electrolyte's explicit Euler, fluid_solver.cxx NSsolute_solver_Euler); nl is left
     holding P nl."""
     nx, ny, nzc = mask.shape
@@ -226,7 +227,7 @@ def project_euler(nl, u_hat, nu_k2, dt, mask, kx, ky, kz, inv_k2, project):
                     nl[0, i, j, k] = a
                     nl[1, i, j, k] = b
                     nl[2, i, j, k] = c
-                nk = nu_k2[i, j, k]
+                nk = nu * k2[i, j, k]
                 m = mask[i, j, k]
                 u_hat[0, i, j, k] = _euler_point(u_hat[0, i, j, k], a, nk, dt, m)
                 u_hat[1, i, j, k] = _euler_point(u_hat[1, i, j, k], b, nk, dt, m)
@@ -346,7 +347,7 @@ def project_add_rows(d, u_hat, mask, kx, ky, kz, inv_k2):
 
 
 @njit(cache=True, nogil=True)
-def project_euler_rows(nl, u_hat, nu_k2, dt, mask, kx, ky, kz, inv_k2, project):
+def project_euler_rows(nl, u_hat, k2, nu, dt, mask, kx, ky, kz, inv_k2, project):
     """``project_euler`` by blocks of rows (the same bits)."""
     nx, ny, nzc = mask.shape
     sr = np.zeros((ROWS, nzc))
@@ -367,5 +368,5 @@ def project_euler_rows(nl, u_hat, nu_k2, dt, mask, kx, ky, kz, inv_k2, project):
                             p = complex(p.real - sr[j - j0, k] * kc,
                                         p.imag - si[j - j0, k] * kc)
                             nl[c, i, j, k] = p
-                        u_hat[c, i, j, k] = _euler_point(u_hat[c, i, j, k], p, nu_k2[i, j, k],
+                        u_hat[c, i, j, k] = _euler_point(u_hat[c, i, j, k], p, nu * k2[i, j, k],
                                                          dt, mask[i, j, k])
