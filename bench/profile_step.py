@@ -54,9 +54,10 @@ STAGES = (
     ("linear solver", ("_isolve", "linalg.py", "_sparsetools", "mac.py:mv", "_interface.py",
                        "mac.py:_assemble", "stencils.py:implicit_matvec", "method 'dot'",
                        "cahn_hilliard.py:mv", "cahn_hilliard.py:solve")),
-    ("MAC stencils", ("operators.py", "stencils.py")),
+    ("MAC stencils", ("operators.py", "stencils.py", "_aot_kernels.stencils__")),
     ("spectral element-wise", ("spectral_kernels.py", "fluid/spectral.py", "grid.py:project",
-                               "grid.py:k_dot", "oblique.py")),
+                               "grid.py:k_dot", "oblique.py", "_aot_kernels.spectral__",
+                               "ions_kernels.py", "_aot_kernels.ions__")),
     ("phase field", ("phase/",)),
     ("particles", ("particles/", "models/common.py")),
 )
