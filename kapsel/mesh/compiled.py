@@ -181,7 +181,8 @@ def _checked(fast, slot: str, name: str, module: str, specs: tuple):
                     break
             else:
                 return fast(*args)
-        fallbacks.append((slot, name))
+        if len(fallbacks) < 1000:           # what a test checks; bounded in a long run
+            fallbacks.append((slot, name))
         return getattr(importlib.import_module(module), name)(*args)
     kernel.__name__ = kernel.__qualname__ = name
     return kernel
