@@ -1,8 +1,10 @@
 """The compiled (numba) kernels, loaded on demand.
 
-``kapsel.fluid.spectral_kernels`` (fused spectral passes), ``kapsel.mesh.stencils`` (MAC
-stencils) and ``kapsel.mesh.regrid_kernels`` (the Lees-Edwards row shifts) are bit-identical to the numpy passes they replace, so a run may switch to them at
-any step without changing a single bit of its results.  What they cost is start-up: importing
+``kapsel.fluid.spectral_kernels`` (fused spectral passes), ``kapsel.fluid.ions_kernels``
+(the Electrolyte's ions), ``kapsel.mesh.stencils`` (MAC stencils) and
+``kapsel.mesh.regrid_kernels`` (the Lees-Edwards row shifts) give the numbers of the numpy
+passes they replace (up to the sign of zero results), so a run may switch to them at any
+step.  What they cost is start-up: importing
 numba and loading the cached machine code takes about 0.65 s of CPU per process (0.2 s import,
 0.45 s to initialise numba's code generator on the first cached function; measured on the
 shared 2-core machine), and the first run on a machine also compiles them (about 2 s, then
@@ -33,8 +35,8 @@ this directory, with a record (``_aot_kernels.json``) of the sources' SHA-256, t
 and each kernel's argument types.  ``enable()`` loads it instead of numba for every slot whose
 source is unchanged since, on the processor it was built on: plain machine code, no numba or
 LLVM in the process (the 128^3 Navier_Stokes run's peak 592 -> ~490 MB), loaded in a few
-milliseconds: with it, ``want`` switches the kernels on from the first step of every run
-(``from_start``), so a run and its continuation use the same passes at every step.  The
+milliseconds: with it, the time loop switches the kernels on before the first step of every
+run (``from_start``), so a run and its continuation use the same passes at every step.  The
 compiled code has no argument checks of its own: each function is wrapped in a check of its
 arguments' dtype, dimensions and contiguity against the recorded types, and a call that does
 not fit goes to the JIT kernel instead (``fallbacks`` lists them; the tests require none).
