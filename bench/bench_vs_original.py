@@ -54,6 +54,11 @@ def _ns(n, particles, A, typ="Navier_Stokes"):
             f"{SP}.Particle_number": particles, "A": A}
 
 
+def _electrolyte(n, particles):
+    return dict(_ns(n, particles, 2.0, "Electrolyte"),
+                **{f"{SP}.Surface_charge": -1.0, "constitutive_eq.Electrolyte.kBT": 1.0})
+
+
 # name: (label, edits of samples/input.udf, steps, GTS)
 SCENES = {
     "sample": ("sample as is (NSCH_FDM 32^3, 8 particles)", {}, 1000, 100),
@@ -78,26 +83,22 @@ SCENES = {
               _ns(6, 8, 4.0, "Shear_Navier_Stokes_Lees_Edwards_FDM"), 200, 20),
     "lech64": ("Shear_NS_LE_CH_FDM 64^3, 8 particles (DC 0.01)",
                _ns(6, 8, 4.0, "Shear_NS_LE_CH_FDM"), 200, 20),
-    "sns128x1000": ("Shear_Navier_Stokes (zigzag) 128^3, 1000 particles (A 2)",
-                    _ns(7, 1000, 2.0, "Shear_Navier_Stokes"), 20, 10),
-    "le128x1000": ("Shear_Navier_Stokes_Lees_Edwards 128^3, 1000 particles (A 2)",
-                   _ns(7, 1000, 2.0, "Shear_Navier_Stokes_Lees_Edwards"), 20, 10),
-    "el128x1000": ("Electrolyte 128^3, 1000 particles (A 2, salt, Z -1)", dict(
-        _ns(7, 1000, 2.0, "Electrolyte"),
-        **{f"{SP}.Surface_charge": -1.0, "constitutive_eq.Electrolyte.kBT": 1.0}), 20, 10),
-    "sns256x8000": ("Shear_Navier_Stokes (zigzag) 256^3, 8000 particles (A 2)",
-                    _ns(8, 8000, 2.0, "Shear_Navier_Stokes"), 20, 10),
-    "le256x8000": ("Shear_Navier_Stokes_Lees_Edwards 256^3, 8000 particles (A 2)",
-                   _ns(8, 8000, 2.0, "Shear_Navier_Stokes_Lees_Edwards"), 20, 10),
-    "el256x8000": ("Electrolyte 256^3, 8000 particles (A 2, salt, Z -1)", dict(
-        _ns(8, 8000, 2.0, "Electrolyte"),
-        **{f"{SP}.Surface_charge": -1.0, "constitutive_eq.Electrolyte.kBT": 1.0}), 20, 10),
     "squirmer64": ("Navier_Stokes 64^3, 8 squirmers (B1 0.01, alpha -1)", dict(
         _ns(6, 8, 4.0),
         **{f"{SP}.janus_axis": "Z", f"{SP}.janus_propulsion": "SQUIRMER",
            f"{SP}.janus_slip_vel": 0.01, f"{SP}.janus_slip_mode": -1.0,
            "switch.ROTATION": "ON"}), 200, 20),
 }
+# the spectral types with particles at 128^3 and 256^3 (issue 25's memory)
+for _n, _np in ((7, 1000), (8, 8000)):
+    _size = f"{2 ** _n}^3, {_np} particles (A 2)"
+    SCENES.update({
+        f"sns{2 ** _n}x{_np}": (f"Shear_Navier_Stokes (zigzag) {_size}",
+                                _ns(_n, _np, 2.0, "Shear_Navier_Stokes"), 20, 10),
+        f"le{2 ** _n}x{_np}": (f"Shear_Navier_Stokes_Lees_Edwards {_size}",
+                               _ns(_n, _np, 2.0, "Shear_Navier_Stokes_Lees_Edwards"), 20, 10),
+        f"el{2 ** _n}x{_np}": (f"Electrolyte {2 ** _n}^3, {_np} particles (A 2, salt, Z -1)",
+                               _electrolyte(_n, _np), 20, 10)})
 
 # kapsel-py with the two timing points of the original's kref build (#KREF lines)
 _HOOK = r"""

@@ -85,8 +85,6 @@ class Ions:
         self._mask = g.dealias_f
         self._idx = self._q = self._r = None      # particles' stencil, charges, offsets
         self._ik = (1j * g.kx, 1j * g.ky, 1j * g.kz)
-        # k as contiguous 1-d arrays for the compiled passes (kapsel.fluid.ions_kernels)
-        self._k1 = tuple(np.ascontiguousarray(k.ravel()) for k in (g.kx, g.ky, g.kz))
 
     # ------------------------------------------------------------------ particles
     def set_particles(self, idx, phi_i, r, Z, A, xi):
@@ -193,7 +191,7 @@ class Ions:
         K = _compiled.ions
         for d in range(3):
             if K is not None:
-                K.gradient_component(f_hat, self._k1[d], d, 1.0 / g.size, s)
+                K.gradient_component(f_hat, g.k_axes[d], d, 1.0 / g.size, s)
             else:
                 np.multiply(f_hat, self._ik[d], out=s)
                 s *= 1.0 / g.size

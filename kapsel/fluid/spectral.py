@@ -199,7 +199,7 @@ class SpectralNS:
         self._iky = 1j * g.ky
         self._ikz = 1j * g.kz
         # k as contiguous 1-d arrays for the compiled passes (kapsel.mesh.compiled)
-        self._k1 = tuple(np.ascontiguousarray(k.ravel()) for k in (g.kx, g.ky, g.kz))
+        self._k1 = g.k_axes
         self.force_hat = None
         # after_update(u_hat): applied in step() after the update, before FIX_CELL (the
         # zigzag pin of Shear_Navier_Stokes, kapsel.models.zigzag)
@@ -345,16 +345,14 @@ class SpectralNS:
             projection_kernels(K, self.grid)[3](nl, self.u_hat, self.grid.k2, self.nu,
                                                 self.dt, self.grid.dealias_f, *self._k1,
                                                 self.grid.inv_k2, self.advection)
-            self.apply_fix_cell()
-            self.step_index += 1
-            return
-        uh, s = self.u_hat, self._s
-        for c in range(3):                   # nl -= nu k^2 u_hat, a component at a time
-            np.multiply(self._nu_k2, uh[c], out=s)
-            nl[c] -= s
-        nl *= self.dt
-        uh += nl
-        uh *= self.grid.dealias_f
+        else:
+            uh, s = self.u_hat, self._s
+            for c in range(3):               # nl -= nu k^2 u_hat, a component at a time
+                np.multiply(self._nu_k2, uh[c], out=s)
+                nl[c] -= s
+            nl *= self.dt
+            uh += nl
+            uh *= self.grid.dealias_f
         self.apply_fix_cell()
         self.step_index += 1
 

@@ -38,12 +38,10 @@ SIGNATURES = {
     "project_etd1": "void(complex128[:,:,:,::1], complex128[:,:,:,::1], float64[:,:,::1], float64[:,:,::1], float64[::1], float64[::1], float64[::1], float64[:,:,::1], boolean)",
     "project_etd2": "void(complex128[:,:,:,::1], complex128[:,:,:,::1], complex128[:,:,:,::1], float64[:,:,::1], float64[:,:,::1], float64[:,:,::1], float64[::1], float64[::1], float64[::1], float64[:,:,::1])",
     "project_add": "void(complex128[:,:,:,::1], complex128[:,:,:,::1], float64[:,:,::1], float64[::1], float64[::1], float64[::1], float64[:,:,::1])",
-    "project_etd1_rows": "void(complex128[:,:,:,::1], complex128[:,:,:,::1], float64[:,:,::1], float64[:,:,::1], float64[::1], float64[::1], float64[::1], float64[:,:,::1], boolean)",
-    "project_etd2_rows": "void(complex128[:,:,:,::1], complex128[:,:,:,::1], complex128[:,:,:,::1], float64[:,:,::1], float64[:,:,::1], float64[:,:,::1], float64[::1], float64[::1], float64[::1], float64[:,:,::1])",
-    "project_add_rows": "void(complex128[:,:,:,::1], complex128[:,:,:,::1], float64[:,:,::1], float64[::1], float64[::1], float64[::1], float64[:,:,::1])",
     "project_euler": "void(complex128[:,:,:,::1], complex128[:,:,:,::1], float64[:,:,::1], float64, float64, float64[:,:,::1], float64[::1], float64[::1], float64[::1], float64[:,:,::1], boolean)",
-    "project_euler_rows": "void(complex128[:,:,:,::1], complex128[:,:,:,::1], float64[:,:,::1], float64, float64, float64[:,:,::1], float64[::1], float64[::1], float64[::1], float64[:,:,::1], boolean)",
 }
+SIGNATURES.update({n + "_rows": SIGNATURES[n] for n in
+                   ("project_etd1", "project_etd2", "project_add", "project_euler")})
 
 ROWS = 8        # grid rows per block of the *_rows projections
 
@@ -131,6 +129,24 @@ def _scale(z, s):
     return complex(z.real * s, z.imag * s)
 
 
+@njit(inline="always")
+def _etd1(u, p, e, w):
+    """E u + a1 P nl at one mode of one component (p = P nl)."""
+    return _scale(u, e) + _scale(p, w)
+
+
+@njit(inline="always")
+def _etd2(u, p, o, e, w, v):
+    """E u + a2 P nl - b2 P nl_old at one mode of one component."""
+    return (_scale(u, e) + _scale(p, w)) - _scale(o, v)
+
+
+@njit(inline="always")
+def _less(a, sr, si, kc):
+    """a - k_c s: component c of a projection whose coefficient (k.v)/k^2 is (sr, si)."""
+    return complex(a.real - sr * kc, a.imag - si * kc)
+
+
 @njit(cache=True, nogil=True)
 def project_etd1(nl, u_hat, E, a1, kx, ky, kz, inv_k2, store):
     """u_hat <- E u_hat + a1 P nl  (slaved Euler, eq 8); nl <- P nl if ``store`` (ETD2's
@@ -150,9 +166,9 @@ def project_etd1(nl, u_hat, E, a1, kx, ky, kz, inv_k2, store):
                     nl[2, i, j, k] = c
                 e = E[i, j, k]
                 w = a1[i, j, k]
-                u_hat[0, i, j, k] = _scale(u_hat[0, i, j, k], e) + _scale(a, w)
-                u_hat[1, i, j, k] = _scale(u_hat[1, i, j, k], e) + _scale(b, w)
-                u_hat[2, i, j, k] = _scale(u_hat[2, i, j, k], e) + _scale(c, w)
+                u_hat[0, i, j, k] = _etd1(u_hat[0, i, j, k], a, e, w)
+                u_hat[1, i, j, k] = _etd1(u_hat[1, i, j, k], b, e, w)
+                u_hat[2, i, j, k] = _etd1(u_hat[2, i, j, k], c, e, w)
 
 
 @njit(cache=True, nogil=True)
@@ -173,12 +189,9 @@ def project_etd2(nl, nl_old, u_hat, E, a2, b2, kx, ky, kz, inv_k2):
                 e = E[i, j, k]
                 w = a2[i, j, k]
                 v = b2[i, j, k]
-                u_hat[0, i, j, k] = ((_scale(u_hat[0, i, j, k], e) + _scale(a, w))
-                                     - _scale(nl_old[0, i, j, k], v))
-                u_hat[1, i, j, k] = ((_scale(u_hat[1, i, j, k], e) + _scale(b, w))
-                                     - _scale(nl_old[1, i, j, k], v))
-                u_hat[2, i, j, k] = ((_scale(u_hat[2, i, j, k], e) + _scale(c, w))
-                                     - _scale(nl_old[2, i, j, k], v))
+                u_hat[0, i, j, k] = _etd2(u_hat[0, i, j, k], a, nl_old[0, i, j, k], e, w, v)
+                u_hat[1, i, j, k] = _etd2(u_hat[1, i, j, k], b, nl_old[1, i, j, k], e, w, v)
+                u_hat[2, i, j, k] = _etd2(u_hat[2, i, j, k], c, nl_old[2, i, j, k], e, w, v)
 
 
 @njit(cache=True, nogil=True)
@@ -282,16 +295,12 @@ def project_etd1_rows(nl, u_hat, E, a1, kx, ky, kz, inv_k2, store):
                 for j in range(j0, j1):
                     kj = ky[j]
                     for k in range(nzc):
-                        kc = _pick(c, ki, kj, kz, k)
-                        a = nl[c, i, j, k]
-                        pr = a.real - sr[j - j0, k] * kc
-                        pi = a.imag - si[j - j0, k] * kc
+                        p = _less(nl[c, i, j, k], sr[j - j0, k], si[j - j0, k],
+                                  _pick(c, ki, kj, kz, k))
                         if store:
-                            nl[c, i, j, k] = complex(pr, pi)
-                        e = E[i, j, k]
-                        w = a1[i, j, k]
-                        u = u_hat[c, i, j, k]
-                        u_hat[c, i, j, k] = complex(u.real * e + pr * w, u.imag * e + pi * w)
+                            nl[c, i, j, k] = p
+                        u_hat[c, i, j, k] = _etd1(u_hat[c, i, j, k], p, E[i, j, k],
+                                                  a1[i, j, k])
 
 
 @njit(cache=True, nogil=True)
@@ -309,18 +318,11 @@ def project_etd2_rows(nl, nl_old, u_hat, E, a2, b2, kx, ky, kz, inv_k2):
                 for j in range(j0, j1):
                     kj = ky[j]
                     for k in range(nzc):
-                        kc = _pick(c, ki, kj, kz, k)
-                        a = nl[c, i, j, k]
-                        pr = a.real - sr[j - j0, k] * kc
-                        pi = a.imag - si[j - j0, k] * kc
-                        nl[c, i, j, k] = complex(pr, pi)
-                        e = E[i, j, k]
-                        w = a2[i, j, k]
-                        v = b2[i, j, k]
-                        u = u_hat[c, i, j, k]
-                        o = nl_old[c, i, j, k]
-                        u_hat[c, i, j, k] = complex((u.real * e + pr * w) - o.real * v,
-                                                    (u.imag * e + pi * w) - o.imag * v)
+                        p = _less(nl[c, i, j, k], sr[j - j0, k], si[j - j0, k],
+                                  _pick(c, ki, kj, kz, k))
+                        nl[c, i, j, k] = p
+                        u_hat[c, i, j, k] = _etd2(u_hat[c, i, j, k], p, nl_old[c, i, j, k],
+                                                  E[i, j, k], a2[i, j, k], b2[i, j, k])
 
 
 @njit(cache=True, nogil=True)
@@ -338,12 +340,9 @@ def project_add_rows(d, u_hat, mask, kx, ky, kz, inv_k2):
                 for j in range(j0, j1):
                     kj = ky[j]
                     for k in range(nzc):
-                        kc = _pick(c, ki, kj, kz, k)
-                        m = mask[i, j, k]
-                        a = d[c, i, j, k]
-                        u = u_hat[c, i, j, k]
-                        u_hat[c, i, j, k] = complex(u.real + (a.real * m - sr[j - j0, k] * kc),
-                                                    u.imag + (a.imag * m - si[j - j0, k] * kc))
+                        p = _less(_scale(d[c, i, j, k], mask[i, j, k]), sr[j - j0, k],
+                                  si[j - j0, k], _pick(c, ki, kj, kz, k))
+                        u_hat[c, i, j, k] += p
 
 
 @njit(cache=True, nogil=True)
@@ -364,9 +363,7 @@ def project_euler_rows(nl, u_hat, k2, nu, dt, mask, kx, ky, kz, inv_k2, project)
                     for k in range(nzc):
                         p = nl[c, i, j, k]
                         if project:
-                            kc = _pick(c, ki, kj, kz, k)
-                            p = complex(p.real - sr[j - j0, k] * kc,
-                                        p.imag - si[j - j0, k] * kc)
+                            p = _less(p, sr[j - j0, k], si[j - j0, k], _pick(c, ki, kj, kz, k))
                             nl[c, i, j, k] = p
                         u_hat[c, i, j, k] = _euler_point(u_hat[c, i, j, k], p, nu * k2[i, j, k],
                                                          dt, mask[i, j, k])

@@ -255,6 +255,11 @@ class Grid:
         return self.kx ** 2 + self.ky ** 2 + self.kz ** 2
 
     @functools.cached_property
+    def k_axes(self):
+        """(kx, ky, kz) as contiguous 1-d arrays: the wavenumbers the compiled kernels take."""
+        return tuple(np.ascontiguousarray(k.ravel()) for k in (self.kx, self.ky, self.kz))
+
+    @functools.cached_property
     def inv_k2(self):
         out = np.zeros(self.cshape)
         np.divide(1.0, self.k2, out=out, where=self.k2 > 0)

@@ -361,8 +361,7 @@ class Janus:
         if K is not None:               # fused: uh = 0 + P T c (the numpy passes' numbers)
             grid.forward(field, out=c)
             uh.fill(0.0)
-            k1 = tuple(np.ascontiguousarray(k.ravel()) for k in (grid.kx, grid.ky, grid.kz))
-            projection_kernels(K, grid)[2](c, uh, grid.dealias_f, *k1, grid.inv_k2)
+            projection_kernels(K, grid)[2](c, uh, grid.dealias_f, *grid.k_axes, grid.inv_k2)
         else:
             grid.forward(field, out=uh)
             uh *= grid.dealias_f        # the 2/3 rule of the original's Solenoidal_u
