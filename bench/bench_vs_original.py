@@ -181,7 +181,7 @@ def main(argv=None):
     ap.add_argument("--keep", help="keep the runs under this directory")
     ap.add_argument("--json", help="append the results (one JSON line per scene) here")
     a = ap.parse_args(argv)
-    kref = Path(a.kref)
+    kref = Path(a.kref).resolve()        # the scenes run in their own directories
     if not a.original or not Path(a.original).is_file() or not (kref / "flatten_udf.py").exists():
         print("bench_vs_original.py runs the original program itself; build it from its public "
               "source with ../shared/kref/:\n  KREF=<scratch dir> KAPSEL3_GIT=<git dir of "
@@ -201,7 +201,7 @@ def main(argv=None):
         runs = {"original": [], "kapsel-py": []}
         for _ in range(a.repeat):
             for prog in ("original", "kapsel-py"):
-                runs[prog].append(run_once(prog, d, a.original, a.threads))
+                runs[prog].append(run_once(prog, d, str(Path(a.original).resolve()), a.threads))
         r = {"scene": name, "label": label, "steps": steps, "threads": a.threads,
              "load": os.getloadavg()[0]}
         for prog, rs in runs.items():

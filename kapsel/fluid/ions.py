@@ -53,12 +53,18 @@ class Ions:
     """Ion densities c (S, NX, NY, NZ) on ``grid`` and the electrostatics of the particles.
 
     valency, onsager : per species;  eps : Dielectric_cst;  kBT;  dt;  state : the model's
-    kapsel.state.ModelState, which holds c (``ion_c``).
+    kapsel.state.ModelState, which holds c (``ion_c``);  scratch : (J, grad_psi, ch, cs),
+    two real vector fields and two complex scalars lent by the fluid (its buffers free
+    between its own calls: SpectralNS.scratch_real, scratch_between_steps), or None (new
+    ones).  J is written by ``step`` and ``coulomb_force``, grad_psi by ``potential``
+    (read by ``step``, ``coulomb_force``, ``particle_force``), ch and cs by ``step``,
+    ``potential`` and the gradients: the lender's calls must not fall between a
+    ``potential`` and the calls reading its grad Psi.
     Call ``set_particles(idx, phi_i, r, Z, A, xi)`` whenever the particles moved (SPM
     stencil arrays), then ``potential()``, ``step(u, E)``, ``coulomb_force(E)``.
     """
 
-    def __init__(self, grid, valency, onsager, eps, kBT, dt, state=None):
+    def __init__(self, grid, valency, onsager, eps, kBT, dt, state=None, scratch=None):
         self.grid = g = grid
         self.z = np.asarray(valency, dtype=float)
         self.L = np.asarray(onsager, dtype=float)
@@ -73,14 +79,15 @@ class Ions:
         self.phi = np.zeros(g.shape)
         self.rho_surf = np.zeros(g.shape)
         self._no_normal()
-        # buffers: scalar complex scratch, one vector field (the flux J, and the Coulomb
-        # force between steps); the transforms go component by component through them
-        self._ch = g.empty_complex(None)
-        self._cs = g.empty_complex(None)
-        self._J = g.empty_real()
+        # buffers: scalar complex scratch (Psi_hat shares ch: ``step`` does not use Psi_hat),
+        # one vector field (the flux J, and the Coulomb force) and grad Psi; the transforms
+        # go component by component through them
+        if scratch is None:
+            scratch = (g.empty_real(), g.empty_real(), g.empty_complex(None),
+                       g.empty_complex(None))
+        self._J, self.grad_psi, self._ch, self._cs = scratch
+        self.psi_hat = self._ch
         self._rho = g.empty_real(None)
-        self.psi_hat = g.empty_complex(None)
-        self.grad_psi = g.empty_real()
         self._t = g.empty_real(None)
         self._mask = g.dealias_f
         self._idx = self._q = self._r = None      # particles' stencil, charges, offsets

@@ -103,16 +103,17 @@ def cross_in_place(u, w, n):
     return n
 
 
-def _real_view(c, grid):
-    """A real scalar field of ``grid`` (this rank's block) in the memory of the complex
-    scalar ``c`` (2 (NZ/2 + 1) >= NZ numbers per row: it fits), or a new array if it does
-    not (a distributed block of another size)."""
-    shape = tuple(grid.local_shape)
+def _real_view(c, grid, ncomp=None):
+    """A real scalar field of ``grid`` (this rank's block; ``ncomp``: a vector field of
+    ncomp components) in the memory of the complex field ``c`` of as many components
+    (2 (NZ/2 + 1) >= NZ numbers per row: it fits), or a new array if it does not (a
+    distributed block of another size)."""
+    shape = tuple(grid.local_shape) if ncomp is None else (ncomp,) + tuple(grid.local_shape)
     n = int(np.prod(shape))
     flat = c.reshape(-1).view(np.float64)
     if flat.size >= n:
         return flat[:n].reshape(shape)
-    return grid.empty_real(None)
+    return grid.empty_real(ncomp)
 
 
 def phi1(z):
@@ -289,23 +290,52 @@ class SpectralNS:
         next step."""
         return self._u, self._w
 
+    def scratch_between_steps(self):
+        """(nl, s, t): a real vector field (3, NX, NY, NZ) in the memory of N^n (ETD1 and the
+        Euler step only: ETD2 keeps N^{n-1} there) and the two complex scalars, which this
+        solver only uses inside its own calls (``step``, ``euler_step``, ``velocity``,
+        ``truncated_velocity``, ``add_solenoidal``): free for a caller in between, e.g. the
+        Electrolyte's ions (their potential gradient and transform scratch; issue 25)."""
+        if self.scheme != "etd1":
+            raise ValueError("N^n is kept between ETD2 steps")
+        return _real_view(self._nl, self.grid, 3), self._s, self._t
+
+    def truncated_velocity(self):
+        """T u in real space (the 2/3-truncated u_hat transformed) into the solver's scratch
+        ``scratch_real()[0]``, which the next ``euler_step(u_ready=True)`` takes as the u of
+        its u x omega (the original's Zeta_k2u after Truncate_two_third_rule,
+        fluid_solver.cxx Rhs_NS_solute: the same u for the ions and the fluid)."""
+        self._truncated_u()
+        return self._u
+
+    def _truncated_u(self):
+        """u <- T u_hat / N transformed, a component at a time through a complex scalar."""
+        g, u, s = self.grid, self._u, self._s
+        K = _compiled.spectral
+        for c in range(3):
+            if K is not None:
+                K.truncated_component(self.u_hat, g.dealias_f, self._inv_n, c, s)
+            else:
+                np.multiply(self.u_hat[c], self._mask_n, out=s)   # truncated, 1/N folded in
+            g.backward_scalar_raw(s, u[c])         # destroys s
+
     # ------------------------------------------------------------------ step
-    def _nonlinear(self):
+    def _nonlinear(self, u_ready=False):
         """P[u x omega] (unmasked in the compiled pass, whose ETD weights carry the 2/3
         truncation; truncated and projected in the numpy pass) in _nl.  Each component of the
         truncated u_hat / N and of its curl is made in a complex scalar and transformed to
-        real space in turn (the scalar plans of a vector transform: the same bits)."""
+        real space in turn (the scalar plans of a vector transform: the same bits).
+        ``u_ready``: T u is in the scratch already (``truncated_velocity``)."""
         g = self.grid
         nl = self._nl
         if not self.advection:
             nl[...] = 0.0
             return nl
         u, w, s, t = self._u, self._w, self._s, self._t
+        if not u_ready:
+            self._truncated_u()
         K = _compiled.spectral
         if K is not None:
-            for c in range(3):
-                K.truncated_component(self.u_hat, g.dealias_f, self._inv_n, c, s)
-                g.backward_scalar_raw(s, u[c])         # destroys s
             for c in range(3):
                 K.vorticity_component(self.u_hat, g.dealias_f, self._inv_n, *self._k1, c, s)
                 g.backward_scalar_raw(s, w[c])
@@ -316,9 +346,6 @@ class SpectralNS:
             return nl
         ik = (self._ikx, self._iky, self._ikz)
         mask = self._mask_n
-        for c in range(3):
-            np.multiply(self.u_hat[c], mask, out=s)      # truncated, 1/N folded in
-            g.backward_scalar_raw(s, u[c])
         for c in range(3):                               # omega_c = i k_p u_q - i k_q u_p
             p, q = (c + 1) % 3, (c + 2) % 3
             np.multiply(self.u_hat[q], mask, out=s)
@@ -333,13 +360,14 @@ class SpectralNS:
         g.project(nl, tmp=(self._s, self._t))
         return nl
 
-    def euler_step(self):
+    def euler_step(self, u_ready=False):
         """u_hat <- T[u_hat + dt (P[u x omega] - nu k^2 u_hat)]: the explicit Euler step of the
         Electrolyte type (fluid_solver.cxx NSsolute_solver_Euler), instead of ``step``.  The
         same bits whether the compiled kernels are loaded or not: the compiled
         ``_nonlinear`` leaves the projection to a fused pass, here ``project_euler``
-        (projection and update in one sweep)."""
-        nl = self._nonlinear()
+        (projection and update in one sweep).  ``u_ready``: T u of this state is in the
+        scratch (``truncated_velocity``, untouched since)."""
+        nl = self._nonlinear(u_ready)
         K = _compiled.spectral
         if K is not None:                    # fused: projection + update, one pass
             projection_kernels(K, self.grid)[3](nl, self.u_hat, self.grid.k2, self.nu,

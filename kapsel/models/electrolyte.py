@@ -5,7 +5,8 @@ One step, as the original's (sp_3d_ns.cxx Time_evolution_hydro with
 fluid_solver.cxx NSsolute_solver_Euler):
 
 1. at R^n: Psi of rho_e (2/3-truncated), grad Psi_tot = grad Psi - E(t); the ions'
-   Nernst-Planck step c_s += dt div J_s with the fluid velocity u^n, and the fluid's
+   Nernst-Planck step c_s += dt div J_s with the 2/3-truncated fluid velocity T u^n (the
+   u of the fluid's u x omega too), and the fluid's
    plain explicit Euler step u += dt P T[u x omega - nu k^2 u] (not the integrating-factor
    step of Navier_Stokes), both from the state of step n;
 2. the particles move (kapsel.particles.spm), their profiles at R^{n+1}; c_s rescaled so
@@ -69,10 +70,8 @@ class _IonSPM:
 
     def _fluid_step(self):
         self.model.fluid_and_ions()
-        if not self.p.n:                        # no hydrodynamic force to wait for
-            self.model.coulomb_on_fluid()
-        elif self.mode == "spectral":
-            self.fluid.velocity(out=self.u)
+        if not self.n_global:                   # no hydrodynamic force to wait for
+            self.model.coulomb_on_fluid()       # (else u* is made by _hydro_sums, after it)
 
     def _hydro_sums(self):
         self.model.coulomb_on_fluid()
@@ -102,8 +101,11 @@ class ElectrolyteModel(SpectralModel):
         p = self.particles
         self.charges = np.array([cfg.particles.species[s].surface_charge for s in p.species],
                                 dtype=float)
+        # the ions' flux, grad Psi and transform scratch in the fluid's buffers that are
+        # free between its calls (72 bytes per point less; issue 25)
+        nl, s, t = self.fluid.scratch_between_steps()
         self.ions = Ions(self.grid, el.valency, el.onsager, el.dielectric, f.kBT, self.dt,
-                         state=self.state)
+                         state=self.state, scratch=(self.fluid.scratch_real()[1], nl, t, s))
         self._dt_limit = self._ion_limit()
         if self.dry:      # --check: no profiles, no ion densities; the signs of the ion
             vfree = self.grid.volume    # numbers do not depend on the free volume
@@ -170,9 +172,9 @@ class ElectrolyteModel(SpectralModel):
         from the state at t^n (fluid_solver.cxx NSsolute_solver_Euler)."""
         ions, fl = self.ions, self.fluid
         ions.potential(truncate=True)
-        u = fl.velocity(out=fl.scratch_real()[0])   # u^n, in the solver's scratch: the
-        ions.step(u, self.field_now())               # ions first, then the fluid (the two
-        fl.euler_step()                              # steps are independent)
+        u = fl.truncated_velocity()          # T u^n, the u of the ions' advection and of
+        ions.step(u, self.field_now())       # the fluid's u x omega (as the original's
+        fl.euler_step(u_ready=True)          # Rhs_NS_solute): ions first, then the fluid
         if self.dt > 2 * self._dt_limit:         # past the ion step's limit: name it first
             what = self._ions_broke()
             if what is not None:
