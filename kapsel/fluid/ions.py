@@ -92,6 +92,7 @@ class Ions:
         self._mask = g.dealias_f
         self._idx = self._q = self._r = None      # particles' stencil, charges, offsets
         self._ik = (1j * g.kx, 1j * g.ky, 1j * g.kz)
+        self._k0 = getattr(g, "has_k0", True)     # this block holds k = 0 (distributed)
 
     # ------------------------------------------------------------------ particles
     def set_particles(self, idx, phi_i, r, Z, A, xi):
@@ -170,6 +171,11 @@ class Ions:
     def charge_density(self, c=None):
         """rho_e = rho_surf + sum_s z_s c_s (1 - phi), into an internal buffer."""
         rho = self._rho
+        c = self.c if c is None else c
+        K = _compiled.ions
+        if K is not None and c.flags.c_contiguous:          # the same operations, one pass
+            K.charge_density(c, self.z, self.phi, self.rho_surf, rho)
+            return rho
         np.copyto(rho, self.ionic_charge(c))
         rho += self.rho_surf
         return rho
@@ -184,10 +190,14 @@ class Ions:
         space (``self.grad_psi``, without the external field).  Returns Psi_hat."""
         g = self.grid
         g.rfft_scalar(self.charge_density(c), out=self.psi_hat)
-        self.psi_hat *= g.inv_k2
-        self.psi_hat /= self.eps
-        if truncate:
-            self.psi_hat *= self._mask
+        K = _compiled.ions
+        if K is not None:                                   # the same operations, one pass
+            K.scale_potential(self.psi_hat, g.inv_k2, self.eps, self._mask, bool(truncate))
+        else:
+            self.psi_hat *= g.inv_k2
+            self.psi_hat /= self.eps
+            if truncate:
+                self.psi_hat *= self._mask
         self._gradient(self.psi_hat, self.grad_psi)
         return self.psi_hat
 
@@ -219,8 +229,12 @@ class Ions:
         for s in range(self.S):
             c = self.c[s]
             g.rfft_scalar(c, out=self._ch)
-            self._ch *= self._mask
-            g.irfft_scalar(self._ch, out=c)          # c_s truncated in place, as the
+            if K is not None:                        # ch masked, cs = ch / N: one pass
+                K.mask_scaled(self._ch, self._mask, 1.0 / g.size, self._cs)
+                g.backward_scalar_raw(self._cs, c)
+            else:
+                self._ch *= self._mask
+                g.irfft_scalar(self._ch, out=c)      # c_s truncated in place, as the
             self._gradient(self._ch, J)              # original's (Rhs_NS_solute); grad c
             a, b = self.L[s] * self.kBT, self.L[s] * self.z[s]
             for d in range(3):
@@ -251,6 +265,14 @@ class Ions:
                     else:
                         np.multiply(c, u[d], out=t)
                         J[d] -= t
+            if K is not None:                        # i k . FFT(J), masked, / N in cs
+                for d in range(3):
+                    g.rfft_scalar(J[d], out=self._cs)
+                    K.divergence_accumulate(self._cs, g.k_axes[d], d, self._ch, self._mask,
+                                            1.0 / g.size, self._k0)
+                g.backward_scalar_raw(self._cs, t)
+                K.euler_add(c, t, self.dt)
+                continue
             for d in range(3):                       # ch = i k . FFT(J)
                 g.rfft_scalar(J[d], out=self._cs)
                 if d == 0:
@@ -259,7 +281,8 @@ class Ions:
                     self._cs *= self._ik[d]
                     self._ch += self._cs
             self._ch *= self._mask
-            self._ch[0, 0, 0] = 0.0                         # exact: the mean of div J is 0
+            if self._k0:
+                self._ch[0, 0, 0] = 0.0                     # exact: the mean of div J is 0
             g.irfft_scalar(self._ch, out=t)
             t *= self.dt
             c += t
@@ -271,15 +294,22 @@ class Ions:
             if now[s] > 0:
                 self.c[s] *= self.counts[s] / now[s]
 
-    def coulomb_force(self, E=(0.0, 0.0, 0.0), out=None):
+    def coulomb_force(self, E=(0.0, 0.0, 0.0), out=None, scale=1.0):
         """Coulomb force density of the ions' charge, sum_s z_s c_s (1 - phi) (E - grad Psi),
-        (3, NX, NY, NZ), with grad Psi of the last ``potential``; the particles' own charge
-        gets its force from ``particle_force``."""
+        (3, NX, NY, NZ), times ``scale``, with grad Psi of the last ``potential``; the
+        particles' own charge gets its force from ``particle_force``."""
         out = self._J if out is None else out         # J is free between steps
+        K = _compiled.ions
+        if K is not None:                             # the same operations, one pass
+            K.coulomb_force(np.asarray(E, dtype=float), self.grad_psi, self._rho,
+                            self.rho_surf, float(scale), out)
+            return out
         rho = np.subtract(self._rho, self.rho_surf, out=self._t)
         for d in range(3):
             np.subtract(E[d], self.grad_psi[d], out=out[d])
             out[d] *= rho
+            if scale != 1.0:
+                out[d] *= scale
         return out
 
     def particle_force(self, E=(0.0, 0.0, 0.0)):

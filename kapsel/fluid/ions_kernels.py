@@ -11,7 +11,9 @@ from __future__ import annotations
 
 from numba import njit
 
-__all__ = ["flux_component", "advect_component", "gradient_component"]
+__all__ = ["flux_component", "advect_component", "gradient_component", "charge_density",
+           "scale_potential", "coulomb_force", "mask_scaled", "divergence_accumulate",
+           "euler_add"]
 
 #: the types each kernel is called with (C-contiguous arrays): what kapsel.build_kernels
 #: compiles ahead of time (kapsel.mesh.compiled loads that build when it is current)
@@ -21,6 +23,16 @@ SIGNATURES = {
     "advect_component": "void(float64[:,:,::1], float64[:,:,::1], float64[:,:,::1])",
     "gradient_component": "void(complex128[:,:,::1], float64[::1], int64, float64, "
                           "complex128[:,:,::1])",
+    "charge_density": "void(float64[:,:,:,::1], float64[::1], float64[:,:,::1], "
+                      "float64[:,:,::1], float64[:,:,::1])",
+    "scale_potential": "void(complex128[:,:,::1], float64[:,:,::1], float64, "
+                       "float64[:,:,::1], boolean)",
+    "coulomb_force": "void(float64[::1], float64[:,:,:,::1], float64[:,:,::1], "
+                     "float64[:,:,::1], float64, float64[:,:,:,::1])",
+    "mask_scaled": "void(complex128[:,:,::1], float64[:,:,::1], float64, complex128[:,:,::1])",
+    "divergence_accumulate": "void(complex128[:,:,::1], float64[::1], int64, "
+                             "complex128[:,:,::1], float64[:,:,::1], float64, boolean)",
+    "euler_add": "void(float64[:,:,::1], float64[:,:,::1], float64)",
 }
 
 
@@ -56,3 +68,105 @@ def gradient_component(f_hat, k_axis, axis, scale, out):
                 kk = k_axis[i] if axis == 0 else (k_axis[j] if axis == 1 else k_axis[k])
                 f = f_hat[i, j, k]
                 out[i, j, k] = complex((-(f.imag * kk)) * scale, (f.real * kk) * scale)
+
+
+@njit(cache=True, nogil=True)
+def charge_density(c, z, phi, rho_surf, out):
+    """out <- (sum_s z_s c_s) (1 - phi) + rho_surf: rho_e of Ions.charge_density, the sum
+    over the species in their order from 0."""
+    ns = c.shape[0]
+    nx, ny, nz = out.shape
+    for i in range(nx):
+        for j in range(ny):
+            for k in range(nz):
+                acc = 0.0
+                for s in range(ns):
+                    acc = acc + z[s] * c[s, i, j, k]
+                out[i, j, k] = acc * (1.0 - phi[i, j, k]) + rho_surf[i, j, k]
+
+
+@njit(cache=True, nogil=True)
+def scale_potential(h, inv_k2, eps, mask, truncate):
+    """h <- ((h inv_k2) / eps) (mask if ``truncate``): Psi_hat of rho_e_hat (Ions.potential)."""
+    nx, ny, nzc = h.shape
+    for i in range(nx):
+        for j in range(ny):
+            for k in range(nzc):
+                f = h[i, j, k]
+                w = inv_k2[i, j, k]
+                re = (f.real * w) / eps
+                im = (f.imag * w) / eps
+                if truncate:
+                    m = mask[i, j, k]
+                    re = re * m
+                    im = im * m
+                h[i, j, k] = complex(re, im)
+
+
+@njit(cache=True, nogil=True)
+def coulomb_force(E, g, rho_e, rho_surf, scale, out):
+    """out_d <- ((E_d - g_d) (rho_e - rho_surf)) scale, d = 0, 1, 2: the ions' Coulomb
+    force density (Ions.coulomb_force) times ``scale``."""
+    nx, ny, nz = rho_e.shape
+    for i in range(nx):
+        for j in range(ny):
+            for k in range(nz):
+                rho = rho_e[i, j, k] - rho_surf[i, j, k]
+                for d in range(3):
+                    out[d, i, j, k] = ((E[d] - g[d, i, j, k]) * rho) * scale
+
+
+@njit(cache=True, nogil=True)
+def mask_scaled(h, mask, scale, out):
+    """h <- h mask (in place) and out <- h mask scale (the 1/N of a c2r)."""
+    nx, ny, nzc = h.shape
+    for i in range(nx):
+        for j in range(ny):
+            for k in range(nzc):
+                f = h[i, j, k]
+                m = mask[i, j, k]
+                re = f.real * m
+                im = f.imag * m
+                h[i, j, k] = complex(re, im)
+                out[i, j, k] = complex(re * scale, im * scale)
+
+
+@njit(cache=True, nogil=True)
+def divergence_accumulate(cs, k_axis, axis, ch, mask, scale, zero_mode):
+    """The divergence i k . J_hat a component at a time, cs = FFT(J_axis): axis 0:
+    ch <- i k_0 cs; axis 1: ch <- ch + i k_1 cs; axis 2: cs <- ((ch + i k_2 cs) mask) scale,
+    the k = 0 mode 0 when ``zero_mode`` (this block holds it): ready for the c2r."""
+    nx, ny, nzc = cs.shape
+    for i in range(nx):
+        for j in range(ny):
+            for k in range(nzc):
+                kk = k_axis[i] if axis == 0 else (k_axis[j] if axis == 1 else k_axis[k])
+                f = cs[i, j, k]
+                re = -(f.imag * kk)
+                im = f.real * kk
+                if axis == 0:
+                    ch[i, j, k] = complex(re, im)
+                    continue
+                a = ch[i, j, k]
+                re = a.real + re
+                im = a.imag + im
+                if axis == 1:
+                    ch[i, j, k] = complex(re, im)
+                    continue
+                m = mask[i, j, k]
+                re = re * m
+                im = im * m
+                if zero_mode and i == 0 and j == 0 and k == 0:
+                    re = 0.0
+                    im = 0.0
+                cs[i, j, k] = complex(re * scale, im * scale)
+
+
+@njit(cache=True, nogil=True)
+def euler_add(c, t, dt):
+    """c <- c + t dt."""
+    nx, ny, nz = c.shape
+    for i in range(nx):
+        for j in range(ny):
+            for k in range(nz):
+                c[i, j, k] = c[i, j, k] + t[i, j, k] * dt

@@ -190,9 +190,8 @@ class ElectrolyteModel(SpectralModel):
         ions.rescale()
         ions.potential()
         E = self.field_now()
-        force = ions.coulomb_force(E)
+        force = ions.coulomb_force(E, scale=self.dt / self.cfg.fluid.RHO)
         self._charge_force = ions.particle_force(E) if self.particles.n else None
-        force *= self.dt / self.cfg.fluid.RHO
         self.fluid.add_solenoidal(force)
 
     def _ion_limit(self) -> float:

@@ -26,6 +26,9 @@ def _run(path, kernels, switch_at, steps=4):
     state = [m.velocity_field().copy(), m.particles.R.copy(), m.particles.omega.copy()]
     if getattr(m, "psi", None) is not None:
         state.append(m.psi.copy())
+    if getattr(m, "ions", None) is not None:            # the ion densities and their field
+        m.ions.potential()
+        state += [m.ions.c.copy(), m.ions.grad_psi.copy()]
     kernels.off()
     return state
 
