@@ -11,8 +11,11 @@ each in a fresh process with T threads (the original: OMP_NUM_THREADS=T; kapsel-
     ms/step   CPU milliseconds (user + system, all threads) per step of the time loop with its
               snapshots (records, field files, restart), the median of the repeats: the
               original's from the two ``#KREF`` lines its kref build prints (start of the loop,
-              end of the loop), kapsel-py's from the same two points of its run (the first
-              step to the closing summary), measured in-process by a hook on kapsel.progress;
+              end of the loop: before it writes its restart and output UDF files, which it
+              does after the loop), kapsel-py's from the same two points of its run (the first
+              step to the end of the loop, before the end's restart file is written; its
+              output.udf records are written in the loop and counted), measured in-process by
+              a hook on kapsel.progress and kapsel.simulation;
     RSS MB    the peak resident memory of the whole process (``wait4``'s ru_maxrss), largest of
               the repeats;
 
@@ -100,20 +103,35 @@ for _n, _np in ((7, 1000), (8, 8000)):
         f"el{2 ** _n}x{_np}": (f"Electrolyte {2 ** _n}^3, {_np} particles (A 2, salt, Z -1)",
                                _electrolyte(_n, _np), 20, 10)})
 
-# kapsel-py with the two timing points of the original's kref build (#KREF lines)
+# kapsel-py with the two timing points of the original's kref build (#KREF lines): from the
+# first step to the end of the time loop, before the restart file of the end is written (the
+# original's loop line is printed before its ufres->write() and ufout->write(), which come
+# after the loop in sp_3d_ns.cxx main); with no such write, to the closing summary
 _HOOK = r"""
 import sys, time
 import kapsel.progress as P
+import kapsel.activities as A
+import kapsel.simulation as S
 _init, _summary = P.Progress.__init__, P.Progress.summary
+_save, _end = A.Restart.save, S.TimeLoop._end
 st = {}
 def init(self, *a, **k):
     st["t"], st["c"] = time.perf_counter(), time.process_time()
     _init(self, *a, **k)
+def end(self, *a, **k):
+    st["ending"] = True
+    return _end(self, *a, **k)
+def save(self, *a, **k):
+    if st.get("ending") and k.get("full") and "stop" not in st:
+        st["stop"] = (time.perf_counter(), time.process_time())
+    return _save(self, *a, **k)
 def summary(self, *a, **k):
+    t, c = st.get("stop") or (time.perf_counter(), time.process_time())
     sys.stderr.write("#KREF loop_s %.6f loop_cpu_s %.6f steps %d\n" % (
-        time.perf_counter() - st["t"], time.process_time() - st["c"], self.steps))
+        t - st["t"], c - st["c"], self.steps))
     return _summary(self, *a, **k)
 P.Progress.__init__, P.Progress.summary = init, summary
+A.Restart.save, S.TimeLoop._end = save, end
 from kapsel.cli import main
 sys.argv[0] = "kapsel-py"
 sys.exit(main())
