@@ -224,7 +224,7 @@ class Ions:
         grad Psi of the last ``potential`` and the external field E."""
         g = self.grid
         E = np.asarray(E, dtype=float)
-        J = self._J
+        J, t = self._J, self._t
         K = _compiled.ions
         for s in range(self.S):
             c = self.c[s]
@@ -237,17 +237,24 @@ class Ions:
                 g.irfft_scalar(self._ch, out=c)      # c_s truncated in place, as the
             self._gradient(self._ch, J)              # original's (Rhs_NS_solute); grad c
             a, b = self.L[s] * self.kBT, self.L[s] * self.z[s]
+            if K is not None and (u is None or u.flags.c_contiguous):
+                # migration, impermeable surfaces and advection in one pass
+                K.flux(J, self.grad_psi, E, c, a, b, J if u is None else u, u is not None,
+                       self._normal_at, self._normal, self._inv_n2)
+                for d in range(3):                   # ch = i k . FFT(J), masked, / N in cs
+                    g.rfft_scalar(J[d], out=self._cs)
+                    K.divergence_accumulate(self._cs, g.k_axes[d], d, self._ch, self._mask,
+                                            1.0 / g.size, self._k0)
+                g.backward_scalar_raw(self._cs, t)
+                K.euler_add(c, t, self.dt)
+                continue
             for d in range(3):
-                if K is not None:                    # the same operations in one pass
-                    K.flux_component(J[d], self.grad_psi[d], E[d], c, a, b)
-                    continue
                 J[d] *= a
                 np.subtract(self.grad_psi[d], E[d], out=self._t)
                 self._t *= c
                 self._t *= b
                 J[d] += self._t
             # impermeable surfaces: J <- J - n (J.n)/|n|^2 where n is not zero
-            t = self._t
             at, n = self._normal_at, self._normal
             if at.size:
                 Jf = J.reshape(3, -1)
@@ -260,19 +267,8 @@ class Ions:
                     Jf[d, at] = Jn[d] - tn * n[d]
             if u is not None:
                 for d in range(3):
-                    if K is not None:
-                        K.advect_component(J[d], c, u[d])
-                    else:
-                        np.multiply(c, u[d], out=t)
-                        J[d] -= t
-            if K is not None:                        # i k . FFT(J), masked, / N in cs
-                for d in range(3):
-                    g.rfft_scalar(J[d], out=self._cs)
-                    K.divergence_accumulate(self._cs, g.k_axes[d], d, self._ch, self._mask,
-                                            1.0 / g.size, self._k0)
-                g.backward_scalar_raw(self._cs, t)
-                K.euler_add(c, t, self.dt)
-                continue
+                    np.multiply(c, u[d], out=t)
+                    J[d] -= t
             for d in range(3):                       # ch = i k . FFT(J)
                 g.rfft_scalar(J[d], out=self._cs)
                 if d == 0:

@@ -11,16 +11,13 @@ from __future__ import annotations
 
 from numba import njit
 
-__all__ = ["flux_component", "advect_component", "gradient_component", "charge_density",
+__all__ = ["gradient_component", "charge_density",
            "scale_potential", "coulomb_force", "mask_scaled", "divergence_accumulate",
-           "euler_add"]
+           "euler_add", "flux"]
 
 #: the types each kernel is called with (C-contiguous arrays): what kapsel.build_kernels
 #: compiles ahead of time (kapsel.mesh.compiled loads that build when it is current)
 SIGNATURES = {
-    "flux_component": "void(float64[:,:,::1], float64[:,:,::1], float64, float64[:,:,::1], "
-                      "float64, float64)",
-    "advect_component": "void(float64[:,:,::1], float64[:,:,::1], float64[:,:,::1])",
     "gradient_component": "void(complex128[:,:,::1], float64[::1], int64, float64, "
                           "complex128[:,:,::1])",
     "charge_density": "void(float64[:,:,:,::1], float64[::1], float64[:,:,::1], "
@@ -33,28 +30,10 @@ SIGNATURES = {
     "divergence_accumulate": "void(complex128[:,:,::1], float64[::1], int64, "
                              "complex128[:,:,::1], float64[:,:,::1], float64, boolean)",
     "euler_add": "void(float64[:,:,::1], float64[:,:,::1], float64)",
+    "flux": "void(float64[:,:,:,::1], float64[:,:,:,::1], float64[::1], float64[:,:,::1], "
+            "float64, float64, float64[:,:,:,::1], boolean, int64[::1], float64[:,::1], "
+            "float64[::1])",
 }
-
-
-@njit(cache=True, nogil=True)
-def flux_component(J, g, e, c, a, b):
-    """J <- J a + ((g - e) c) b: one axis of a species' diffusive (J = grad c on entry) and
-    migrative flux, g that axis of grad Psi, e of the external field, a = L kBT, b = L z."""
-    nx, ny, nz = J.shape
-    for i in range(nx):
-        for j in range(ny):
-            for k in range(nz):
-                J[i, j, k] = J[i, j, k] * a + ((g[i, j, k] - e) * c[i, j, k]) * b
-
-
-@njit(cache=True, nogil=True)
-def advect_component(J, c, u):
-    """J <- J - c u: the advective flux of one axis."""
-    nx, ny, nz = J.shape
-    for i in range(nx):
-        for j in range(ny):
-            for k in range(nz):
-                J[i, j, k] = J[i, j, k] - c[i, j, k] * u[i, j, k]
 
 
 @njit(cache=True, nogil=True)
@@ -170,3 +149,38 @@ def euler_add(c, t, dt):
         for j in range(ny):
             for k in range(nz):
                 c[i, j, k] = c[i, j, k] + t[i, j, k] * dt
+
+
+@njit(cache=True, nogil=True)
+def flux(J, g, E, c, a, b, u, advect, at, n, inv_n2):
+    """A species' flux in one pass, as Ions.step's numpy passes make it: J_d <- J_d a +
+    ((g_d - E_d) c) b (J = grad c on entry, g = grad Psi); at the surface points ``at``
+    (flat indices, ascending) J <- J - n (J.n) / |n|^2 (n (3, P), inv_n2 = 1 / |n|^2);
+    then, with ``advect``, J_d <- J_d - c u_d."""
+    nx, ny, nz = c.shape
+    P = at.shape[0]
+    q = 0
+    for i in range(nx):
+        for j in range(ny):
+            base = (i * ny + j) * nz
+            for k in range(nz):
+                cc = c[i, j, k]
+                j0 = J[0, i, j, k] * a + ((g[0, i, j, k] - E[0]) * cc) * b
+                j1 = J[1, i, j, k] * a + ((g[1, i, j, k] - E[1]) * cc) * b
+                j2 = J[2, i, j, k] * a + ((g[2, i, j, k] - E[2]) * cc) * b
+                if q < P and at[q] == base + k:
+                    tn = j0 * n[0, q]
+                    tn = tn + j1 * n[1, q]
+                    tn = tn + j2 * n[2, q]
+                    tn = tn * inv_n2[q]
+                    j0 = j0 - tn * n[0, q]
+                    j1 = j1 - tn * n[1, q]
+                    j2 = j2 - tn * n[2, q]
+                    q += 1
+                if advect:
+                    j0 = j0 - cc * u[0, i, j, k]
+                    j1 = j1 - cc * u[1, i, j, k]
+                    j2 = j2 - cc * u[2, i, j, k]
+                J[0, i, j, k] = j0
+                J[1, i, j, k] = j1
+                J[2, i, j, k] = j2
