@@ -58,7 +58,8 @@ TIME_BELOW = 32 << 20   # bytes of a complex vector field below which the two fo
 
 
 def projection_kernels(K, grid):
-    """(project_etd1, project_etd2, project_add, project_euler) of the compiled kernels ``K``
+    """(project_etd1, project_etd2, project_add, project_euler, project_set_scaled) of the
+    compiled kernels ``K``
     in the form that is faster at this grid's half-spectrum shape: the point-by-point sweep or the
     sweep by blocks of rows, which give the same bits (kapsel.fluid.spectral_kernels).
     Timed once per shape and process, on two scratch fields, when a complex vector field
@@ -66,9 +67,10 @@ def projection_kernels(K, grid):
     can be several times slower); larger, memory-bound fields take the point sweep."""
     shape = tuple(grid.local_cshape)
     if shape not in _PROJECTIONS:
-        forms = ((K.project_etd1, K.project_etd2, K.project_add, K.project_euler),
+        forms = ((K.project_etd1, K.project_etd2, K.project_add, K.project_euler,
+                  K.project_set_scaled),
                  (K.project_etd1_rows, K.project_etd2_rows, K.project_add_rows,
-                  K.project_euler_rows))
+                  K.project_euler_rows, K.project_set_scaled_rows))
         best = 0
         if 3 * 16 * int(np.prod(shape)) < TIME_BELOW:
             d, u = grid.zeros_complex(), grid.zeros_complex()

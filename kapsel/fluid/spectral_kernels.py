@@ -26,7 +26,8 @@ from numba import njit
 
 __all__ = ["truncated_component", "vorticity_component", "cross", "cross_into", "project_etd1",
            "project_etd2", "project_add", "project_euler", "project_etd1_rows",
-           "project_etd2_rows", "project_add_rows", "project_euler_rows"]
+           "project_etd2_rows", "project_add_rows", "project_euler_rows", "project_set_scaled",
+           "project_set_scaled_rows"]
 
 #: the types each kernel is called with (C-contiguous arrays): what kapsel.build_kernels
 #: compiles ahead of time (kapsel.mesh.compiled loads that build when it is current)
@@ -39,9 +40,11 @@ SIGNATURES = {
     "project_etd2": "void(complex128[:,:,:,::1], complex128[:,:,:,::1], complex128[:,:,:,::1], float64[:,:,::1], float64[:,:,::1], float64[:,:,::1], float64[::1], float64[::1], float64[::1], float64[:,:,::1])",
     "project_add": "void(complex128[:,:,:,::1], complex128[:,:,:,::1], float64[:,:,::1], float64[::1], float64[::1], float64[::1], float64[:,:,::1])",
     "project_euler": "void(complex128[:,:,:,::1], complex128[:,:,:,::1], float64[:,:,::1], float64, float64, float64[:,:,::1], float64[::1], float64[::1], float64[::1], float64[:,:,::1], boolean)",
+    "project_set_scaled": "void(complex128[:,:,:,::1], complex128[:,:,:,::1], float64[:,:,::1], float64[::1], float64[::1], float64[::1], float64[:,:,::1], float64)",
 }
 SIGNATURES.update({n + "_rows": SIGNATURES[n] for n in
-                   ("project_etd1", "project_etd2", "project_add", "project_euler")})
+                   ("project_etd1", "project_etd2", "project_add", "project_euler",
+                    "project_set_scaled")})
 
 ROWS = 8        # grid rows per block of the *_rows projections
 
@@ -214,6 +217,37 @@ def project_add(d, u_hat, mask, kx, ky, kz, inv_k2):
                 u_hat[2, i, j, k] += c
 
 
+@njit(cache=True, nogil=True)
+def project_set_scaled(d, u_hat, mask, kx, ky, kz, inv_k2, scale):
+    """u_hat <- 0 + P (mask d) and d <- u_hat scale: what a zeroed u_hat, ``project_add``
+    and a multiplication by ``scale`` (the 1/N of the c2r that follows) give, in one pass
+    (the squirmers' slip flow, kapsel.particles.janus)."""
+    nx, ny, nzc = inv_k2.shape
+    for i in range(nx):
+        ki = kx[i]
+        for j in range(ny):
+            kj = ky[j]
+            for k in range(nzc):
+                m = mask[i, j, k]
+                a = _scale(d[0, i, j, k], m)
+                b = _scale(d[1, i, j, k], m)
+                c = _scale(d[2, i, j, k], m)
+                a, b, c = _project_point(a, b, c, ki, kj, kz[k], inv_k2[i, j, k])
+                a, b, c = _zero_plus(a), _zero_plus(b), _zero_plus(c)
+                u_hat[0, i, j, k] = a
+                u_hat[1, i, j, k] = b
+                u_hat[2, i, j, k] = c
+                d[0, i, j, k] = _scale(a, scale)
+                d[1, i, j, k] = _scale(b, scale)
+                d[2, i, j, k] = _scale(c, scale)
+
+
+@njit(inline="always")
+def _zero_plus(p):
+    """0 + p, as a zeroed array plus p (the sign of a zero result included)."""
+    return complex(0.0 + p.real, 0.0 + p.imag)
+
+
 @njit(inline="always")
 def _euler_point(u, p, nk, dt, m):
     """u <- (u + (p - nk u) dt) m for one component at one mode: the Electrolyte's explicit
@@ -343,6 +377,28 @@ def project_add_rows(d, u_hat, mask, kx, ky, kz, inv_k2):
                         p = _less(_scale(d[c, i, j, k], mask[i, j, k]), sr[j - j0, k],
                                   si[j - j0, k], _pick(c, ki, kj, kz, k))
                         u_hat[c, i, j, k] += p
+
+
+@njit(cache=True, nogil=True)
+def project_set_scaled_rows(d, u_hat, mask, kx, ky, kz, inv_k2, scale):
+    """``project_set_scaled`` by blocks of rows (the same bits)."""
+    nx, ny, nzc = inv_k2.shape
+    sr = np.empty((ROWS, nzc))
+    si = np.empty((ROWS, nzc))
+    for i in range(nx):
+        ki = kx[i]
+        for j0 in range(0, ny, ROWS):
+            j1 = min(j0 + ROWS, ny)
+            _coefficients(d, i, j0, j1, ki, ky, kz, inv_k2, mask, sr, si)
+            for c in range(3):
+                for j in range(j0, j1):
+                    kj = ky[j]
+                    for k in range(nzc):
+                        p = _zero_plus(_less(_scale(d[c, i, j, k], mask[i, j, k]),
+                                             sr[j - j0, k], si[j - j0, k],
+                                             _pick(c, ki, kj, kz, k)))
+                        u_hat[c, i, j, k] = p
+                        d[c, i, j, k] = _scale(p, scale)
 
 
 @njit(cache=True, nogil=True)

@@ -358,15 +358,15 @@ class Janus:
         field, uh, c, up = holder._bufs
         _scatter(np.moveaxis(w, -1, 0), idx, field.size // 3, out=field.reshape(3, -1))
         K = _compiled.spectral
-        if K is not None:               # fused: uh = 0 + P T c (the numpy passes' numbers)
-            grid.forward(field, out=c)
-            uh.fill(0.0)
-            projection_kernels(K, grid)[2](c, uh, grid.dealias_f, *grid.k_axes, grid.inv_k2)
+        if K is not None:               # fused: uh = 0 + P T c, c = uh / N (the numpy
+            grid.forward(field, out=c)  # passes' numbers)
+            projection_kernels(K, grid)[4](c, uh, grid.dealias_f, *grid.k_axes, grid.inv_k2,
+                                           1.0 / grid.size)
         else:
             grid.forward(field, out=uh)
             uh *= grid.dealias_f        # the 2/3 rule of the original's Solenoidal_u
             grid.project(uh)
-        np.multiply(uh, 1.0 / grid.size, out=c)
+            np.multiply(uh, 1.0 / grid.size, out=c)
         grid.backward_raw(c, out=up)
         return uh, up
 
