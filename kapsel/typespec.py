@@ -33,7 +33,9 @@ class TypeSpec:
     # and what particles add per point (their dense fields) besides their stencils
     # (kapsel.config.memory_estimate); Electrolyte's and Lees-Edwards' from 2026-12-04, after
     # their steps were trimmed (kapsel.config: the runs behind PROGRAM_BYTES; Electrolyte
-    # 380 -> 360 after its restart's peak was trimmed: 128^3, 1000 particles, 831 MB peak)
+    # 380 -> 360 after its restart's peak was trimmed: 128^3, 1000 particles, 831 MB peak;
+    # 360 -> 270 on 2026-12-05 after its ions took the fluid's free buffers: 128^3 with
+    # 1000 particles 652 MB peak, estimated 718; 256^3 with 8000, 4274 MB, estimated 4.85 GB)
     bytes_per_point: int = 180
     bytes_per_point_particles: int = 16
 
@@ -48,7 +50,7 @@ TYPES = {s.name: s for s in (
              bytes_per_point=200),
     TypeSpec("Shear_Navier_Stokes_Lees_Edwards", "spectral", sheared=True,
              bytes_per_point=280),
-    TypeSpec("Electrolyte", "spectral", ions=True, distributed=False, bytes_per_point=360),
+    TypeSpec("Electrolyte", "spectral", ions=True, distributed=False, bytes_per_point=270),
     TypeSpec("Navier_Stokes_FDM", "fdm", walls=True, bytes_per_point=400,
              bytes_per_point_particles=64),
     TypeSpec("Navier_Stokes_Cahn_Hilliard_FDM", "fdm", phase=True, walls=True, surface_z=True,

@@ -215,7 +215,8 @@ class Ions:
             g.backward_scalar_raw(s, out[d])
 
     def potential_real(self):
-        """Psi in real space (of the last ``potential``)."""
+        """Psi in real space (of the last ``potential``; Psi_hat shares the scratch of
+        ``step`` and of the lender's calls: call it right after ``potential``)."""
         return self.grid.irfft_scalar(self.psi_hat)
 
     # ------------------------------------------------------------------ dynamics
