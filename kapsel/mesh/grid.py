@@ -28,9 +28,12 @@ Equal up to 64^3, MEASURE 25-40 % faster at 128^3 for a ~3 s plan that a run rep
 ~100 steps (a step is 9 component transforms).  But MEASURE picks its algorithm by timing,
 so two processes may get different plans and results that differ at round-off (seen at
 64^3: 2 hashes of u_hat after 3 steps in 3 runs; ESTIMATE always gave the same).  Hence the
-default ``planner='auto'``: FFTW_ESTIMATE (deterministic, no planning cost) up to 64^3 =
-262144 points, where MEASURE does not pay, FFTW_MEASURE above (not bitwise reproducible
-across processes; pass ``planner='FFTW_ESTIMATE'`` when that matters).
+default ``planner='auto'``: FFTW_MEASURE with its plans kept on disk (kapsel.mesh.wisdom:
+measured once per machine and shape, then the same plan, and so the same bits, in every
+process; 5-10 % faster per step than ESTIMATE at 64^3 on a quiet machine, 2026-12-05);
+where no wisdom file can be kept, FFTW_ESTIMATE (deterministic, no planning cost) up to
+64^3 = 262144 points and FFTW_MEASURE above (not bitwise reproducible across processes
+then).
 """
 from __future__ import annotations
 
@@ -38,6 +41,8 @@ import functools
 import math
 
 import numpy as np
+
+from . import wisdom
 
 try:  # pragma: no cover - import guard
     import pyfftw
@@ -62,7 +67,8 @@ class LazyPlan:
         if self._plan is None:
             sa = pyfftw.empty_aligned(self.a.shape, dtype=self.a.dtype)
             sb = pyfftw.empty_aligned(self.b.shape, dtype=self.b.dtype)
-            self._plan = pyfftw.FFTW(sa, sb, **self.kwargs)
+            with wisdom.planning():
+                self._plan = pyfftw.FFTW(sa, sb, **self.kwargs)
             self._plan.update_arrays(self.a, self.b)
             self.a = self.b = None
         return self._plan
@@ -79,10 +85,14 @@ class LazyPlan:
 
 
 def auto_planner(size: int, threads: int = 1) -> str:
-    """The FFTW planner of 'auto': FFTW_ESTIMATE (deterministic across processes, no planning
-    cost) for one thread up to 64^3 points, FFTW_MEASURE above or with threads: ESTIMATE's
-    threaded plans are slow (measured 2026-11-29, idle 2-core VM, r2c of 64^3: 1 thread
-    0.79 ms, 2 threads 1.76 ms ESTIMATE / 0.54 ms MEASURE; 128^3: 12.6 / 6.3 / 5.3 ms)."""
+    """The FFTW planner of 'auto': FFTW_MEASURE when the plans are kept on disk
+    (kapsel.mesh.wisdom: measured once per machine and shape, the same in every process);
+    without that, FFTW_ESTIMATE (deterministic across processes, no planning cost) for one
+    thread up to 64^3 points, FFTW_MEASURE above or with threads: ESTIMATE's threaded plans
+    are slow (measured 2026-11-29, idle 2-core VM, r2c of 64^3: 1 thread 0.79 ms, 2 threads
+    1.76 ms ESTIMATE / 0.54 ms MEASURE; 128^3: 12.6 / 6.3 / 5.3 ms)."""
+    if wisdom.enabled():
+        return "FFTW_MEASURE"
     return "FFTW_MEASURE" if size > Grid.MEASURE_ABOVE or threads > 1 else "FFTW_ESTIMATE"
 
 class ScalarSolve:
@@ -315,11 +325,12 @@ class Grid:
             return
         flags = (self.planner,)
         axes = (1, 2, 3)
-        self._fwd = pyfftw.FFTW(self.real_buf, self.complex_buf, axes=axes,
-                                direction="FFTW_FORWARD", flags=flags, threads=self.threads)
-        self._bwd = pyfftw.FFTW(self.complex_buf, self.real_buf, axes=axes,
-                                direction="FFTW_BACKWARD",
-                                flags=flags + ("FFTW_DESTROY_INPUT",), threads=self.threads)
+        with wisdom.planning():
+            self._fwd = pyfftw.FFTW(self.real_buf, self.complex_buf, axes=axes,
+                                    direction="FFTW_FORWARD", flags=flags, threads=self.threads)
+            self._bwd = pyfftw.FFTW(self.complex_buf, self.real_buf, axes=axes,
+                                    direction="FFTW_BACKWARD",
+                                    flags=flags + ("FFTW_DESTROY_INPUT",), threads=self.threads)
 
     def _aligned(self, a, shape, dtype):
         return (a.shape == shape and a.dtype == dtype and a.flags.c_contiguous
@@ -420,11 +431,12 @@ class Grid:
         r = pyfftw.empty_aligned(self.shape, dtype="float64")
         c = pyfftw.empty_aligned(self.cshape, dtype="complex128")
         flags = (self.planner,)
-        self._sfwd = pyfftw.FFTW(r, c, axes=(0, 1, 2),
-                                 direction="FFTW_FORWARD", flags=flags, threads=self.threads)
-        self._sbwd = pyfftw.FFTW(c, r, axes=(0, 1, 2),
-                                 direction="FFTW_BACKWARD",
-                                 flags=flags + ("FFTW_DESTROY_INPUT",), threads=self.threads)
+        with wisdom.planning():
+            self._sfwd = pyfftw.FFTW(r, c, axes=(0, 1, 2),
+                                     direction="FFTW_FORWARD", flags=flags, threads=self.threads)
+            self._sbwd = pyfftw.FFTW(c, r, axes=(0, 1, 2),
+                                     direction="FFTW_BACKWARD",
+                                     flags=flags + ("FFTW_DESTROY_INPUT",), threads=self.threads)
 
     @functools.cached_property
     def real_buf_s(self):

@@ -33,6 +33,7 @@ import math
 import numpy as np
 import pyfftw
 
+from . import wisdom
 from .grid import Grid, auto_planner
 
 __all__ = ["Gathered", "PencilDiagonal", "PencilGrid", "PencilScalarSolve", "block",
@@ -168,6 +169,10 @@ class _Pipeline:
     """Buffers, FFTW plans and transposes of the transforms of ``ncomp``-component fields."""
 
     def __init__(self, g: "PencilGrid", ncomp: int):
+        with wisdom.planning():        # the plans of every rank from one wisdom file
+            self._build(g, ncomp)
+
+    def _build(self, g, ncomp):
         c = (ncomp,)
         nx, ny, nz = g.shape
         nzh = nz // 2 + 1

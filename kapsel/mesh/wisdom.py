@@ -1,0 +1,134 @@
+"""FFTW wisdom kept on disk: FFT plans measured once per machine and mesh shape, then the
+same plans in every process.
+
+FFTW_MEASURE picks its algorithm by timing candidates, so two processes planning the same
+transform may get different plans, whose results differ at round-off; FFTW_ESTIMATE is
+deterministic but its plans were 5-10 % slower per time step at 64^3 (Navier_Stokes, the
+squirmers, Electrolyte: bench/profile_step.py, 2026-12-05).  With a wisdom file, a process
+plans under an exclusive lock on it: it imports the wisdom there, plans (FFTW takes a
+stored plan without measuring, for FFTW_ESTIMATE too), and stores what it measured.  Every
+process on the machine then transforms a given shape with the same plan: runs, and a run
+and its continuation, are reproducible bit for bit at every mesh size (without the file,
+only up to 64^3, where the planner is FFTW_ESTIMATE), at FFTW_MEASURE's speed, and only the
+first run of a shape pays the measuring (0.2 s a plan at 64^3, about 1 s at 128^3).
+
+The file: ``$KAPSEL_PY_FFTW_WISDOM`` when set ("off" or "" keeps none: the planner of
+kapsel.mesh.grid.auto_planner without it), else ``$XDG_CACHE_HOME/kapsel-py/`` (default
+``~/.cache/kapsel-py/``) ``fftw-wisdom-<key>``, the key naming the CPU model and the FFTW
+and pyfftw versions (a cluster's home directory shared by different nodes keeps one file
+per CPU kind).  Deleting it makes the next run measure again (its plans, and so its last
+digits, may then differ from the earlier runs').  A directory that cannot be written is
+the same as "off".
+"""
+from __future__ import annotations
+
+import contextlib
+import hashlib
+import os
+import platform
+
+__all__ = ["ENV", "path", "enabled", "planning"]
+
+ENV = "KAPSEL_PY_FFTW_WISDOM"
+_state = {"depth": 0, "enabled": None}
+
+
+def _key() -> str:
+    cpu = platform.machine()
+    try:
+        with open("/proc/cpuinfo", encoding="ascii", errors="replace") as f:
+            for line in f:
+                if line.startswith("model name"):
+                    cpu += line.split(":", 1)[1].strip()
+                    break
+    except OSError:
+        pass
+    try:
+        import pyfftw
+        versions = f"{pyfftw.__version__} {getattr(pyfftw, 'fftw_version', '')}"
+    except ImportError:  # pragma: no cover
+        versions = ""
+    return hashlib.sha256(f"{cpu}|{versions}".encode()).hexdigest()[:16]
+
+
+def path() -> str | None:
+    """The wisdom file, or None when none is kept (module docstring)."""
+    v = os.environ.get(ENV)
+    if v is not None:
+        return None if v.strip().lower() in ("", "off", "0", "no") else v
+    base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
+    return os.path.join(base, "kapsel-py", f"fftw-wisdom-{_key()}")
+
+
+def enabled() -> bool:
+    """A wisdom file is kept: its directory exists (made if needed) and can be written.
+    Decided once per process (the planner of every grid of a run must be the same)."""
+    if _state["enabled"] is None:
+        p = path()
+        ok = False
+        if p is not None:
+            d = os.path.dirname(os.path.abspath(p))
+            try:
+                os.makedirs(d, exist_ok=True)
+                ok = os.access(d, os.W_OK)
+            except OSError:
+                ok = False
+        _state["enabled"] = ok
+    return _state["enabled"]
+
+
+def _read(p: str) -> bytes:
+    try:
+        with open(p, "rb") as f:
+            return f.read()
+    except OSError:
+        return b""
+
+
+def _write(p: str, data: bytes) -> None:
+    """Replace the file at once (a reader never sees half of it)."""
+    tmp = f"{p}.{os.getpid()}.tmp"
+    try:
+        with open(tmp, "wb") as f:
+            f.write(data)
+        os.replace(tmp, p)
+    except OSError:
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
+
+
+@contextlib.contextmanager
+def planning():
+    """Plan FFTW transforms inside: under the lock of the wisdom file, with its wisdom
+    imported, and what was measured stored on leaving.  Nested uses take the lock once; with
+    no file kept it does nothing."""
+    if _state["depth"] or not enabled():
+        _state["depth"] += 1
+        try:
+            yield
+        finally:
+            _state["depth"] -= 1
+        return
+    import fcntl
+
+    import pyfftw
+    p = path()
+    try:
+        lock = os.open(p + ".lock", os.O_RDWR | os.O_CREAT, 0o644)
+    except OSError:
+        lock = None
+    _state["depth"] += 1
+    try:
+        if lock is not None:
+            fcntl.flock(lock, fcntl.LOCK_EX)
+        before = _read(p)
+        if before:
+            pyfftw.import_wisdom((before, b"", b""))
+        yield
+        after = pyfftw.export_wisdom()[0]
+        if lock is not None and after != before:
+            _write(p, after)
+    finally:
+        _state["depth"] -= 1
+        if lock is not None:
+            os.close(lock)              # releases the lock
