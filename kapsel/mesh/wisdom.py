@@ -86,15 +86,22 @@ def _read(p: str) -> bytes:
 
 
 def _write(p: str, data: bytes) -> None:
-    """Replace the file at once (a reader never sees half of it)."""
-    tmp = f"{p}.{os.getpid()}.tmp"
+    """Replace the file as every file of a run is replaced (udf.files: a synced temporary
+    file renamed over it), so that a reader never sees half of it; a write that fails
+    leaves the old file (the plans are measured again by a later run)."""
+    from udf.files import create_temporary, put_in_place
+    tmp = None
     try:
-        with open(tmp, "wb") as f:
+        fd, tmp = create_temporary(p)
+        with os.fdopen(fd, "wb") as f:
             f.write(data)
-        os.replace(tmp, p)
+            f.flush()
+            os.fsync(f.fileno())
+        put_in_place(tmp, p)
     except OSError:
-        with contextlib.suppress(OSError):
-            os.unlink(tmp)
+        if tmp is not None:
+            with contextlib.suppress(OSError):
+                os.unlink(tmp)
 
 
 @contextlib.contextmanager
