@@ -248,7 +248,8 @@ class Janus:
         """The velocity update of one spm.SPM step with self forces and, with squirmers,
         the self-consistent slip (module docstring).  Leaves f_hydro / torque_hydro = F_H /
         T_H and f_slip / torque_slip in the particle state and, with squirmers, adds the
-        solenoidal slip flow u' to the fluid (spm.u and the solver's state).
+        solenoidal slip flow u' to the fluid (the solver's state, the sampled u* and,
+        where the rest of the step reads all of it, spm.u).
 
         In a distributed run (spm.owned: this Janus is the rank's table's, owned rows first;
         F_H ... dL of the owned rows) the squirmers' stencil sums (moments, shell terms) and
@@ -338,13 +339,18 @@ class Janus:
             Vs = 0.3 * Vs + 0.7 * V
             Ws = 0.3 * Ws + 0.7 * W
         self._set_slip(q, F_sl, T_sl)
-        spm.u += up
         spm.fluid.u_hat += up_hat
         us = getattr(spm, "_us", None)      # an SPM that samples u at its stencil points once
-        if us is not None and us.shape[1:] == spm.idx.shape:     # a step: keep it current
+        sampled = us is not None and us.shape[1:] == spm.idx.shape
+        if sampled:                         # a step: keep it current
             upf = up.reshape(3, -1)
             for c in range(3):
                 us[c] += upf[c][spm.idx]
+        # u* itself: the rest of a spectral step reads it only at the stencil points (the
+        # samples above; the walls' increment and the re-gridded u* of a sheared frame read
+        # all of it), and the next step makes it anew
+        if not sampled or spm.mode != "spectral" or spm.wall is not None or spm.rect:
+            spm.u += up
 
     def _solenoidal(self, grid, w, idx):
         """u' = P[sum of the per-point vectors w (M, S, 3) at idx]: (u'_hat, u') in buffers
