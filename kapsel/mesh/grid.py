@@ -28,9 +28,10 @@ Equal up to 64^3, MEASURE 25-40 % faster at 128^3 for a ~3 s plan that a run rep
 ~100 steps (a step is 9 component transforms).  But MEASURE picks its algorithm by timing,
 so two processes may get different plans and results that differ at round-off (seen at
 64^3: 2 hashes of u_hat after 3 steps in 3 runs; ESTIMATE always gave the same).  Hence the
-default ``planner='auto'``: FFTW_MEASURE with its plans kept on disk (kapsel.mesh.wisdom:
-measured once per machine and shape, then the same plan, and so the same bits, in every
-process; 5-10 % faster per step than ESTIMATE at 64^3 on a quiet machine, 2026-12-05);
+default ``planner='auto'``: FFTW_PATIENT up to 64^3, FFTW_MEASURE above, with the plans kept
+on disk (kapsel.mesh.wisdom: measured once per machine and shape, then the same plan, and so
+the same bits, in every process; MEASURE was 5-10 % faster per step than ESTIMATE at 64^3
+on a quiet machine, PATIENT's transforms another 7 %, 2026-12-05);
 where no wisdom file can be kept, FFTW_ESTIMATE (deterministic, no planning cost) up to
 64^3 = 262144 points and FFTW_MEASURE above (not bitwise reproducible across processes
 then).
@@ -85,14 +86,17 @@ class LazyPlan:
 
 
 def auto_planner(size: int, threads: int = 1) -> str:
-    """The FFTW planner of 'auto': FFTW_MEASURE when the plans are kept on disk
-    (kapsel.mesh.wisdom: measured once per machine and shape, the same in every process);
+    """The FFTW planner of 'auto' when the plans are kept on disk (kapsel.mesh.wisdom:
+    measured once per machine and shape, the same in every process): FFTW_PATIENT up to
+    64^3 points, FFTW_MEASURE above (r2c + c2r, 1 thread, 2026-12-05, quiet 2-core VM:
+    64^3 0.349 ms a transform PATIENT, planned in 1.5 s, 0.377 MEASURE in 0.2 s; 128^3
+    PATIENT no faster, 18.5 s to plan);
     without that, FFTW_ESTIMATE (deterministic across processes, no planning cost) for one
     thread up to 64^3 points, FFTW_MEASURE above or with threads: ESTIMATE's threaded plans
     are slow (measured 2026-11-29, idle 2-core VM, r2c of 64^3: 1 thread 0.79 ms, 2 threads
     1.76 ms ESTIMATE / 0.54 ms MEASURE; 128^3: 12.6 / 6.3 / 5.3 ms)."""
     if wisdom.enabled():
-        return "FFTW_MEASURE"
+        return "FFTW_PATIENT" if size <= Grid.PATIENT_UP_TO else "FFTW_MEASURE"
     return "FFTW_MEASURE" if size > Grid.MEASURE_ABOVE or threads > 1 else "FFTW_ESTIMATE"
 
 class ScalarSolve:
@@ -197,6 +201,7 @@ class Grid:
     """
 
     MEASURE_ABOVE = 64 ** 3
+    PATIENT_UP_TO = 64 ** 3     # with a wisdom file (auto_planner)
 
     # the layout of one process (PencilGrid: this rank's place in the process grid)
     rank, ranks, is_root = 0, 1, True
