@@ -70,8 +70,27 @@ class Struct:
         return self.name or "struct"
 
 
+# answers of leaf_count and leaf_slice per type object (types are immutable and live as long
+# as their schema; the entry keeps its type, so its id is not reused): a record's particle
+# table asks them for every column, at every snapshot
+_LEAF_COUNTS: dict = {}
+_LEAF_SLICES: dict = {}
+_CACHE_MAX = 1 << 16
+
+
 def leaf_count(t) -> int | None:
     """Number of numeric leaves if ``t`` is numeric-flat, else None."""
+    hit = _LEAF_COUNTS.get(id(t))
+    if hit is not None and hit[0] is t:
+        return hit[1]
+    n = _leaf_count(t)
+    if len(_LEAF_COUNTS) > _CACHE_MAX:          # bounded: a script reading many schemas
+        _LEAF_COUNTS.clear()
+    _LEAF_COUNTS[id(t)] = (t, n)
+    return n
+
+
+def _leaf_count(t) -> int | None:
     if isinstance(t, Primitive):
         return 1 if t.numeric else None
     if isinstance(t, Struct):
@@ -99,6 +118,18 @@ def leaf_kinds(t) -> list:
 
 def leaf_slice(t, names: list) -> tuple:
     """(offset, count, type) of the sub-path ``names`` inside numeric-flat ``t``."""
+    key = (id(t), tuple(names))
+    hit = _LEAF_SLICES.get(key)
+    if hit is not None and hit[0] is t:
+        return hit[1]
+    out = _leaf_slice(t, names)
+    if len(_LEAF_SLICES) > _CACHE_MAX:
+        _LEAF_SLICES.clear()
+    _LEAF_SLICES[key] = (t, out)
+    return out
+
+
+def _leaf_slice(t, names: list) -> tuple:
     offset = 0
     for name in names:
         if not isinstance(t, Struct):
