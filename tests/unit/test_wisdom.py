@@ -1,0 +1,56 @@
+"""FFTW wisdom kept on disk (kapsel.mesh.wisdom): where it goes, when it is not kept, and that
+a shape's plans are stored once (a second planning of the shape writes nothing)."""
+import os
+
+import numpy as np
+import pytest
+
+from kapsel.mesh import wisdom
+
+pyfftw = pytest.importorskip("pyfftw")
+
+
+@pytest.fixture
+def fresh(monkeypatch):
+    """The module's per-process decision made again under the test's environment."""
+    monkeypatch.setitem(wisdom._state, "enabled", None)
+    yield monkeypatch
+    wisdom._state["enabled"] = None
+
+
+def test_where_the_file_goes(fresh, tmp_path):
+    fresh.setenv(wisdom.ENV, str(tmp_path / "w"))
+    assert wisdom.path() == str(tmp_path / "w") and wisdom.enabled()
+    for off in ("off", "", "0"):
+        fresh.setenv(wisdom.ENV, off)
+        assert wisdom.path() is None
+    fresh.delenv(wisdom.ENV)
+    fresh.setenv("XDG_CACHE_HOME", str(tmp_path / "cache"))
+    p = wisdom.path()
+    assert p.startswith(str(tmp_path / "cache" / "kapsel-py" / "fftw-wisdom-"))
+
+
+def test_a_directory_that_cannot_be_made_keeps_none(fresh, tmp_path):
+    (tmp_path / "file").write_text("")
+    fresh.setenv(wisdom.ENV, str(tmp_path / "file" / "w"))     # under a regular file
+    assert not wisdom.enabled()
+    from kapsel.mesh.grid import auto_planner
+    assert auto_planner(32 ** 3) == "FFTW_ESTIMATE"
+
+
+def test_plans_are_stored_once(fresh, tmp_path):
+    w = tmp_path / "w"
+    fresh.setenv(wisdom.ENV, str(w))
+    shape = (12, 10, 14)                 # a shape no other test plans in this process
+    a = pyfftw.empty_aligned(shape, dtype="float64")
+    b = pyfftw.empty_aligned(shape[:2] + (shape[2] // 2 + 1,), dtype="complex128")
+    with wisdom.planning():
+        pyfftw.FFTW(a, b, axes=(0, 1, 2), flags=("FFTW_MEASURE",))
+    first = w.read_bytes()
+    assert first and os.path.exists(str(w) + ".lock")
+    os.utime(w, (0, 0))
+    with wisdom.planning():              # the same problem: taken from the wisdom
+        pyfftw.FFTW(a, b, axes=(0, 1, 2), flags=("FFTW_MEASURE",))
+    assert w.stat().st_mtime == 0 and w.read_bytes() == first
+    assert not [f for f in os.listdir(tmp_path) if f.endswith(".kapsel-tmp")]
+    np.testing.assert_equal(wisdom._state["depth"], 0)
