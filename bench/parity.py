@@ -620,7 +620,7 @@ def main(argv=None):
         for k, v in SCENES.items():
             print(f"{k:16s} {v[0]}")
         return 0
-    kref = Path(a.kref)
+    kref = Path(a.kref).resolve()        # the scenes run in their own directories
     if not a.original or not Path(a.original).is_file() or not (kref / "flatten_udf.py").exists():
         print("bench/parity.py needs the original program and the kref tools:\n"
               "  build it: KREF=<scratch dir> KAPSEL3_GIT=<git dir of kapsel-dns/kapsel3> "
@@ -642,7 +642,7 @@ def main(argv=None):
         d = top / name
         make_input(d, edits, steps, kref)
         n = 2 ** int(edits.get("mesh.NPX", 5))
-        rc_c, w_c, tail_c = run("cpp", d, a.original, Path(a.cache) if a.cache else None)
+        rc_c, w_c, tail_c = run("cpp", d, str(Path(a.original).resolve()), Path(a.cache) if a.cache else None)
         rc_p, w_p, tail_p = run("py", d, a.original)
         r = {"label": label, "steps": steps, "rc": [rc_c, rc_p], "wall": [w_c, w_p],
              "stderr_tail": [tail_c, tail_p]}
