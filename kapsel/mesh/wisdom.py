@@ -61,18 +61,18 @@ def path() -> str | None:
 
 
 def enabled() -> bool:
-    """A wisdom file is kept: its directory exists (made if needed) and can be written.
-    Decided once per process (the planner of every grid of a run must be the same)."""
+    """A wisdom file is kept: its directory, or the nearest existing one above it (where
+    ``planning`` makes it), is a directory that can be written.  Nothing is made here (a
+    ``kapsel-py --check`` writes nothing).  Decided once per process (the planner of every
+    grid of a run must be the same)."""
     if _state["enabled"] is None:
         p = path()
         ok = False
         if p is not None:
             d = os.path.dirname(os.path.abspath(p))
-            try:
-                os.makedirs(d, exist_ok=True)
-                ok = os.access(d, os.W_OK)
-            except OSError:
-                ok = False
+            while not os.path.lexists(d) and os.path.dirname(d) != d:
+                d = os.path.dirname(d)
+            ok = os.path.isdir(d) and os.access(d, os.W_OK | os.X_OK)
         _state["enabled"] = ok
     return _state["enabled"]
 
@@ -121,13 +121,18 @@ def planning():
     import pyfftw
     p = path()
     try:
+        os.makedirs(os.path.dirname(os.path.abspath(p)), exist_ok=True)
         lock = os.open(p + ".lock", os.O_RDWR | os.O_CREAT, 0o644)
     except OSError:
         lock = None
+    if lock is not None:
+        try:
+            fcntl.flock(lock, fcntl.LOCK_EX)
+        except OSError:             # no locks here (some network file systems): read the
+            os.close(lock)          # stored plans, store none
+            lock = None
     _state["depth"] += 1
     try:
-        if lock is not None:
-            fcntl.flock(lock, fcntl.LOCK_EX)
         before = _read(p)
         if before:
             pyfftw.import_wisdom((before, b"", b""))

@@ -28,6 +28,11 @@ def test_where_the_file_goes(fresh, tmp_path):
     fresh.setenv("XDG_CACHE_HOME", str(tmp_path / "cache"))
     p = wisdom.path()
     assert p.startswith(str(tmp_path / "cache" / "kapsel-py" / "fftw-wisdom-"))
+    wisdom._state["enabled"] = None
+    assert wisdom.enabled() and not (tmp_path / "cache").exists()   # made when planning
+    with wisdom.planning():
+        pass
+    assert (tmp_path / "cache" / "kapsel-py").is_dir()
 
 
 def test_a_directory_that_cannot_be_made_keeps_none(fresh, tmp_path):
