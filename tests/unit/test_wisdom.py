@@ -59,3 +59,22 @@ def test_plans_are_stored_once(fresh, tmp_path):
     assert w.stat().st_mtime == 0 and w.read_bytes() == first
     assert not [f for f in os.listdir(tmp_path) if f.endswith(".kapsel-tmp")]
     np.testing.assert_equal(wisdom._state["depth"], 0)
+
+
+def test_no_locks_reads_plans_and_stores_none(fresh, tmp_path):
+    """A file system without locks (flock fails): the stored plans are read, none stored."""
+    import fcntl
+    w = tmp_path / "w"
+    fresh.setenv(wisdom.ENV, str(w))
+    w.write_bytes(pyfftw.export_wisdom()[0])
+    before = w.read_bytes()
+
+    def no_lock(fd, op):
+        raise OSError(37, "No locks available")
+    fresh.setattr(fcntl, "flock", no_lock)
+    shape = (10, 12, 6)
+    a = pyfftw.empty_aligned(shape, dtype="float64")
+    b = pyfftw.empty_aligned(shape[:2] + (shape[2] // 2 + 1,), dtype="complex128")
+    with wisdom.planning():
+        pyfftw.FFTW(a, b, axes=(0, 1, 2), flags=("FFTW_MEASURE",))
+    assert w.read_bytes() == before and wisdom._state["depth"] == 0
