@@ -21,8 +21,8 @@ Velocities at the nodes, pressure at the cell centres (see kapsel.mesh.operators
 Choices, measured on this 2-core machine (shared, so +-30 %; ms, min of repeats):
 
 * FFT: pyfftw (planned once, aligned buffers reused; the planner of kapsel.mesh.grid:
-  FFTW_MEASURE with the plans kept on disk by kapsel.mesh.wisdom, else ESTIMATE up to 64^3
-  points and MEASURE above) vs scipy.fft, one
+  FFTW_ESTIMATE up to 64^3 points, FFTW_MEASURE above with its plans kept on disk by
+  kapsel.mesh.wisdom) vs scipy.fft, one
   Poisson solve (rfftn + scale + irfftn): 32^3 0.10 vs 0.34, 64^3 1.06 vs 3.36 -> pyfftw
   (scipy.fft kept as ``fft='scipy'``).
 * BiCGSTAB operator: assembled CSR (fixed sparsity pattern, data refilled each step, 7 slots

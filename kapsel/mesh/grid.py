@@ -28,13 +28,10 @@ Equal up to 64^3, MEASURE 25-40 % faster at 128^3 for a ~3 s plan that a run rep
 ~100 steps (a step is 9 component transforms).  But MEASURE picks its algorithm by timing,
 so two processes may get different plans and results that differ at round-off (seen at
 64^3: 2 hashes of u_hat after 3 steps in 3 runs; ESTIMATE always gave the same).  Hence the
-default ``planner='auto'``: FFTW_PATIENT up to 64^3, FFTW_MEASURE above, with the plans kept
-on disk (kapsel.mesh.wisdom: measured once per machine and shape, then the same plan, and so
-the same bits, in every process; MEASURE was 5-10 % faster per step than ESTIMATE at 64^3
-on a quiet machine, PATIENT's transforms another 7 %, 2026-12-05);
-where no wisdom file can be kept, FFTW_ESTIMATE (deterministic, no planning cost) up to
-64^3 = 262144 points and FFTW_MEASURE above (not bitwise reproducible across processes
-then).
+default ``planner='auto'``: FFTW_ESTIMATE (deterministic, no planning cost) up to 64^3 =
+262144 points, FFTW_MEASURE above, its plans kept on disk (kapsel.mesh.wisdom: measured
+once per machine and shape, then the same plan, and so the same bits, in every process;
+where no wisdom file can be kept, not bitwise reproducible across processes).
 """
 from __future__ import annotations
 
@@ -68,7 +65,7 @@ class LazyPlan:
         if self._plan is None:
             sa = pyfftw.empty_aligned(self.a.shape, dtype=self.a.dtype)
             sb = pyfftw.empty_aligned(self.b.shape, dtype=self.b.dtype)
-            with wisdom.planning():
+            with wisdom.planning(self.kwargs.get("flags", ())):
                 self._plan = pyfftw.FFTW(sa, sb, **self.kwargs)
             self._plan.update_arrays(self.a, self.b)
             self.a = self.b = None
@@ -86,18 +83,17 @@ class LazyPlan:
 
 
 def auto_planner(size: int, threads: int = 1) -> str:
-    """The FFTW planner of 'auto' when the plans are kept on disk (kapsel.mesh.wisdom:
-    measured once per machine and shape, the same in every process): FFTW_PATIENT up to
-    64^3 points, FFTW_MEASURE above (r2c + c2r, 1 thread, 2026-12-05, quiet 2-core VM:
-    64^3 0.349 ms a transform PATIENT, planned in 1.5 s, 0.377 MEASURE in 0.2 s; 128^3
-    PATIENT no faster, 18.5 s to plan);
-    without that, FFTW_ESTIMATE (deterministic across processes, no planning cost) for one
-    thread up to 64^3 points, FFTW_MEASURE above or with threads: ESTIMATE's threaded plans
-    are slow (measured 2026-11-29, idle 2-core VM, r2c of 64^3: 1 thread 0.79 ms, 2 threads
-    1.76 ms ESTIMATE / 0.54 ms MEASURE; 128^3: 12.6 / 6.3 / 5.3 ms)."""
-    if wisdom.enabled():
-        return "FFTW_PATIENT" if size <= Grid.PATIENT_UP_TO else "FFTW_MEASURE"
+    """The FFTW planner of 'auto': FFTW_ESTIMATE (deterministic across processes, no planning
+    cost, and the same bits as a distributed run's transforms) for one thread up to 64^3
+    points, FFTW_MEASURE above or with threads: ESTIMATE's threaded plans are slow
+    (measured 2026-11-29, idle 2-core VM, r2c of 64^3: 1 thread 0.79 ms, 2 threads 1.76 ms
+    ESTIMATE / 0.54 ms MEASURE; 128^3: 12.6 / 6.3 / 5.3 ms).  Measured plans are kept on
+    disk (kapsel.mesh.wisdom), so every process takes the same ones.  Measured plans at 64^3
+    (MEASURE, PATIENT) made the step 3-7 % faster but gave other bits than the distributed
+    run's transforms (tests/distributed: a serial run and its 2-rank run agree bit for bit
+    with ESTIMATE), 2026-12-05."""
     return "FFTW_MEASURE" if size > Grid.MEASURE_ABOVE or threads > 1 else "FFTW_ESTIMATE"
+
 
 class ScalarSolve:
     """f -> FFT^-1[m(k) FFT(f)] of one scalar field of the whole mesh: write f into ``rhs``,
@@ -201,7 +197,6 @@ class Grid:
     """
 
     MEASURE_ABOVE = 64 ** 3
-    PATIENT_UP_TO = 64 ** 3     # with a wisdom file (auto_planner)
 
     # the layout of one process (PencilGrid: this rank's place in the process grid)
     rank, ranks, is_root = 0, 1, True
@@ -330,7 +325,7 @@ class Grid:
             return
         flags = (self.planner,)
         axes = (1, 2, 3)
-        with wisdom.planning():
+        with wisdom.planning(flags):
             self._fwd = pyfftw.FFTW(self.real_buf, self.complex_buf, axes=axes,
                                     direction="FFTW_FORWARD", flags=flags, threads=self.threads)
             self._bwd = pyfftw.FFTW(self.complex_buf, self.real_buf, axes=axes,
@@ -436,7 +431,7 @@ class Grid:
         r = pyfftw.empty_aligned(self.shape, dtype="float64")
         c = pyfftw.empty_aligned(self.cshape, dtype="complex128")
         flags = (self.planner,)
-        with wisdom.planning():
+        with wisdom.planning(flags):
             self._sfwd = pyfftw.FFTW(r, c, axes=(0, 1, 2),
                                      direction="FFTW_FORWARD", flags=flags, threads=self.threads)
             self._sbwd = pyfftw.FFTW(c, r, axes=(0, 1, 2),

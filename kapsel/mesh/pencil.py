@@ -169,7 +169,7 @@ class _Pipeline:
     """Buffers, FFTW plans and transposes of the transforms of ``ncomp``-component fields."""
 
     def __init__(self, g: "PencilGrid", ncomp: int):
-        with wisdom.planning():        # the plans of every rank from one wisdom file
+        with wisdom.planning((g.planner,)):   # every rank's plans from one wisdom file
             self._build(g, ncomp)
 
     def _build(self, g, ncomp):

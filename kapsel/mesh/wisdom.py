@@ -1,16 +1,15 @@
 """FFTW wisdom kept on disk: FFT plans measured once per machine and mesh shape, then the
 same plans in every process.
 
-FFTW_MEASURE picks its algorithm by timing candidates, so two processes planning the same
-transform may get different plans, whose results differ at round-off; FFTW_ESTIMATE is
-deterministic but its plans were 5-10 % slower per time step at 64^3 (Navier_Stokes, the
-squirmers, Electrolyte: bench/profile_step.py, 2026-12-05).  With a wisdom file, a process
-plans under an exclusive lock on it: it imports the wisdom there, plans (FFTW takes a
-stored plan without measuring, for FFTW_ESTIMATE too), and stores what it measured.  Every
-process on the machine then transforms a given shape with the same plan: runs, and a run
-and its continuation, are reproducible bit for bit at every mesh size (without the file,
-only up to 64^3, where the planner is FFTW_ESTIMATE), at FFTW_MEASURE's speed, and only the
-first run of a shape pays the measuring (0.2 s a plan at 64^3, about 1 s at 128^3).
+FFTW_MEASURE (the planner above 64^3 points or with threads, kapsel.mesh.grid.auto_planner)
+picks its algorithm by timing candidates, so two processes planning the same transform may
+get different plans, whose results differ at round-off.  With a wisdom file, a process plans
+under an exclusive lock on it: it imports the wisdom there, plans (FFTW takes a stored plan
+without measuring), and stores what it measured.  Every process on the machine then
+transforms a given shape with the same plan: runs, and a run and its continuation, are
+reproducible bit for bit at every mesh size, and only the first run of a shape pays the
+measuring (about 1 s a plan at 128^3).  FFTW_ESTIMATE plans (up to 64^3, one thread) are
+made without the file: FFTW would take a stored measured plan for them too.
 
 The file: ``$KAPSEL_PY_FFTW_WISDOM`` when set ("off" or "" keeps none: the planner of
 kapsel.mesh.grid.auto_planner without it), else ``$XDG_CACHE_HOME/kapsel-py/`` (default
@@ -105,11 +104,14 @@ def _write(p: str, data: bytes) -> None:
 
 
 @contextlib.contextmanager
-def planning():
-    """Plan FFTW transforms inside: under the lock of the wisdom file, with its wisdom
-    imported, and what was measured stored on leaving.  Nested uses take the lock once; with
-    no file kept it does nothing."""
-    if _state["depth"] or not enabled():
+def planning(flags=("FFTW_MEASURE",)):
+    """Plan FFTW transforms with ``flags`` inside: under the lock of the wisdom file, with its
+    wisdom imported, and what was measured stored on leaving.  Nested uses take the lock
+    once; with no file kept, or for FFTW_ESTIMATE plans (FFTW would take a stored measured
+    plan for them too, and their bits must not depend on the file), it does nothing."""
+    if isinstance(flags, str):
+        flags = (flags,)
+    if _state["depth"] or not enabled() or "FFTW_ESTIMATE" in flags:
         _state["depth"] += 1
         try:
             yield

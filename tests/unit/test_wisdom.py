@@ -78,3 +78,46 @@ def test_no_locks_reads_plans_and_stores_none(fresh, tmp_path):
     with wisdom.planning():
         pyfftw.FFTW(a, b, axes=(0, 1, 2), flags=("FFTW_MEASURE",))
     assert w.read_bytes() == before and wisdom._state["depth"] == 0
+
+
+def _wisdom_only(shape, env):
+    """In a new process: plan ``shape`` with FFTW_WISDOM_ONLY inside ``planning`` (works only
+    when a stored plan was imported); returns its stdout."""
+    import subprocess
+    import sys
+    code = ("import pyfftw\n"
+            "from kapsel.mesh import wisdom\n"
+            f"a = pyfftw.empty_aligned({shape}, dtype='float64')\n"
+            f"b = pyfftw.empty_aligned({shape[:2] + (shape[2] // 2 + 1,)}, "
+            "dtype='complex128')\n"
+            "try:\n"
+            "    with wisdom.planning():\n"
+            "        pyfftw.FFTW(a, b, axes=(0, 1, 2), flags=('FFTW_MEASURE', 'FFTW_WISDOM_ONLY'))\n"
+            "    print('stored')\n"
+            "except RuntimeError:\n"
+            "    print('none')\n")
+    root = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+    return subprocess.run([sys.executable, "-c", code], cwd=root, capture_output=True,
+                          text=True, check=True, env=dict(os.environ, **env)).stdout.strip()
+
+
+def test_a_second_process_takes_the_stored_plan(fresh, tmp_path):
+    w = tmp_path / "w"
+    shape = (14, 12, 10)
+    assert _wisdom_only(shape, {wisdom.ENV: str(w)}) == "none"      # nothing stored yet
+    fresh.setenv(wisdom.ENV, str(w))
+    a = pyfftw.empty_aligned(shape, dtype="float64")
+    b = pyfftw.empty_aligned(shape[:2] + (shape[2] // 2 + 1,), dtype="complex128")
+    with wisdom.planning():
+        pyfftw.FFTW(a, b, axes=(0, 1, 2), flags=("FFTW_MEASURE",))
+    assert _wisdom_only(shape, {wisdom.ENV: str(w)}) == "stored"
+    assert _wisdom_only(shape, {wisdom.ENV: "off"}) == "none"
+
+
+def test_estimate_plans_do_not_read_the_file(fresh, tmp_path):
+    """FFTW would take a stored measured plan for an FFTW_ESTIMATE one too: the default plans
+    up to 64^3 must give the same bits with or without the file (and as a distributed run's)."""
+    fresh.setenv(wisdom.ENV, str(tmp_path / "w"))
+    with wisdom.planning(("FFTW_ESTIMATE",)):
+        assert wisdom._state["depth"] == 1
+    assert not (tmp_path / "w").exists() and not (tmp_path / "w.lock").exists()
