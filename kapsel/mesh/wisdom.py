@@ -108,15 +108,21 @@ def planning(flags=("FFTW_MEASURE",)):
     """Plan FFTW transforms with ``flags`` inside: under the lock of the wisdom file, with its
     wisdom imported, and what was measured stored on leaving.  Nested uses take the lock
     once; with no file kept, or for FFTW_ESTIMATE plans (FFTW would take a stored measured
-    plan for them too, and their bits must not depend on the file), it does nothing."""
+    plan for them too, and their bits must not depend on the file), it does nothing.  The
+    process forgets all wisdom when a measuring ends: FFTW keeps it for the process, and an
+    FFTW_ESTIMATE plan made later of a shape it holds would take it (its bits would then
+    depend on what the process planned before)."""
     if isinstance(flags, str):
         flags = (flags,)
-    if _state["depth"] or not enabled() or "FFTW_ESTIMATE" in flags:
+    estimate = "FFTW_ESTIMATE" in flags
+    if _state["depth"] or not enabled() or estimate:
         _state["depth"] += 1
         try:
             yield
         finally:
             _state["depth"] -= 1
+            if not _state["depth"] and not estimate:
+                _forget()
         return
     import fcntl
 
@@ -140,9 +146,20 @@ def planning(flags=("FFTW_MEASURE",)):
             pyfftw.import_wisdom((before, b"", b""))
         yield
         after = pyfftw.export_wisdom()[0]
-        if lock is not None and after != before:
+        # FFTW exports its entries in the order of its hash table: the same wisdom may come
+        # out in another order after an import
+        if lock is not None and sorted(after.splitlines()) != sorted(before.splitlines()):
             _write(p, after)
     finally:
         _state["depth"] -= 1
+        _forget()
         if lock is not None:
             os.close(lock)              # releases the lock
+
+
+def _forget():
+    try:
+        import pyfftw
+    except ImportError:  # pragma: no cover
+        return
+    pyfftw.forget_wisdom()

@@ -121,3 +121,22 @@ def test_estimate_plans_do_not_read_the_file(fresh, tmp_path):
     with wisdom.planning(("FFTW_ESTIMATE",)):
         assert wisdom._state["depth"] == 1
     assert not (tmp_path / "w").exists() and not (tmp_path / "w.lock").exists()
+
+
+def test_measuring_leaves_no_wisdom_in_the_process(fresh, tmp_path):
+    """An FFTW_ESTIMATE plan made after a measured one of the same shape has the bits of
+    one made in a fresh process (FFTW would otherwise take the measured plan for it)."""
+    fresh.setenv(wisdom.ENV, str(tmp_path / "w"))
+    shape = (16, 12, 18)
+    a = pyfftw.empty_aligned(shape, dtype="float64")
+    b = pyfftw.empty_aligned(shape[:2] + (shape[2] // 2 + 1,), dtype="complex128")
+    with wisdom.planning():
+        pyfftw.FFTW(a, b, axes=(0, 1, 2), flags=("FFTW_MEASURE",))
+    with pytest.raises(RuntimeError):            # no wisdom for the shape in the process
+        pyfftw.FFTW(a, b, axes=(0, 1, 2), flags=("FFTW_ESTIMATE", "FFTW_WISDOM_ONLY"))
+    fresh.setenv(wisdom.ENV, "off")
+    wisdom._state["enabled"] = None
+    with wisdom.planning():                      # measuring without a file: forgotten too
+        pyfftw.FFTW(a, b, axes=(0, 1, 2), flags=("FFTW_MEASURE",))
+    with pytest.raises(RuntimeError):
+        pyfftw.FFTW(a, b, axes=(0, 1, 2), flags=("FFTW_ESTIMATE", "FFTW_WISDOM_ONLY"))
