@@ -474,7 +474,20 @@ class Grid:
 
     def _run_scalar(self, plan, a, a_kind, out, out_kind):
         """Execute a scalar plan from ``a`` into ``out``, each used in place when aligned,
-        else through the scratch named in its kind (shape, dtype, scratch attribute)."""
+        else through the scratch named in its kind (shape, dtype, scratch attribute).
+        pyfftw's update_arrays checks shape, strides, dtype and alignment itself (a
+        ValueError when one does not fit): the arrays are tried first (3 us less a
+        transform than checking them here, 41 -> 38 us at 32^3).  Its alignment rule is
+        FFTW's (the plans ask for 16 bytes, ``_aligned`` for pyfftw.simd_alignment = 32
+        here); an array 16 but not 32 bytes aligned gives the same bits in place as through
+        the aligned scratch (r2c and c2r at 16^3, 32^3, 64^3, 2026-12-05)."""
+        try:
+            plan.update_arrays(a, out)
+        except ValueError:
+            pass
+        else:
+            plan.execute()
+            return out
         if not self._aligned(a, *a_kind[:2]):
             buf = getattr(self, a_kind[2])
             np.copyto(buf, a)
