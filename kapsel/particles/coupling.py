@@ -19,6 +19,10 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..mesh import compiled as _compiled
+
+_compiled.provide("coupling", __name__.rsplit(".", 1)[0] + ".coupling_kernels")
+
 __all__ = ["rigid_velocity", "particle_velocity_field", "hydro_force_torque",
            "rigidity_increment", "sample"]
 
@@ -101,6 +105,11 @@ def _slip(u, idx, phi, r, V, Omega, shear=0.0, sampled=None):
         sample(u, idx, out=w)
     else:
         np.copyto(w, sampled)
+    K = _compiled.coupling
+    if K is not None and r.flags.c_contiguous and phi.flags.c_contiguous and V.ndim == 2:
+        K.slip(w, r, np.ascontiguousarray(V), np.ascontiguousarray(W), phi,
+               float(shear))                   # the same operations, one pass
+        return w
     t = _buf("t", idx.shape)
     for c, (a, b) in enumerate(_CYC):
         wc = w[c]

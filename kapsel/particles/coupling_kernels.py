@@ -1,0 +1,40 @@
+"""Fused passes of the SPM coupling (kapsel.particles.coupling), compiled.
+
+``slip`` does in one sweep over the stencil points what ``coupling._slip`` did in some fifteen
+numpy passes over (N, S) arrays (at 32^3 with one particle the step's Python and numpy
+overhead: about 15 us a call), with the same floating-point operations in the same order,
+so the same bits.  Loaded on demand by kapsel.mesh.compiled (slot ``coupling``), ahead of
+time by kapsel.build_kernels.
+"""
+from __future__ import annotations
+
+from numba import njit
+
+__all__ = ["slip"]
+
+#: the types each kernel is called with (C-contiguous arrays): what kapsel.build_kernels
+#: compiles ahead of time (kapsel.mesh.compiled loads that build when it is current)
+SIGNATURES = {
+    "slip": "void(float64[:,:,::1], float64[:,:,::1], float64[:,::1], float64[:,::1], "
+            "float64[:,::1], float64)",
+}
+
+
+@njit(cache=True, nogil=True)
+def slip(u_s, r, V, W, phi, shear):
+    """u_s (3, N, S), u at the stencil points on entry, <- phi (u_s - V - W x r [+ shear
+    r_y e_x]); r (N, S, 3), V and W (N, 3), phi (N, S).  Component c as ``_slip`` makes
+    it: (a, b) = (c+1, c+2) mod 3, w = ((((u - r_b W_a) + r_a W_b) - V_c) [+ shear r_y]) phi."""
+    n, s = phi.shape
+    for i in range(n):
+        for j in range(s):
+            p = phi[i, j]
+            for c in range(3):
+                a = (c + 1) % 3
+                b = (c + 2) % 3
+                w = u_s[c, i, j] - r[i, j, b] * W[i, a]
+                w = w + r[i, j, a] * W[i, b]
+                w = w - V[i, c]
+                if c == 0 and shear != 0.0:
+                    w = w + shear * r[i, j, 1]
+                u_s[c, i, j] = w * p
