@@ -106,9 +106,10 @@ def _slip(u, idx, phi, r, V, Omega, shear=0.0, sampled=None):
     else:
         np.copyto(w, sampled)
     K = _compiled.coupling
-    if K is not None and r.flags.c_contiguous and phi.flags.c_contiguous and V.ndim == 2:
-        K.slip(w, r, np.ascontiguousarray(V), np.ascontiguousarray(W), phi,
-               float(shear))                   # the same operations, one pass
+    if K is not None and V.ndim == 2 and phi.flags.c_contiguous:
+        rc = r.transpose(2, 0, 1)             # (3, N, S): the profiles' r is a view of one
+        K.slip(w, np.ascontiguousarray(rc), np.ascontiguousarray(V), np.ascontiguousarray(W),
+               phi, float(shear))             # the same operations, one pass
         return w
     t = _buf("t", idx.shape)
     for c, (a, b) in enumerate(_CYC):

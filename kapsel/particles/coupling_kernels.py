@@ -16,14 +16,15 @@ __all__ = ["slip"]
 #: compiles ahead of time (kapsel.mesh.compiled loads that build when it is current)
 SIGNATURES = {
     "slip": "void(float64[:,:,::1], float64[:,:,::1], float64[:,::1], float64[:,::1], "
-            "float64[:,::1], float64)",
+            "float64[:,::1], float64)",     # rc is (3, N, S): the profiles' own layout
 }
 
 
 @njit(cache=True, nogil=True)
-def slip(u_s, r, V, W, phi, shear):
+def slip(u_s, rc, V, W, phi, shear):
     """u_s (3, N, S), u at the stencil points on entry, <- phi (u_s - V - W x r [+ shear
-    r_y e_x]); r (N, S, 3), V and W (N, 3), phi (N, S).  Component c as ``_slip`` makes
+    r_y e_x]); rc (3, N, S) the offsets r component-major (kapsel.particles.profile keeps r
+    as a view of such an array), V and W (N, 3), phi (N, S).  Component c as ``_slip`` makes
     it: (a, b) = (c+1, c+2) mod 3, w = ((((u - r_b W_a) + r_a W_b) - V_c) [+ shear r_y]) phi."""
     n, s = phi.shape
     for i in range(n):
@@ -32,9 +33,9 @@ def slip(u_s, r, V, W, phi, shear):
             for c in range(3):
                 a = (c + 1) % 3
                 b = (c + 2) % 3
-                w = u_s[c, i, j] - r[i, j, b] * W[i, a]
-                w = w + r[i, j, a] * W[i, b]
+                w = u_s[c, i, j] - rc[b, i, j] * W[i, a]
+                w = w + rc[a, i, j] * W[i, b]
                 w = w - V[i, c]
                 if c == 0 and shear != 0.0:
-                    w = w + shear * r[i, j, 1]
+                    w = w + shear * rc[1, i, j]
                 u_s[c, i, j] = w * p
