@@ -22,6 +22,9 @@ SIGNATURES = {
     "advection": "void(float64[:,:,:,::1], float64, float64[:,:,:,::1])",
     "div_b": "void(float64[:,:,:,::1], float64, float64[:,:,::1])",
     "grad_b": "void(float64[:,:,::1], float64, float64[:,:,:,::1])",
+    "ab2_update": "void(float64[::1], float64[::1], float64[::1], float64[::1], float64[::1], "
+                  "float64, boolean)",
+    "sub_scaled": "void(float64[::1], float64[::1], float64)",
 }
 
 
@@ -190,3 +193,28 @@ def grad_b(f, scale, out):
                 s_m = ((f[pm, qm, rm] + f[p, qm, rm]) * 0.5
                        + (f[pm, q, rm] + f[p, q, rm]) * 0.5) * 0.5
                 out[2, p, q, r] = (s_r - s_m) * scale
+
+
+@njit(cache=True, nogil=True)
+def ab2_update(u, n, n_old, lap, w, dt, ab2):
+    """The explicit MAC step's update (kapsel.fluid.mac MACSolver._explicit) in one pass over
+    flat fields, its numpy passes' operations in their order: ``ab2``: u <- u - (n (1.5 dt) -
+    (0.5 dt) n_old), else u <- u - dt n; then n_old <- n, u <- u + dt lap, w <- n - lap."""
+    a = 1.5 * dt
+    b = 0.5 * dt
+    for i in range(u.size):
+        x = n[i]
+        if ab2:
+            uu = u[i] - (x * a - b * n_old[i])
+        else:
+            uu = u[i] - dt * x
+        n_old[i] = x
+        u[i] = uu + dt * lap[i]
+        w[i] = x - lap[i]
+
+
+@njit(cache=True, nogil=True)
+def sub_scaled(u, g, s):
+    """u <- u - g s over flat fields."""
+    for i in range(u.size):
+        u[i] = u[i] - g[i] * s
