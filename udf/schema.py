@@ -71,23 +71,27 @@ class Struct:
 
 
 # answers of leaf_count and leaf_slice per type object (types are immutable and live as long
-# as their schema; the entry keeps its type, so its id is not reused): a record's particle
-# table asks them for every column, at every snapshot
-_LEAF_COUNTS: dict = {}
-_LEAF_SLICES: dict = {}
-_CACHE_MAX = 1 << 16
+# as their schema; an entry keeps its type, so its id is not reused): a record's particle
+# table asks them for every column, at every snapshot.  Bounded: a script reading many
+# schemas starts the table again.
+_MEMO: dict = {}
+_MEMO_MAX = 1 << 17
+
+
+def _memo(t, key, compute):
+    hit = _MEMO.get(key)
+    if hit is not None and hit[0] is t:
+        return hit[1]
+    value = compute()
+    if len(_MEMO) > _MEMO_MAX:
+        _MEMO.clear()
+    _MEMO[key] = (t, value)
+    return value
 
 
 def leaf_count(t) -> int | None:
     """Number of numeric leaves if ``t`` is numeric-flat, else None."""
-    hit = _LEAF_COUNTS.get(id(t))
-    if hit is not None and hit[0] is t:
-        return hit[1]
-    n = _leaf_count(t)
-    if len(_LEAF_COUNTS) > _CACHE_MAX:          # bounded: a script reading many schemas
-        _LEAF_COUNTS.clear()
-    _LEAF_COUNTS[id(t)] = (t, n)
-    return n
+    return _memo(t, id(t), lambda: _leaf_count(t))
 
 
 def _leaf_count(t) -> int | None:
@@ -118,15 +122,7 @@ def leaf_kinds(t) -> list:
 
 def leaf_slice(t, names: list) -> tuple:
     """(offset, count, type) of the sub-path ``names`` inside numeric-flat ``t``."""
-    key = (id(t), tuple(names))
-    hit = _LEAF_SLICES.get(key)
-    if hit is not None and hit[0] is t:
-        return hit[1]
-    out = _leaf_slice(t, names)
-    if len(_LEAF_SLICES) > _CACHE_MAX:
-        _LEAF_SLICES.clear()
-    _LEAF_SLICES[key] = (t, out)
-    return out
+    return _memo(t, (id(t), tuple(names)), lambda: _leaf_slice(t, names))
 
 
 def _leaf_slice(t, names: list) -> tuple:

@@ -36,6 +36,23 @@ SIGNATURES = {
 }
 
 
+@njit(inline="always")
+def _k_of(k_axis, axis, i, j, k):
+    """The wavenumber of ``axis`` (0, 1, 2) at mode (i, j, k), k_axis its 1-d array."""
+    return k_axis[i] if axis == 0 else (k_axis[j] if axis == 1 else k_axis[k])
+
+
+@njit(inline="always")
+def _times_ik(f, kk):
+    """i kk f, as numpy's complex product with (0, kk) (up to the sign of zero results)."""
+    return complex(-(f.imag * kk), f.real * kk)
+
+
+@njit(inline="always")
+def _scale(z, s):
+    return complex(z.real * s, z.imag * s)
+
+
 @njit(cache=True, nogil=True)
 def gradient_component(f_hat, k_axis, axis, scale, out):
     """out = (i k_axis f_hat) scale on the half spectrum; k_axis the wavenumbers of ``axis``
@@ -44,9 +61,8 @@ def gradient_component(f_hat, k_axis, axis, scale, out):
     for i in range(nx):
         for j in range(ny):
             for k in range(nzc):
-                kk = k_axis[i] if axis == 0 else (k_axis[j] if axis == 1 else k_axis[k])
-                f = f_hat[i, j, k]
-                out[i, j, k] = complex((-(f.imag * kk)) * scale, (f.real * kk) * scale)
+                out[i, j, k] = _scale(_times_ik(f_hat[i, j, k], _k_of(k_axis, axis, i, j, k)),
+                                      scale)
 
 
 @njit(cache=True, nogil=True)
@@ -102,12 +118,9 @@ def mask_scaled(h, mask, scale, out):
     for i in range(nx):
         for j in range(ny):
             for k in range(nzc):
-                f = h[i, j, k]
-                m = mask[i, j, k]
-                re = f.real * m
-                im = f.imag * m
-                h[i, j, k] = complex(re, im)
-                out[i, j, k] = complex(re * scale, im * scale)
+                f = _scale(h[i, j, k], mask[i, j, k])
+                h[i, j, k] = f
+                out[i, j, k] = _scale(f, scale)
 
 
 @njit(cache=True, nogil=True)
@@ -119,26 +132,19 @@ def divergence_accumulate(cs, k_axis, axis, ch, mask, scale, zero_mode):
     for i in range(nx):
         for j in range(ny):
             for k in range(nzc):
-                kk = k_axis[i] if axis == 0 else (k_axis[j] if axis == 1 else k_axis[k])
-                f = cs[i, j, k]
-                re = -(f.imag * kk)
-                im = f.real * kk
+                p = _times_ik(cs[i, j, k], _k_of(k_axis, axis, i, j, k))
                 if axis == 0:
-                    ch[i, j, k] = complex(re, im)
+                    ch[i, j, k] = p
                     continue
                 a = ch[i, j, k]
-                re = a.real + re
-                im = a.imag + im
+                p = complex(a.real + p.real, a.imag + p.imag)
                 if axis == 1:
-                    ch[i, j, k] = complex(re, im)
+                    ch[i, j, k] = p
                     continue
-                m = mask[i, j, k]
-                re = re * m
-                im = im * m
+                p = _scale(p, mask[i, j, k])
                 if zero_mode and i == 0 and j == 0 and k == 0:
-                    re = 0.0
-                    im = 0.0
-                cs[i, j, k] = complex(re * scale, im * scale)
+                    p = complex(0.0, 0.0)
+                cs[i, j, k] = _scale(p, scale)
 
 
 @njit(cache=True, nogil=True)

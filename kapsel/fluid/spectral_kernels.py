@@ -197,31 +197,10 @@ def project_etd2(nl, nl_old, u_hat, E, a2, b2, kx, ky, kz, inv_k2):
                 u_hat[2, i, j, k] = _etd2(u_hat[2, i, j, k], c, nl_old[2, i, j, k], e, w, v)
 
 
-@njit(cache=True, nogil=True)
-def project_add(d, u_hat, mask, kx, ky, kz, inv_k2):
-    """u_hat += P (mask d)  (d is left unchanged)."""
-    nx, ny, nzc = inv_k2.shape
-    for i in range(nx):
-        ki = kx[i]
-        for j in range(ny):
-            kj = ky[j]
-            for k in range(nzc):
-                kk = kz[k]
-                m = mask[i, j, k]
-                a = _scale(d[0, i, j, k], m)
-                b = _scale(d[1, i, j, k], m)
-                c = _scale(d[2, i, j, k], m)
-                a, b, c = _project_point(a, b, c, ki, kj, kk, inv_k2[i, j, k])
-                u_hat[0, i, j, k] += a
-                u_hat[1, i, j, k] += b
-                u_hat[2, i, j, k] += c
-
-
-@njit(cache=True, nogil=True)
-def project_set_scaled(d, u_hat, mask, kx, ky, kz, inv_k2, scale):
-    """u_hat <- 0 + P (mask d) and d <- u_hat scale: what a zeroed u_hat, ``project_add``
-    and a multiplication by ``scale`` (the 1/N of the c2r that follows) give, in one pass
-    (the squirmers' slip flow, kapsel.particles.janus)."""
+@njit(inline="always")
+def _project_masked(d, u_hat, mask, kx, ky, kz, inv_k2, scale, add):
+    """P (mask d) at every mode: ``add``: u_hat += it; else u_hat <- 0 + it and
+    d <- (0 + it) scale (``project_add``, ``project_set_scaled``)."""
     nx, ny, nzc = inv_k2.shape
     for i in range(nx):
         ki = kx[i]
@@ -233,6 +212,11 @@ def project_set_scaled(d, u_hat, mask, kx, ky, kz, inv_k2, scale):
                 b = _scale(d[1, i, j, k], m)
                 c = _scale(d[2, i, j, k], m)
                 a, b, c = _project_point(a, b, c, ki, kj, kz[k], inv_k2[i, j, k])
+                if add:
+                    u_hat[0, i, j, k] += a
+                    u_hat[1, i, j, k] += b
+                    u_hat[2, i, j, k] += c
+                    continue
                 a, b, c = _zero_plus(a), _zero_plus(b), _zero_plus(c)
                 u_hat[0, i, j, k] = a
                 u_hat[1, i, j, k] = b
@@ -240,6 +224,20 @@ def project_set_scaled(d, u_hat, mask, kx, ky, kz, inv_k2, scale):
                 d[0, i, j, k] = _scale(a, scale)
                 d[1, i, j, k] = _scale(b, scale)
                 d[2, i, j, k] = _scale(c, scale)
+
+
+@njit(cache=True, nogil=True)
+def project_add(d, u_hat, mask, kx, ky, kz, inv_k2):
+    """u_hat += P (mask d)  (d is left unchanged)."""
+    _project_masked(d, u_hat, mask, kx, ky, kz, inv_k2, 1.0, True)
+
+
+@njit(cache=True, nogil=True)
+def project_set_scaled(d, u_hat, mask, kx, ky, kz, inv_k2, scale):
+    """u_hat <- 0 + P (mask d) and d <- u_hat scale: what a zeroed u_hat, ``project_add``
+    and a multiplication by ``scale`` (the 1/N of the c2r that follows) give, in one pass
+    (the squirmers' slip flow, kapsel.particles.janus)."""
+    _project_masked(d, u_hat, mask, kx, ky, kz, inv_k2, scale, False)
 
 
 @njit(inline="always")
@@ -359,9 +357,9 @@ def project_etd2_rows(nl, nl_old, u_hat, E, a2, b2, kx, ky, kz, inv_k2):
                                                   E[i, j, k], a2[i, j, k], b2[i, j, k])
 
 
-@njit(cache=True, nogil=True)
-def project_add_rows(d, u_hat, mask, kx, ky, kz, inv_k2):
-    """``project_add`` by blocks of rows (the same bits)."""
+@njit(inline="always")
+def _project_masked_rows(d, u_hat, mask, kx, ky, kz, inv_k2, scale, add):
+    """``_project_masked`` by blocks of rows (the same bits)."""
     nx, ny, nzc = inv_k2.shape
     sr = np.empty((ROWS, nzc))
     si = np.empty((ROWS, nzc))
@@ -376,29 +374,24 @@ def project_add_rows(d, u_hat, mask, kx, ky, kz, inv_k2):
                     for k in range(nzc):
                         p = _less(_scale(d[c, i, j, k], mask[i, j, k]), sr[j - j0, k],
                                   si[j - j0, k], _pick(c, ki, kj, kz, k))
-                        u_hat[c, i, j, k] += p
+                        if add:
+                            u_hat[c, i, j, k] += p
+                        else:
+                            p = _zero_plus(p)
+                            u_hat[c, i, j, k] = p
+                            d[c, i, j, k] = _scale(p, scale)
+
+
+@njit(cache=True, nogil=True)
+def project_add_rows(d, u_hat, mask, kx, ky, kz, inv_k2):
+    """``project_add`` by blocks of rows (the same bits)."""
+    _project_masked_rows(d, u_hat, mask, kx, ky, kz, inv_k2, 1.0, True)
 
 
 @njit(cache=True, nogil=True)
 def project_set_scaled_rows(d, u_hat, mask, kx, ky, kz, inv_k2, scale):
     """``project_set_scaled`` by blocks of rows (the same bits)."""
-    nx, ny, nzc = inv_k2.shape
-    sr = np.empty((ROWS, nzc))
-    si = np.empty((ROWS, nzc))
-    for i in range(nx):
-        ki = kx[i]
-        for j0 in range(0, ny, ROWS):
-            j1 = min(j0 + ROWS, ny)
-            _coefficients(d, i, j0, j1, ki, ky, kz, inv_k2, mask, sr, si)
-            for c in range(3):
-                for j in range(j0, j1):
-                    kj = ky[j]
-                    for k in range(nzc):
-                        p = _zero_plus(_less(_scale(d[c, i, j, k], mask[i, j, k]),
-                                             sr[j - j0, k], si[j - j0, k],
-                                             _pick(c, ki, kj, kz, k)))
-                        u_hat[c, i, j, k] = p
-                        d[c, i, j, k] = _scale(p, scale)
+    _project_masked_rows(d, u_hat, mask, kx, ky, kz, inv_k2, scale, False)
 
 
 @njit(cache=True, nogil=True)

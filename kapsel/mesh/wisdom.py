@@ -85,22 +85,16 @@ def _read(p: str) -> bytes:
 
 
 def _write(p: str, data: bytes) -> None:
-    """Replace the file as every file of a run is replaced (udf.files: a synced temporary
-    file renamed over it), so that a reader never sees half of it; a write that fails
-    leaves the old file (the plans are measured again by a later run)."""
-    from udf.files import create_temporary, put_in_place
-    tmp = None
-    try:
-        fd, tmp = create_temporary(p)
-        with os.fdopen(fd, "wb") as f:
+    """Replace the file as every file of a run is replaced (udf.files.write_file: a synced
+    temporary file renamed over it), so that a reader never sees half of it; a write that
+    fails leaves the old file (the plans are measured again by a later run)."""
+    from udf.files import write_file
+
+    def fill(tmp):
+        with open(tmp, "wb") as f:
             f.write(data)
-            f.flush()
-            os.fsync(f.fileno())
-        put_in_place(tmp, p)
-    except OSError:
-        if tmp is not None:
-            with contextlib.suppress(OSError):
-                os.unlink(tmp)
+    with contextlib.suppress(OSError):
+        write_file(p, fill)
 
 
 @contextlib.contextmanager
