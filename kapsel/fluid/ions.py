@@ -52,13 +52,22 @@ def bulk_densities(valency, debye_length, eps, kBT):
 class Ions:
     """Ion densities c (S, NX, NY, NZ) on ``grid`` and the electrostatics of the particles.
 
+    The densities are held twice: in real space (``c``) and as their r2c transforms
+    (``c_hat``, unnormalised: the original's Concentration), so that a step transforms
+    neither from the other (the original holds only c_hat and transforms it back wherever
+    it needs c).  ``c`` is c_hat's c2r (times the rescale factors since, which scale both);
+    ``banded``: c_hat is 2/3-truncated (after a step; not after an initial profile or a
+    restart of the original's, whose first step truncates it as the original's does).
+    Whoever writes ``c`` (an initial profile, a restart) calls ``densities_set()``.
+
     valency, onsager : per species;  eps : Dielectric_cst;  kBT;  dt;  state : the model's
-    kapsel.state.ModelState, which holds c (``ion_c``);  scratch : (J, grad_psi, ch, cs),
-    two real vector fields and two complex scalars lent by the fluid (its buffers free
-    between its own calls: SpectralNS.scratch_real, scratch_between_steps), or None (new
-    ones).  J is written by ``step`` and ``coulomb_force``, grad_psi by ``potential``
-    (read by ``step``, ``coulomb_force``, ``particle_force``), ch and cs by ``step``,
-    ``potential`` and the gradients: the lender's calls must not fall between a
+    kapsel.state.ModelState, which holds c and c_hat (``ion_c``, ``ion_c_hat``);
+    scratch : (J, grad_psi, ch, cs), two real vector fields and two complex scalars lent by
+    the fluid (its buffers free between its own calls: SpectralNS.scratch_real,
+    scratch_between_steps), or None (new ones).  J is written by ``step``,
+    ``coulomb_force``, ``charge_density`` (its first component) and ``fluid_counts``, grad_psi
+    by ``potential`` (read by ``step``, ``coulomb_force``, ``particle_force``), ch and cs by
+    ``step``, ``potential`` and the gradients: the lender's calls must not fall between a
     ``potential`` and the calls reading its grad Psi.
     Call ``set_particles(idx, phi_i, r, Z, A, xi)`` whenever the particles moved (SPM
     stencil arrays), then ``potential()``, ``step(u, E)``, ``coulomb_force(E)``.
@@ -75,20 +84,21 @@ class Ions:
         self.state = ModelState() if state is None else state
         # SIMD-aligned, so that the transforms read each species in place (no copy)
         self.c = self.state.field("ion_c", lambda: g.zeros_real(self.S))
+        self.c_hat = self.state.field("ion_c_hat", lambda: g.zeros_complex(self.S))
+        self.banded = False
         self.counts = np.zeros(self.S)           # N_s held fixed by rescale
         self.phi = np.zeros(g.shape)
         self.rho_surf = np.zeros(g.shape)
         self._no_normal()
         # buffers: scalar complex scratch (Psi_hat shares ch: ``step`` does not use Psi_hat),
-        # one vector field (the flux J, and the Coulomb force) and grad Psi; the transforms
-        # go component by component through them
+        # one vector field (the flux J, the Coulomb force, and rho_e in its first component
+        # until transformed) and grad Psi; the transforms go component by component through
+        # them (no buffer of rho_e or a real scalar of its own: issue 25)
         if scratch is None:
             scratch = (g.empty_real(), g.empty_real(), g.empty_complex(None),
                        g.empty_complex(None))
         self._J, self.grad_psi, self._ch, self._cs = scratch
         self.psi_hat = self._ch
-        self._rho = g.empty_real(None)
-        self._t = g.empty_real(None)
         self._mask = g.dealias_f
         self._idx = self._q = self._r = None      # particles' stencil, charges, offsets
         self._ik = (1j * g.kx, 1j * g.ky, 1j * g.kz)
@@ -111,7 +121,7 @@ class Ions:
         Z = np.asarray(Z, dtype=float)
         self.rho_surf[...] = np.bincount(idx.ravel(), weights=(Z[:, None] * slope).ravel(),
                                          minlength=size).reshape(g.shape)
-        total = float(np.abs(self.rho_surf, out=self._t).sum()) * self.dv
+        total = float(np.abs(self.rho_surf, out=self._J[0]).sum()) * self.dv
         scale = float(np.abs(Z).sum()) / total
         self.rho_surf *= scale
         self._idx, self._r = idx, r
@@ -152,10 +162,10 @@ class Ions:
 
     # ------------------------------------------------------------------ charges
     def fluid_counts(self, c=None):
-        """N_s = DX^3 sum_x (1 - phi) c_s, (S,)."""
+        """N_s = DX^3 sum_x (1 - phi) c_s, (S,) (through J's buffer)."""
         c = self.c if c is None else c
-        w = 1.0 - self.phi
-        t = self._t
+        w = np.subtract(1.0, self.phi, out=self._J[1])
+        t = self._J[2]
         return np.array([float(np.sum(np.multiply(w, c[s], out=t)))
                          for s in range(self.S)]) * self.dv
 
@@ -169,8 +179,9 @@ class Ions:
         return out
 
     def charge_density(self, c=None):
-        """rho_e = rho_surf + sum_s z_s c_s (1 - phi), into an internal buffer."""
-        rho = self._rho
+        """rho_e = rho_surf + sum_s z_s c_s (1 - phi), into J's first component (valid until
+        the next call writing J)."""
+        rho = self._J[0]
         c = self.c if c is None else c
         K = _compiled.ions
         if K is not None and c.flags.c_contiguous:          # the same operations, one pass
@@ -222,39 +233,45 @@ class Ions:
     # ------------------------------------------------------------------ dynamics
     def step(self, u, E=(0.0, 0.0, 0.0)):
         """c_s += dt div J_s (module docstring) with the fluid velocity u (3, ...) or None,
-        grad Psi of the last ``potential`` and the external field E."""
+        grad Psi of the last ``potential`` and the external field E: on c_hat, c its c2r.
+        c_hat is first 2/3-truncated and c made of it anew when it is not ``banded`` (the
+        first step; the original truncates its Concentration at every step, a no-op after
+        the first: its div J is truncated)."""
         g = self.grid
         E = np.asarray(E, dtype=float)
-        J, t = self._J, self._t
+        J = self._J
         K = _compiled.ions
+        inv_n = 1.0 / g.size
         for s in range(self.S):
-            c = self.c[s]
-            g.rfft_scalar(c, out=self._ch)
-            if K is not None:                        # ch masked, cs = ch / N: one pass
-                K.mask_scaled(self._ch, self._mask, 1.0 / g.size, self._cs)
-                g.backward_scalar_raw(self._cs, c)
-            else:
-                self._ch *= self._mask
-                g.irfft_scalar(self._ch, out=c)      # c_s truncated in place, as the
-            self._gradient(self._ch, J)              # original's (Rhs_NS_solute); grad c
+            c, ch = self.c[s], self.c_hat[s]
+            if not self.banded:                      # c_s truncated, as the original's
+                if K is not None:                    # (Rhs_NS_solute): ch masked, cs =
+                    K.mask_scaled(ch, self._mask, inv_n, self._cs)       # ch / N: one pass
+                    g.backward_scalar_raw(self._cs, c)
+                else:
+                    ch *= self._mask
+                    g.irfft_scalar(ch, out=c)
+            self._gradient(ch, J)                    # grad c
             a, b = self.L[s] * self.kBT, self.L[s] * self.z[s]
             if K is not None and (u is None or u.flags.c_contiguous):
                 # migration, impermeable surfaces and advection in one pass
                 K.flux(J, self.grad_psi, E, c, a, b, J if u is None else u, u is not None,
                        self._normal_at, self._normal, self._inv_n2)
-                for d in range(3):                   # ch = i k . FFT(J), masked, / N in cs
-                    g.rfft_scalar(J[d], out=self._cs)
-                    K.divergence_accumulate(self._cs, g.k_axes[d], d, self._ch, self._mask,
-                                            1.0 / g.size, self._k0)
-                g.backward_scalar_raw(self._cs, t)
-                K.euler_add(c, t, self.dt)
+                for d in range(2):                   # ch = i k . FFT(J), masked: c_hat +=
+                    g.rfft_scalar(J[d], out=self._cs)    # dt ch, cs = c_hat / N
+                    K.divergence_accumulate(self._cs, g.k_axes[d], d, self._ch)
+                g.rfft_scalar(J[2], out=self._cs)
+                K.divergence_euler(self._cs, g.k_axes[2], self._ch, self._mask, self.dt,
+                                   inv_n, self._k0, ch)
+                g.backward_scalar_raw(self._cs, c)
                 continue
+            t = np.empty(g.shape)
             for d in range(3):
                 J[d] *= a
-                np.subtract(self.grad_psi[d], E[d], out=self._t)
-                self._t *= c
-                self._t *= b
-                J[d] += self._t
+                np.subtract(self.grad_psi[d], E[d], out=t)
+                t *= c
+                t *= b
+                J[d] += t
             # impermeable surfaces: J <- J - n (J.n)/|n|^2 where n is not zero
             at, n = self._normal_at, self._normal
             if at.size:
@@ -280,28 +297,41 @@ class Ions:
             self._ch *= self._mask
             if self._k0:
                 self._ch[0, 0, 0] = 0.0                     # exact: the mean of div J is 0
-            g.irfft_scalar(self._ch, out=t)
-            t *= self.dt
-            c += t
+            self._ch *= self.dt
+            ch += self._ch
+            np.multiply(ch, inv_n, out=self._cs)
+            g.backward_scalar_raw(self._cs, c)
+        self.banded = True
+
+    def densities_set(self):
+        """After ``c`` was written (an initial profile, a restart without its state file):
+        c_hat its r2c, not yet truncated (the original's A2a_k of its initial profile)."""
+        for s in range(self.S):
+            self.grid.rfft_scalar(self.c[s], out=self.c_hat[s])
+        self.banded = False
 
     def rescale(self):
         """c_s *= N_s(0) / N_s: the ions in the fluid keep their initial numbers."""
         now = self.fluid_counts()
         for s in range(self.S):
             if now[s] > 0:
-                self.c[s] *= self.counts[s] / now[s]
+                f = self.counts[s] / now[s]
+                self.c[s] *= f
+                self.c_hat[s] *= f
 
     def coulomb_force(self, E=(0.0, 0.0, 0.0), out=None, scale=1.0):
         """Coulomb force density of the ions' charge, sum_s z_s c_s (1 - phi) (E - grad Psi),
-        (3, NX, NY, NZ), times ``scale``, with grad Psi of the last ``potential``; the
-        particles' own charge gets its force from ``particle_force``."""
+        (3, NX, NY, NZ), times ``scale``, with grad Psi and rho_e (J[0]) of the last
+        ``potential`` (no call writing J between); the particles' own charge gets its force
+        from ``particle_force``."""
         out = self._J if out is None else out         # J is free between steps
+        rho_e = self._J[0]
         K = _compiled.ions
-        if K is not None:                             # the same operations, one pass
-            K.coulomb_force(np.asarray(E, dtype=float), self.grad_psi, self._rho,
-                            self.rho_surf, float(scale), out)
+        if K is not None:                             # the same operations, one pass (rho_e
+            K.coulomb_force(np.asarray(E, dtype=float), self.grad_psi, rho_e,   # read at
+                            self.rho_surf, float(scale), out)           # each point first)
             return out
-        rho = np.subtract(self._rho, self.rho_surf, out=self._t)
+        rho = rho_e - self.rho_surf                   # (a new array: out may be J)
         for d in range(3):
             np.subtract(E[d], self.grad_psi[d], out=out[d])
             out[d] *= rho
@@ -333,6 +363,7 @@ class Ions:
         vfree = float(np.sum(1.0 - self.phi)) * self.dv
         for s in range(self.S):
             self.c[s] = self.counts[s] / vfree
+        self.densities_set()
 
     def init_poisson_boltzmann_bulk(self, bulk, Z_total, tol=1e-4, mix=0.01, max_iter=99999):
         """The original's Poisson-Boltzmann start of one particle in a symmetric salt
@@ -364,6 +395,7 @@ class Ions:
             psi += dpsi
             if float(np.abs(dpsi).sum()) / float(np.abs(psi).sum()) < tol:
                 self.counts = self.fluid_counts()
+                self.densities_set()
                 return it
         raise FloatingPointError(f"the Poisson-Boltzmann iteration of the initial ion "
                                  f"profile did not converge in {max_iter} iterations")
@@ -414,6 +446,7 @@ class Ions:
             psi += dpsi
             if float(np.abs(dpsi).max()) < tol * self.kBT:
                 self.c[...] = boltzmann(psi)
+                self.densities_set()
                 return it
         raise FloatingPointError(f"the Poisson-Boltzmann iteration of the initial ion "
                                  f"profile did not converge in {max_iter} iterations")

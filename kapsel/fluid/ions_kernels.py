@@ -13,7 +13,7 @@ from numba import njit
 
 __all__ = ["gradient_component", "charge_density",
            "scale_potential", "coulomb_force", "mask_scaled", "divergence_accumulate",
-           "euler_add", "flux"]
+           "divergence_euler", "flux"]
 
 #: the types each kernel is called with (C-contiguous arrays): what kapsel.build_kernels
 #: compiles ahead of time (kapsel.mesh.compiled loads that build when it is current)
@@ -28,8 +28,9 @@ SIGNATURES = {
                      "float64[:,:,::1], float64, float64[:,:,:,::1])",
     "mask_scaled": "void(complex128[:,:,::1], float64[:,:,::1], float64, complex128[:,:,::1])",
     "divergence_accumulate": "void(complex128[:,:,::1], float64[::1], int64, "
-                             "complex128[:,:,::1], float64[:,:,::1], float64, boolean)",
-    "euler_add": "void(float64[:,:,::1], float64[:,:,::1], float64)",
+                             "complex128[:,:,::1])",
+    "divergence_euler": "void(complex128[:,:,::1], float64[::1], complex128[:,:,::1], "
+                        "float64[:,:,::1], float64, float64, boolean, complex128[:,:,::1])",
     "flux": "void(float64[:,:,:,::1], float64[:,:,:,::1], float64[::1], float64[:,:,::1], "
             "float64, float64, float64[:,:,:,::1], boolean, int64[::1], float64[:,::1], "
             "float64[::1])",
@@ -101,7 +102,8 @@ def scale_potential(h, inv_k2, eps, mask, truncate):
 @njit(cache=True, nogil=True)
 def coulomb_force(E, g, rho_e, rho_surf, scale, out):
     """out_d <- ((E_d - g_d) (rho_e - rho_surf)) scale, d = 0, 1, 2: the ions' Coulomb
-    force density (Ions.coulomb_force) times ``scale``."""
+    force density (Ions.coulomb_force) times ``scale``; rho_e may be out[0] (each point's
+    rho_e is read before its force is written)."""
     nx, ny, nz = rho_e.shape
     for i in range(nx):
         for j in range(ny):
@@ -124,10 +126,9 @@ def mask_scaled(h, mask, scale, out):
 
 
 @njit(cache=True, nogil=True)
-def divergence_accumulate(cs, k_axis, axis, ch, mask, scale, zero_mode):
+def divergence_accumulate(cs, k_axis, axis, ch):
     """The divergence i k . J_hat a component at a time, cs = FFT(J_axis): axis 0:
-    ch <- i k_0 cs; axis 1: ch <- ch + i k_1 cs; axis 2: cs <- ((ch + i k_2 cs) mask) scale,
-    the k = 0 mode 0 when ``zero_mode`` (this block holds it): ready for the c2r."""
+    ch <- i k_0 cs; axis 1: ch <- ch + i k_1 cs (axis 2: divergence_euler)."""
     nx, ny, nzc = cs.shape
     for i in range(nx):
         for j in range(ny):
@@ -135,26 +136,30 @@ def divergence_accumulate(cs, k_axis, axis, ch, mask, scale, zero_mode):
                 p = _times_ik(cs[i, j, k], _k_of(k_axis, axis, i, j, k))
                 if axis == 0:
                     ch[i, j, k] = p
-                    continue
-                a = ch[i, j, k]
-                p = complex(a.real + p.real, a.imag + p.imag)
-                if axis == 1:
-                    ch[i, j, k] = p
-                    continue
-                p = _scale(p, mask[i, j, k])
-                if zero_mode and i == 0 and j == 0 and k == 0:
-                    p = complex(0.0, 0.0)
-                cs[i, j, k] = _scale(p, scale)
+                else:
+                    a = ch[i, j, k]
+                    ch[i, j, k] = complex(a.real + p.real, a.imag + p.imag)
 
 
 @njit(cache=True, nogil=True)
-def euler_add(c, t, dt):
-    """c <- c + t dt."""
-    nx, ny, nz = c.shape
+def divergence_euler(cs, k_axis, ch, mask, dt, scale, zero_mode, c_hat):
+    """The divergence's last component and the Euler step of a species' spectrum: with
+    cs = FFT(J_2), d = (ch + i k_2 cs) mask (the k = 0 mode 0 when ``zero_mode``: this block
+    holds it), c_hat <- c_hat + d dt and cs <- c_hat scale (the 1/N of the c2r of c)."""
+    nx, ny, nzc = cs.shape
     for i in range(nx):
         for j in range(ny):
-            for k in range(nz):
-                c[i, j, k] = c[i, j, k] + t[i, j, k] * dt
+            for k in range(nzc):
+                p = _times_ik(cs[i, j, k], k_axis[k])
+                a = ch[i, j, k]
+                p = _scale(complex(a.real + p.real, a.imag + p.imag), mask[i, j, k])
+                if zero_mode and i == 0 and j == 0 and k == 0:
+                    p = complex(0.0, 0.0)
+                p = _scale(p, dt)
+                h = c_hat[i, j, k]
+                h = complex(h.real + p.real, h.imag + p.imag)
+                c_hat[i, j, k] = h
+                cs[i, j, k] = _scale(h, scale)
 
 
 @njit(cache=True, nogil=True)

@@ -262,20 +262,20 @@ class ElectrolyteModel(SpectralModel):
     # ------------------------------------------------------------------ restart
     def restart_fields(self) -> dict:
         """Zeta, uk_dc and Concentration[n][i][j][k] {ck}: the unnormalised r2c transform of
-        every c_s, (re, im) pairs along k (k < NZ + 2), FORMAT-OUTPUT.md §6.2."""
+        every c_s (the ions' c_hat), (re, im) pairs along k (k < NZ + 2), FORMAT-OUTPUT.md
+        §6.2."""
         out = super().restart_fields()
         g = self.grid
-        ck = np.empty((self.ions.S,) + g.shape[:2] + (2 * g.cshape[2],))
-        for s in range(self.ions.S):          # through the ions' scratch (free between steps)
-            h = g.rfft_scalar(self.ions.c[s], out=self.ions._ch)
-            ck[s] = h.view(np.float64).reshape(ck.shape[1:])
-        out["Concentration"] = ck
+        out["Concentration"] = self.ions.c_hat.view(np.float64).reshape(
+            (self.ions.S,) + g.shape[:2] + (2 * g.cshape[2],))
         return out
 
     def exact_state(self) -> dict:
         st = super().exact_state()
         st["ion_c"] = self.ions.c          # written at once (no copy: issue 25)
+        st["ion_c_hat"] = self.ions.c_hat
         st["ion_counts"] = self.ions.counts.copy()
+        st["ion_banded"] = np.array(self.ions.banded)
         return st
 
     def load_fields(self, fields: dict, exact) -> None:
@@ -289,6 +289,11 @@ class ElectrolyteModel(SpectralModel):
                                   f"{exact['ion_c'].shape}, the run needs {ions.c.shape}",
                                   path=where, value="shape")
             ions.c[...] = exact["ion_c"]
+            if "ion_c_hat" in exact:            # (a state file of before 2026-12-05: c only)
+                ions.c_hat[...] = exact["ion_c_hat"]
+                ions.banded = bool(exact["ion_banded"])
+            else:
+                ions.densities_set()
             ions.counts = np.asarray(exact["ion_counts"], dtype=float).copy()
             return
         ck = fields.get("Concentration")
@@ -299,8 +304,9 @@ class ElectrolyteModel(SpectralModel):
                               f"{list(want)} (species, NX, NY, NZ + 2)", path=where,
                               value="shape")
         for s in range(ions.S):
-            h = np.ascontiguousarray(ck[s]).view(np.complex128).reshape(g.cshape)
-            ions.c[s] = g.irfft_scalar(h)
+            ions.c_hat[s] = np.ascontiguousarray(ck[s]).view(np.complex128).reshape(g.cshape)
+            ions.c[s] = g.irfft_scalar(ions.c_hat[s])
+        ions.banded = False                     # the first step truncates it, as the original
         ions.counts = ions.fluid_counts()
 
 

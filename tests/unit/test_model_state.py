@@ -21,7 +21,7 @@ EXPECTED = {
     "Navier_Stokes": SPECTRAL,
     "Shear_Navier_Stokes": SPECTRAL,
     "Shear_Navier_Stokes_Lees_Edwards": SPECTRAL,
-    "Electrolyte": SPECTRAL | {"ion_c"},
+    "Electrolyte": SPECTRAL | {"ion_c", "ion_c_hat"},
     "Navier_Stokes_FDM": MAC | {"n_old"},                       # explicit scheme: AB2
     "Navier_Stokes_Cahn_Hilliard_FDM": MAC | {"psi", "psi_old", "capillary_force", "n_old"},
     "Shear_Navier_Stokes_Lees_Edwards_FDM": MAC | {"n_old"},

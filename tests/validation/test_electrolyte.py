@@ -146,7 +146,7 @@ def test_continuation_is_bit_identical(tmp_path):
     assert electrolyte_cli(tmp_path / "two", "cont.udf") == 0
     za = np.load(state_path(str(tmp_path / "one" / "restart.udf")))
     zb = np.load(state_path(str(tmp_path / "two" / "restart.udf")))
-    for k in ("ion_c", "u_hat", "R_raw"):
+    for k in ("ion_c", "ion_c_hat", "ion_banded", "u_hat", "R_raw"):
         assert np.array_equal(za[k], zb[k]), k
     a = UDFManager(str(tmp_path / "one" / "restart.udf"))
     b = UDFManager(str(tmp_path / "two" / "restart.udf"))
