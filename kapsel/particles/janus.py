@@ -50,8 +50,10 @@ import numpy as np
 
 from ..fluid.spectral import projection_kernels
 from ..mesh import compiled as _compiled
-from .coupling import _scatter
+from .coupling import clear_points
 from .quaternion import to_matrix
+
+_compiled.provide("janus", __name__.rsplit(".", 1)[0] + ".janus_kernels")
 
 __all__ = ["JanusSpec", "Janus", "read_spec", "check_types", "PROPULSIONS"]
 
@@ -142,11 +144,29 @@ def _cross(a, b):
                      a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]], axis=-1)
 
 
-def _second_moment(w, r):
-    """sum_s w (|r|^2 I - r r) per particle: (N, 3, 3)."""
-    rr = np.einsum("ns,nsa,nsb->nab", w, r, r)
-    tr = np.trace(rr, axis1=1, axis2=2)
+def _norm(r):
+    """|r| over the last axis, as the compiled kernels make it: sqrt((x x + y y) + z z)."""
+    return np.sqrt((r[..., 0] * r[..., 0] + r[..., 1] * r[..., 1]) + r[..., 2] * r[..., 2])
+
+
+def _cross_rows(W, rc):
+    """W x r (3, M, S) of one vector per particle W (M, 3) and offsets rc (3, M, S)."""
+    return np.stack([W[:, 1, None] * rc[2] - W[:, 2, None] * rc[1],
+                     W[:, 2, None] * rc[0] - W[:, 0, None] * rc[2],
+                     W[:, 0, None] * rc[1] - W[:, 1, None] * rc[0]])
+
+
+def _second_moment(rr):
+    """sum_s w (|r|^2 I - r r) per particle (N, 3, 3) of rr (N, 9) = sum_s (w r_a) r_b."""
+    rr = rr.reshape(-1, 3, 3)
+    tr = (rr[:, 0, 0] + rr[:, 1, 1]) + rr[:, 2, 2]
     return tr[:, None, None] * np.eye(3) - rr
+
+
+def _sum_points(t):
+    """t (..., S) summed over its last axis point by point in order (numpy's sum over the
+    first axis of a C-contiguous array: the order of the compiled kernels' sums)."""
+    return np.ascontiguousarray(np.moveaxis(t, -1, 0)).sum(axis=0)
 
 
 class Janus:
@@ -224,23 +244,27 @@ class Janus:
         """u_s (M, S, 3) at offsets r (M, S, 3) from the squirmers ``which`` (§3.3), written
         without dividing by sin(theta): B1 (1 + 2 beta cos t)(cos t r^ - e3)
         + (C1 + 3 C2 cos t)(e3 x r^)."""
-        e3 = self.axis(q, which)[:, None, :]
-        d = np.sqrt(np.einsum("nsk,nsk->ns", r, r))
+        return self._slip(r, _norm(r), self.axis(q, which), which)
+
+    def _slip(self, r, d, e3, which):
+        """slip_velocity with |r| (M, S) and e3 (M, 3) given (the operations of the
+        compiled janus_kernels.stencil_sums)."""
+        e3 = e3[:, None, :]
         rhat = r / np.where(d > 0, d, 1.0)[..., None]
-        c = np.einsum("nsk,nsk->ns", rhat, e3)
+        c = (rhat[..., 0] * e3[..., 0] + rhat[..., 1] * e3[..., 1]) + rhat[..., 2] * e3[..., 2]
         B1 = self.B1[which][:, None]
         beta = self.beta[which][:, None]
-        us = (B1 * (1.0 + 2.0 * beta * c))[..., None] * (c[..., None] * rhat - e3)
+        us = (B1 * (1.0 + (2.0 * beta) * c))[..., None] * (c[..., None] * rhat - e3)
         C1, C2 = self.C1[which][:, None], self.C2[which][:, None]
         if np.any(C1) or np.any(C2):
-            us += (C1 + 3.0 * C2 * c)[..., None] * _cross(e3, rhat)
+            us += (C1 + (3.0 * C2) * c)[..., None] * _cross(e3, rhat)
         return us
 
     @staticmethod
-    def shell_weight(r, phi, a, xi):
-        """phi_s = (1 - phi_i) cos(pi (a - |r|)/XI) in | |r| - a | < XI/2, else 0 (§3.3)."""
-        d = np.sqrt(np.einsum("nsk,nsk->ns", r, r))
-        x = a - d
+    def shell_weight(r, phi, a, xi, d=None):
+        """phi_s = (1 - phi_i) cos(pi (a - |r|)/XI) in | |r| - a | < XI/2, else 0 (§3.3);
+        d: |r| if known."""
+        x = a - (_norm(r) if d is None else d)
         return np.where(np.abs(x) < 0.5 * xi, (1.0 - phi) * np.cos(np.pi * x / xi), 0.0)
 
     # ------------------------------------------------------------------ time step
@@ -277,29 +301,27 @@ class Janus:
             return
         a, xi = spm.stencil.A, spm.stencil.xi
         idx, phi = spm.idx[st], spm.phi_i[st]
-        r = np.ascontiguousarray(spm.r[st])                       # (M, S, 3)
-        ws = self.shell_weight(r, phi, a, xi)
-        ws = ws * spm.on_block[st]                  # this block's points only (x 1 exact)
-        us = self.slip_velocity(r, p.q, rows)
-        uf = spm.u.reshape(3, -1)
-        ul = np.stack([uf[c][idx] for c in range(3)], axis=-1)    # u at the stencil points
-        du_s = us - ul
+        rc = np.ascontiguousarray(spm.r.transpose(2, 0, 1)[:, st])   # (3, M, S)
+        r = rc.transpose(1, 2, 0)                                     # (M, S, 3) view
+        d = _norm(r)
+        ws = self.shell_weight(r, phi, a, xi, d)
+        ws *= spm.on_block[st]                      # this block's points only (x 1 exact)
+        sampled = getattr(spm, "_us", None)         # u* at the stencil points (step 4)
+        if sampled is not None and sampled.shape[1:] == spm.idx.shape and not spm.rect:
+            ul = sampled[:, st]
+        else:
+            uf = spm.u.reshape(3, -1)
+            ul = np.stack([uf[c][idx] for c in range(3)])       # u at the stencil points
+        shell = np.empty_like(rc)                   # phi_s (u_s - u)
+        sums = self._stencil_sums(rc, phi, ws, d, self.axis(p.q, rows), rows, ul, shell)
         part = np.zeros((p.n, 32))                  # the stencil sums (this rank's part)
-        part[rows, 0] = phi.sum(axis=1)
-        part[rows, 1:4] = np.einsum("ns,nsk->nk", phi, r)
-        part[rows, 4:13] = _second_moment(phi, r).reshape(-1, 9)
-        part[rows, 13] = ws.sum(axis=1)
-        part[rows, 14:17] = np.einsum("ns,nsk->nk", ws, r)
-        part[rows, 17:26] = _second_moment(ws, r).reshape(-1, 9)
-        part[rows, 26:29] = np.einsum("ns,nsk->nk", ws, du_s)
-        part[rows, 29:32] = np.einsum("ns,nsk->nk", ws, _cross(r, du_s))
+        part[rows] = sums
         tot = total(part)[own_sq]
-        M0, M1, M2 = tot[:, 0], tot[:, 1:4], tot[:, 4:13].reshape(-1, 3, 3)
-        S0, S1, S2 = tot[:, 13], tot[:, 14:17], tot[:, 17:26].reshape(-1, 3, 3)
+        M0, M1, M2 = tot[:, 0], tot[:, 1:4], _second_moment(tot[:, 4:13])
+        S0, S1, S2 = tot[:, 13], tot[:, 14:17], _second_moment(tot[:, 17:26])
         dPs, dLs = tot[:, 26:29], tot[:, 29:32]
         K = M2 + (np.einsum("na,nb->nab", M1, M1)
                   - np.einsum("nk,nk->n", M1, M1)[:, None, None] * np.eye(3)) / M0[:, None, None]
-        shell_fixed = ws[..., None] * du_s                        # phi_s (u_s - u)
 
         saved = {k: getattr(q, k).copy() for k in _SAVED}
         Vs, Ws = q.v[own_sq].copy(), q.omega[own_sq].copy()
@@ -313,13 +335,8 @@ class Janus:
             dV = (dPk - _cross(dW, M1)) / M0[:, None]
             it[own_sq] = np.concatenate([dV, dW, Vs, Ws], axis=1)
             spread(it)                              # the owners' iterates to the ghosts
-            g = it[rows]
-            w = phi[..., None] * (g[:, None, 0:3] + _cross(g[:, None, 3:6], r))
-            w += ws[..., None] * (g[:, None, 6:9] + _cross(g[:, None, 9:12], r))
-            w += shell_fixed
-            up_hat, up = self._solenoidal(grid, w, idx)
-            F_sl, T_sl = self._slip_force(spm, up, scale)
-            FT = total(to_table(np.concatenate([F_sl, T_sl], axis=1)))
+            up_hat, up = self._solenoidal(grid, idx, phi, ws, rc, it[rows], shell)
+            FT = total(to_table(self._slip_force(spm, up, scale)))
             F_sl, T_sl = FT[:, :3], FT[:, 3:]
             if k:
                 for name, val in saved.items():
@@ -342,52 +359,98 @@ class Janus:
         spm.fluid.u_hat += up_hat
         us = getattr(spm, "_us", None)      # an SPM that samples u at its stencil points once
         sampled = us is not None and us.shape[1:] == spm.idx.shape
-        if sampled:                         # a step: keep it current
-            upf = up.reshape(3, -1)
-            for c in range(3):
-                us[c] += upf[c][spm.idx]
+        if sampled:                         # a step: keep it current (u' at the points of
+            us += self._up_at               # the last _slip_force)
         # u* itself: the rest of a spectral step reads it only at the stencil points (the
         # samples above; the walls' increment and the re-gridded u* of a sheared frame read
         # all of it), and the next step makes it anew
         if not sampled or spm.mode != "spectral" or spm.wall is not None or spm.rect:
             spm.u += up
 
-    def _solenoidal(self, grid, w, idx):
-        """u' = P[sum of the per-point vectors w (M, S, 3) at idx]: (u'_hat, u') in buffers
-        owned by this object (valid until the next call; a rank's blocks of them in a
-        distributed run)."""
+    def _stencil_sums(self, rc, phi, ws, d, e3, rows, ul, shell):
+        """The squirmers' stencil sums (M, 32), per particle over its points in order: phi,
+        phi r, (phi r_a) r_b, ws, ws r, (ws r_a) r_b, ws du, ws (r x du) with du = u_s - u
+        (u_s the slip velocity, ul (3, M, S) u at the points); shell (3, M, S) <- ws du.
+        One compiled pass (janus_kernels.stencil_sums) or the same operations in numpy."""
+        rot = bool(np.any(self.C1[rows]) or np.any(self.C2[rows]))
+        K = _compiled.janus
+        if K is not None:
+            out = np.empty((len(rows), 32))
+            K.stencil_sums(rc, phi, ws, d, np.ascontiguousarray(e3), self.B1[rows],
+                           self.beta[rows], self.C1[rows], self.C2[rows], rot,
+                           np.ascontiguousarray(ul), shell, out)
+            return out
+        r = rc.transpose(1, 2, 0)
+        du = np.moveaxis(self._slip(r, d, e3, rows), -1, 0) - ul          # (3, M, S)
+        np.multiply(ws, du, out=shell)
+        pr, wr = phi * rc, ws * rc
+        t = [phi, *pr, *(pr[a] * rc[b] for a in range(3) for b in range(3)),
+             ws, *wr, *(wr[a] * rc[b] for a in range(3) for b in range(3)), *shell,
+             *(ws * (rc[a] * du[b] - rc[b] * du[a]) for a, b in _CYC)]
+        return _sum_points(np.stack(t, axis=-1).swapaxes(-1, -2))
+
+    def _solenoidal(self, grid, idx, phi, ws, rc, g, shell):
+        """u' = P[sum over the squirmers' points of w = phi (dV + dW x r) + ws (V* + W* x r)
+        + shell] (g (M, 12): dV, dW, V*, W* per particle): (u'_hat, u') in buffers owned by
+        this object (valid until the next call; a rank's blocks of them in a distributed
+        run)."""
         holder = getattr(self, "_whole", self)
         shape = tuple(getattr(grid, "local_shape", grid.shape))
         if holder._bufs is None or holder._bufs[0].shape[1:] != shape:
-            holder._bufs = (grid.empty_real(), grid.empty_complex(), grid.empty_complex(),
+            holder._bufs = (grid.zeros_real(), grid.empty_complex(), grid.empty_complex(),
                             grid.empty_real())
-        field, uh, c, up = holder._bufs
-        _scatter(np.moveaxis(w, -1, 0), idx, field.size // 3, out=field.reshape(3, -1))
+        field, uh, c, up = holder._bufs             # field: 0 but at the last call's points,
+        ff = field.reshape(3, -1)                   # cleared after its transform
+        Kj = _compiled.janus
+        if Kj is not None:
+            Kj.slip_scatter(ff, idx, phi, ws, rc, np.ascontiguousarray(g), shell)
+        else:                                       # the same sums (np.add.at: in order)
+            w = phi * (g[:, 0:3].T[:, :, None] + _cross_rows(g[:, 3:6], rc))
+            w += ws * (g[:, 6:9].T[:, :, None] + _cross_rows(g[:, 9:12], rc))
+            w += shell
+            for k in range(3):
+                np.add.at(ff[k], idx.reshape(-1), w[k].reshape(-1))
         K = _compiled.spectral
         if K is not None:               # fused: uh = 0 + P T c, c = uh / N (the numpy
             grid.forward(field, out=c)  # passes' numbers)
+            clear_points(field, idx)
             projection_kernels(K, grid)[4](c, uh, grid.dealias_f, *grid.k_axes, grid.inv_k2,
                                            1.0 / grid.size)
         else:
             grid.forward(field, out=uh)
+            clear_points(field, idx)
             uh *= grid.dealias_f        # the 2/3 rule of the original's Solenoidal_u
             grid.project(uh)
             np.multiply(uh, 1.0 / grid.size, out=c)
         grid.backward_raw(c, out=up)
         return uh, up
 
-    @staticmethod
-    def _slip_force(spm, up, scale):
-        """F_slip = RHO DX^3/dt sum phi_i u', T_slip = ... r x u' for every particle."""
+    def _slip_force(self, spm, up, scale):
+        """(F_slip, T_slip) (N, 6) of every particle: RHO DX^3/dt sum phi_i u' and
+        RHO DX^3/dt sum r x phi_i u' (the sums over the points in order); u' at the points
+        kept in ``_up_at`` (3, N, S)."""
         uf = up.reshape(3, -1)
-        idx, phi, r = spm.idx, spm.phi_i, spm.r
-        w = np.stack([uf[c][idx] for c in range(3)], axis=0) * phi     # (3, N, S)
-        F = w.sum(axis=2).T * scale
-        T = np.empty_like(F)
-        for c, (i, j) in enumerate(_CYC):
-            T[:, c] = (np.einsum("ns,ns->n", r[..., i], w[j])
-                       - np.einsum("ns,ns->n", r[..., j], w[i])) * scale
-        return F, T
+        idx, phi = spm.idx, spm.phi_i
+        rc = spm.r.transpose(2, 0, 1)
+        if getattr(self, "_up_at", None) is None or self._up_at.shape[1:] != idx.shape:
+            self._up_at = np.empty((3,) + idx.shape)
+        out = np.empty((idx.shape[0], 6))
+        K = _compiled.janus
+        if K is not None and rc.flags.c_contiguous:
+            K.slip_force(uf, idx, phi, rc, scale, self._up_at, out)
+            return out
+        for c in range(3):
+            np.take(uf[c], idx, out=self._up_at[c])
+        w = self._up_at * phi
+        t = [w[0], w[1], w[2]]
+        for a, b in _CYC:
+            t += [rc[a] * w[b], rc[b] * w[a]]
+        s = _sum_points(np.stack(t, axis=-1).swapaxes(-1, -2)) if idx.shape[1] else \
+            np.zeros((idx.shape[0], 9))
+        out[:, 0:3] = s[:, 0:3] * scale
+        for c in range(3):
+            out[:, 3 + c] = (s[:, 3 + 2 * c] - s[:, 4 + 2 * c]) * scale
+        return out
 
     @staticmethod
     def _update(spm, q, n, F, T, F_o, T_o, dP, dL, F_H, T_H):

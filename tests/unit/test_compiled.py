@@ -8,7 +8,7 @@ from kapsel.mesh import compiled
 from kapsel.typespec import SOLVERS
 from udf import UDFManager
 
-from builders import Args, electrolyte_input, fdm_sample
+from builders import Args, electrolyte_input, fdm_sample, janus_input
 
 
 def _run(path, kernels, switch_at, steps=4):
@@ -52,6 +52,18 @@ def test_switching_electrolyte_to_compiled_kernels_is_bit_identical(tmp_path, sa
     """The Electrolyte fluid step projects the nonlinear term once on either path (the numpy
     path used to project it twice: a run's bits depended on when the kernels loaded)."""
     path = electrolyte_input(str(tmp_path), salt=salt, field=field)
+    a = _run(path, compiled_kernels, switch_at=None)
+    b = _run(path, compiled_kernels, switch_at=2)
+    for x, y in zip(a, b):
+        assert np.array_equal(x, y)
+
+
+@pytest.mark.parametrize("eq", ["Navier_Stokes", "Shear_Navier_Stokes"])
+def test_switching_squirmers_to_compiled_kernels_is_bit_identical(tmp_path, eq,
+                                                                 compiled_kernels):
+    """Squirmers (pushers), a tumbler and an obstacle: the slip step's stencil
+    sums, slip field and slip forces give the numpy forms' bits (kapsel.particles.janus)."""
+    path = janus_input(tmp_path, eq=eq)
     a = _run(path, compiled_kernels, switch_at=None)
     b = _run(path, compiled_kernels, switch_at=2)
     for x, y in zip(a, b):
