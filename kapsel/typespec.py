@@ -35,7 +35,8 @@ class TypeSpec:
     # their steps were trimmed (kapsel.config: the runs behind PROGRAM_BYTES; Electrolyte
     # 380 -> 360 after its restart's peak was trimmed: 128^3, 1000 particles, 831 MB peak;
     # 360 -> 270 on 2026-12-05 after its ions took the fluid's free buffers: 128^3 with
-    # 1000 particles 652 MB peak, estimated 718; 256^3 with 8000, 4274 MB, estimated 4.85 GB)
+    # 1000 particles 652 MB peak, estimated 718; 256^3 with 8000, 4274 MB, estimated 4.85 GB;
+    # after its ions held c_hat and lost their own rho_e and scratch buffers: 633 MB at 128^3)
     bytes_per_point: int = 180
     bytes_per_point_particles: int = 16
 
