@@ -50,7 +50,7 @@ import numpy as np
 
 from ..fluid.spectral import projection_kernels
 from ..mesh import compiled as _compiled
-from .coupling import clear_points
+from .coupling import clear_points, sample
 from .quaternion import to_matrix
 
 _compiled.provide("janus", __name__.rsplit(".", 1)[0] + ".janus_kernels")
@@ -149,13 +149,6 @@ def _norm(r):
     return np.sqrt((r[..., 0] * r[..., 0] + r[..., 1] * r[..., 1]) + r[..., 2] * r[..., 2])
 
 
-def _cross_rows(W, rc):
-    """W x r (3, M, S) of one vector per particle W (M, 3) and offsets rc (3, M, S)."""
-    return np.stack([W[:, 1, None] * rc[2] - W[:, 2, None] * rc[1],
-                     W[:, 2, None] * rc[0] - W[:, 0, None] * rc[2],
-                     W[:, 0, None] * rc[1] - W[:, 1, None] * rc[0]])
-
-
 def _second_moment(rr):
     """sum_s w (|r|^2 I - r r) per particle (N, 3, 3) of rr (N, 9) = sum_s (w r_a) r_b."""
     rr = rr.reshape(-1, 3, 3)
@@ -163,10 +156,10 @@ def _second_moment(rr):
     return tr[:, None, None] * np.eye(3) - rr
 
 
-def _sum_points(t):
-    """t (..., S) summed over its last axis point by point in order (numpy's sum over the
-    first axis of a C-contiguous array: the order of the compiled kernels' sums)."""
-    return np.ascontiguousarray(np.moveaxis(t, -1, 0)).sum(axis=0)
+def _sum_points(terms):
+    """(M, K): each of the K terms (M, S) summed over its points in order (numpy's sum over
+    the first axis of a C-contiguous array: the order of the compiled kernels' sums)."""
+    return np.ascontiguousarray(np.stack(terms).transpose(2, 1, 0)).sum(axis=0)
 
 
 class Janus:
@@ -306,12 +299,9 @@ class Janus:
         d = _norm(r)
         ws = self.shell_weight(r, phi, a, xi, d)
         ws *= spm.on_block[st]                      # this block's points only (x 1 exact)
-        sampled = getattr(spm, "_us", None)         # u* at the stencil points (step 4)
-        if sampled is not None and sampled.shape[1:] == spm.idx.shape and not spm.rect:
-            ul = sampled[:, st]
-        else:
-            uf = spm.u.reshape(3, -1)
-            ul = np.stack([uf[c][idx] for c in range(3)])       # u at the stencil points
+        us = getattr(spm, "_us", None)      # an SPM that samples u* at its points once
+        sampled = us is not None and us.shape[1:] == spm.idx.shape     # (step 4)
+        ul = us[:, st] if sampled and not spm.rect else sample(spm.u, idx)   # u at the points
         shell = np.empty_like(rc)                   # phi_s (u_s - u)
         sums = self._stencil_sums(rc, phi, ws, d, self.axis(p.q, rows), rows, ul, shell)
         part = np.zeros((p.n, 32))                  # the stencil sums (this rank's part)
@@ -357,8 +347,6 @@ class Janus:
             Ws = 0.3 * Ws + 0.7 * W
         self._set_slip(q, F_sl, T_sl)
         spm.fluid.u_hat += up_hat
-        us = getattr(spm, "_us", None)      # an SPM that samples u at its stencil points once
-        sampled = us is not None and us.shape[1:] == spm.idx.shape
         if sampled:                         # a step: keep it current (u' at the points of
             us += self._up_at               # the last _slip_force)
         # u* itself: the rest of a spectral step reads it only at the stencil points (the
@@ -384,10 +372,9 @@ class Janus:
         du = np.moveaxis(self._slip(r, d, e3, rows), -1, 0) - ul          # (3, M, S)
         np.multiply(ws, du, out=shell)
         pr, wr = phi * rc, ws * rc
-        t = [phi, *pr, *(pr[a] * rc[b] for a in range(3) for b in range(3)),
-             ws, *wr, *(wr[a] * rc[b] for a in range(3) for b in range(3)), *shell,
-             *(ws * (rc[a] * du[b] - rc[b] * du[a]) for a, b in _CYC)]
-        return _sum_points(np.stack(t, axis=-1).swapaxes(-1, -2))
+        return _sum_points([phi, *pr, *(pr[a] * rc[b] for a in range(3) for b in range(3)),
+                            ws, *wr, *(wr[a] * rc[b] for a in range(3) for b in range(3)),
+                            *shell, *(ws * (rc[a] * du[b] - rc[b] * du[a]) for a, b in _CYC)])
 
     def _solenoidal(self, grid, idx, phi, ws, rc, g, shell):
         """u' = P[sum over the squirmers' points of w = phi (dV + dW x r) + ws (V* + W* x r)
@@ -405,9 +392,10 @@ class Janus:
         if Kj is not None:
             Kj.slip_scatter(ff, idx, phi, ws, rc, np.ascontiguousarray(g), shell)
         else:                                       # the same sums (np.add.at: in order)
-            w = phi * (g[:, 0:3].T[:, :, None] + _cross_rows(g[:, 3:6], rc))
-            w += ws * (g[:, 6:9].T[:, :, None] + _cross_rows(g[:, 9:12], rc))
-            w += shell
+            r = rc.transpose(1, 2, 0)
+            w = phi[..., None] * (g[:, None, 0:3] + _cross(g[:, None, 3:6], r))
+            w += ws[..., None] * (g[:, None, 6:9] + _cross(g[:, None, 9:12], r))
+            w = np.moveaxis(w, -1, 0) + shell
             for k in range(3):
                 np.add.at(ff[k], idx.reshape(-1), w[k].reshape(-1))
         K = _compiled.spectral
@@ -439,14 +427,9 @@ class Janus:
         if K is not None and rc.flags.c_contiguous:
             K.slip_force(uf, idx, phi, rc, scale, self._up_at, out)
             return out
-        for c in range(3):
-            np.take(uf[c], idx, out=self._up_at[c])
-        w = self._up_at * phi
-        t = [w[0], w[1], w[2]]
-        for a, b in _CYC:
-            t += [rc[a] * w[b], rc[b] * w[a]]
-        s = _sum_points(np.stack(t, axis=-1).swapaxes(-1, -2)) if idx.shape[1] else \
-            np.zeros((idx.shape[0], 9))
+        w = sample(up, idx, out=self._up_at) * phi
+        s = _sum_points([w[0], w[1], w[2],
+                         *(x for a, b in _CYC for x in (rc[a] * w[b], rc[b] * w[a]))])
         out[:, 0:3] = s[:, 0:3] * scale
         for c in range(3):
             out[:, 3 + c] = (s[:, 3 + 2 * c] - s[:, 4 + 2 * c]) * scale
