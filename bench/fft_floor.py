@@ -12,6 +12,13 @@ objects on the arrays they last ran on (their execute() called as many times per
 step calls them): the floor.  The table gives step ms, floor ms and their ratio (issue 25: the
 spectral step within 1.5x of its floor).  CPU time: the machine may be shared; the load average
 is printed with the table.
+
+    .venv/bin/python bench/fft_floor.py --pruned [--np NP ...]
+
+times one scalar transform of a 2/3-truncated field whole and with the lines of zeros
+skipped (kapsel.mesh.grid: ``backward_scalar_truncated``, ``rfft_scalar_truncated``), CPU ms,
+the two alternating, the best of 7 rounds.  In the step table the skipped transforms' stages
+show as c2c executions beside their r2c / c2r.
 """
 from __future__ import annotations
 
@@ -104,6 +111,39 @@ def measure(scene, steps, np_override=None, threads=1):
     return step_ms, floor_ms, dict(kinds), tuple(model.cfg.mesh.shape)
 
 
+def pruned(nps, threads=1):
+    """Whole against truncated transforms at 2^np per axis (module docstring)."""
+    import numpy as np
+    from kapsel.mesh.grid import Grid
+    print(f"{time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}, {threads} thread(s), "
+          f"load {os.getloadavg()[0]:.1f}")
+    print("| mesh | c2r whole ms | c2r truncated ms | r2c whole ms | r2c truncated ms |")
+    print("|---|---|---|---|---|")
+    for n in nps:
+        g = Grid((2 ** n,) * 3, threads=threads)
+        rng = np.random.default_rng(0)
+        spec = (rng.normal(size=g.cshape) + 1j * rng.normal(size=g.cshape)) * g.dealias
+        c, r = g.empty_complex(None), g.empty_real(None)
+        r[...] = rng.normal(size=g.shape)
+        reps = max(3, int(2e7 / g.size))
+
+        def timed(fn, a, b):
+            t0 = time.process_time()
+            for _ in range(reps):
+                if a is c:
+                    c[...] = spec            # (a c2r destroys its input)
+                fn(a, b)
+            return (time.process_time() - t0) / reps * 1e3
+        best = [[], [], [], []]
+        copy = timed(lambda a, b: None, c, r)
+        for _ in range(7):
+            best[0].append(timed(g.backward_scalar_raw, c, r) - copy)
+            best[1].append(timed(g.backward_scalar_truncated, c, r) - copy)
+            best[2].append(timed(lambda a, b: g.rfft_scalar(a, out=b), r, c))
+            best[3].append(timed(g.rfft_scalar_truncated, r, c))
+        print(f"| {2 ** n}^3 | " + " | ".join(f"{min(b):.3f}" for b in best) + " |")
+
+
 def main(argv=None):
     from bench_vs_original import SCENES
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -112,7 +152,12 @@ def main(argv=None):
     ap.add_argument("--steps", type=int, default=20)
     ap.add_argument("--np", type=int, default=None, help="mesh 2^NP per axis")
     ap.add_argument("--threads", type=int, default=1)
+    ap.add_argument("--pruned", action="store_true",
+                    help="time whole against truncated transforms (at --np, default 5 6 7)")
     a = ap.parse_args(argv)
+    if a.pruned:
+        pruned([a.np] if a.np else [5, 6, 7], a.threads)
+        return
     unknown = [s for s in a.scene if s not in SCENES]
     if unknown:
         ap.error(f"unknown scene(s) {' '.join(unknown)}; choose from {' '.join(SCENES)}")

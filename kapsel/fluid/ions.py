@@ -200,7 +200,10 @@ class Ions:
         force, operate_electrolyte.cxx Make_Coulomb_force_x_on_fluid), and grad Psi in real
         space (``self.grad_psi``, without the external field).  Returns Psi_hat."""
         g = self.grid
-        g.rfft_scalar(self.charge_density(c), out=self.psi_hat)
+        if truncate:                    # used on the 2/3 mask only
+            g.rfft_scalar_truncated(self.charge_density(c), self.psi_hat)
+        else:
+            g.rfft_scalar(self.charge_density(c), out=self.psi_hat)
         K = _compiled.ions
         if K is not None:                                   # the same operations, one pass
             K.scale_potential(self.psi_hat, g.inv_k2, self.eps, self._mask, bool(truncate))
@@ -209,13 +212,15 @@ class Ions:
             self.psi_hat /= self.eps
             if truncate:
                 self.psi_hat *= self._mask
-        self._gradient(self.psi_hat, self.grad_psi)
+        self._gradient(self.psi_hat, self.grad_psi, truncated=truncate)
         return self.psi_hat
 
-    def _gradient(self, f_hat, out):
+    def _gradient(self, f_hat, out, truncated=True):
         """out = grad f (3, NX, NY, NZ) of f_hat, each component i k_d f_hat / N made in a
-        scalar scratch and transformed (the bits of the vector transform)."""
+        scalar scratch and transformed (the bits of the vector transform); ``truncated``:
+        f_hat is 0 outside the 2/3 mask (kapsel.mesh.grid's truncated transforms)."""
         g, s = self.grid, self._cs
+        backward = g.backward_scalar_truncated if truncated else g.backward_scalar_raw
         K = _compiled.ions
         for d in range(3):
             if K is not None:
@@ -223,7 +228,7 @@ class Ions:
             else:
                 np.multiply(f_hat, self._ik[d], out=s)
                 s *= 1.0 / g.size
-            g.backward_scalar_raw(s, out[d])
+            backward(s, out[d])
 
     def potential_real(self):
         """Psi in real space (of the last ``potential``; Psi_hat shares the scratch of
@@ -247,23 +252,23 @@ class Ions:
             if not self.banded:                      # c_s truncated, as the original's
                 if K is not None:                    # (Rhs_NS_solute): ch masked, cs =
                     K.mask_scaled(ch, self._mask, inv_n, self._cs)       # ch / N: one pass
-                    g.backward_scalar_raw(self._cs, c)
+                    g.backward_scalar_truncated(self._cs, c)
                 else:
                     ch *= self._mask
                     g.irfft_scalar(ch, out=c)
-            self._gradient(ch, J)                    # grad c
+            self._gradient(ch, J)                    # grad c (c_hat is truncated)
             a, b = self.L[s] * self.kBT, self.L[s] * self.z[s]
             if K is not None and (u is None or u.flags.c_contiguous):
                 # migration, impermeable surfaces and advection in one pass
                 K.flux(J, self.grad_psi, E, c, a, b, J if u is None else u, u is not None,
                        self._normal_at, self._normal, self._inv_n2)
                 for d in range(2):                   # ch = i k . FFT(J), masked: c_hat +=
-                    g.rfft_scalar(J[d], out=self._cs)    # dt ch, cs = c_hat / N
+                    g.rfft_scalar_truncated(J[d], self._cs)  # dt ch, cs = c_hat / N
                     K.divergence_accumulate(self._cs, g.k_axes[d], d, self._ch)
-                g.rfft_scalar(J[2], out=self._cs)
+                g.rfft_scalar_truncated(J[2], self._cs)
                 K.divergence_euler(self._cs, g.k_axes[2], self._ch, self._mask, self.dt,
                                    inv_n, self._k0, ch)
-                g.backward_scalar_raw(self._cs, c)
+                g.backward_scalar_truncated(self._cs, c)
                 continue
             t = np.empty(g.shape)
             for d in range(3):
@@ -287,8 +292,8 @@ class Ions:
                 for d in range(3):
                     np.multiply(c, u[d], out=t)
                     J[d] -= t
-            for d in range(3):                       # ch = i k . FFT(J)
-                g.rfft_scalar(J[d], out=self._cs)
+            for d in range(3):                       # ch = i k . FFT(J), masked below
+                g.rfft_scalar_truncated(J[d], self._cs)
                 if d == 0:
                     np.multiply(self._cs, self._ik[0], out=self._ch)
                 else:
@@ -300,7 +305,7 @@ class Ions:
             self._ch *= self.dt
             ch += self._ch
             np.multiply(ch, inv_n, out=self._cs)
-            g.backward_scalar_raw(self._cs, c)
+            g.backward_scalar_truncated(self._cs, c)
         self.banded = True
 
     def densities_set(self):

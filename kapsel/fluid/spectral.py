@@ -319,7 +319,7 @@ class SpectralNS:
                 K.truncated_component(self.u_hat, g.dealias_f, self._inv_n, c, s)
             else:
                 np.multiply(self.u_hat[c], self._mask_n, out=s)   # truncated, 1/N folded in
-            g.backward_scalar_raw(s, u[c])         # destroys s
+            g.backward_scalar_truncated(s, u[c])   # destroys s
 
     # ------------------------------------------------------------------ step
     def _nonlinear(self, u_ready=False):
@@ -340,9 +340,9 @@ class SpectralNS:
         if K is not None:
             for c in range(3):
                 K.vorticity_component(self.u_hat, g.dealias_f, self._inv_n, *self._k1, c, s)
-                g.backward_scalar_raw(s, w[c])
+                g.backward_scalar_truncated(s, w[c])
             K.cross_into(u, w)                          # w <- u x omega
-            g.forward(w, out=nl)
+            g.forward_truncated(w, nl)                  # (the ETD weights are masked)
             if self._k0:
                 nl[:, 0, 0, 0] = 0.0   # exact: mean of (u.grad)u is 0; projected by step()
             return nl
@@ -355,7 +355,7 @@ class SpectralNS:
             np.multiply(self.u_hat[p], mask, out=t)
             np.multiply(ik[q], t, out=t)
             s -= t
-            g.backward_scalar_raw(s, w[c])
+            g.backward_scalar_truncated(s, w[c])
         self._cross_forward(u, w, nl)                    # N = u x omega -> Fourier space
         if self._k0:
             nl[:, 0, 0, 0] = 0.0            # exact: mean of (u.grad)u is 0
@@ -398,15 +398,15 @@ class SpectralNS:
         np.multiply(u[1], w[2], out=r)
         np.multiply(u[2], w[1], out=r2)
         r -= r2
-        g.rfft_scalar(r, out=nl[0])
+        g.rfft_scalar_truncated(r, nl[0])
         np.multiply(u[2], w[0], out=r)
         np.multiply(u[0], w[2], out=u[2])                # u[2], w[2] are not needed again
         r -= u[2]
-        g.rfft_scalar(r, out=nl[1])
+        g.rfft_scalar_truncated(r, nl[1])
         np.multiply(u[0], w[1], out=r)
         np.multiply(u[1], w[0], out=w[2])
         r -= w[2]
-        g.rfft_scalar(r, out=nl[2])
+        g.rfft_scalar_truncated(r, nl[2])
 
     def step(self, force=None):
         """Advance u_hat by dt (eq 8 without the particle term; module docstring, steps 1-5).
@@ -480,7 +480,7 @@ class SpectralNS:
         original's (operate_omega.h Solenoidal_u); the k = 0 mode (mean, momentum) of du is
         kept.  ``du`` may be ``grid.real_buf`` or any array; it is not modified."""
         d = self._nl          # free between steps (ETD2: the older of the two, overwritten next)
-        self.grid.forward(du, out=d)
+        self.grid.forward_truncated(du, d)     # used on the 2/3 mask only
         K = _compiled.spectral
         if project and K is not None:
             projection_kernels(K, self.grid)[2](d, self.u_hat, self.grid.dealias_f, *self._k1,
@@ -535,8 +535,8 @@ class SpectralProjector:
 
     def __call__(self, u):
         g = self.grid
-        g.forward(u, out=self._c)
+        g.forward_truncated(u, self._c)         # exact on the mask, which is all that is kept
         self._c *= self._mask_n
         g.project(self._c, tmp=(self._s, self._t))
-        g.backward_raw(self._c, u)
+        g.backward_truncated(self._c, u)
         return u

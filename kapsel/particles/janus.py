@@ -400,17 +400,17 @@ class Janus:
                 np.add.at(ff[k], idx.reshape(-1), w[k].reshape(-1))
         K = _compiled.spectral
         if K is not None:               # fused: uh = 0 + P T c, c = uh / N (the numpy
-            grid.forward(field, out=c)  # passes' numbers)
+            grid.forward_truncated(field, c)    # passes' numbers; used on the mask)
             clear_points(field, idx)
             projection_kernels(K, grid)[4](c, uh, grid.dealias_f, *grid.k_axes, grid.inv_k2,
                                            1.0 / grid.size)
         else:
-            grid.forward(field, out=uh)
+            grid.forward_truncated(field, uh)
             clear_points(field, idx)
             uh *= grid.dealias_f        # the 2/3 rule of the original's Solenoidal_u
             grid.project(uh)
             np.multiply(uh, 1.0 / grid.size, out=c)
-        grid.backward_raw(c, out=up)
+        grid.backward_truncated(c, up)  # (c is truncated)
         return uh, up
 
     def _slip_force(self, spm, up, scale):

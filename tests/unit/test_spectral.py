@@ -367,3 +367,48 @@ def test_auto_planner_measures_threaded_plans():
     assert auto_planner(128 ** 3, 1) == "FFTW_MEASURE"
     assert Grid((16, 16, 16), threads=2).planner == "FFTW_MEASURE"
     assert Grid((16, 16, 16), threads=1).planner == "FFTW_ESTIMATE"
+
+
+@pytest.mark.parametrize("shape", [(32, 32, 32), (64, 64, 64), (16, 8, 12), (24, 32, 48),
+                                   (27, 15, 9), (8, 8, 2)])
+def test_truncated_transforms_skip_lines_of_zeros_with_the_same_bits(shape):
+    """backward_scalar_truncated of a 2/3-truncated field gives backward_scalar_raw's bits;
+    rfft_scalar_truncated gives rfft_scalar's on the mask (FFTW_ESTIMATE: the 3-D plan
+    makes the same 1-D transforms in the same order); an array of another alignment takes
+    the whole transform."""
+    g = Grid(shape, dx=0.5)
+    rng = np.random.default_rng(1)
+    mask = g.dealias
+    c = g.empty_complex(None)
+    c[...] = (rng.normal(size=g.cshape) + 1j * rng.normal(size=g.cshape)) * mask
+    full, pruned = g.empty_real(None), g.empty_real(None)
+    g.backward_scalar_raw(c.copy(), full)
+    g.backward_scalar_truncated(c.copy(), pruned)
+    np.testing.assert_array_equal(pruned, full)
+    f = rng.normal(size=shape)
+    a, b = g.empty_complex(None), g.empty_complex(None)
+    g.rfft_scalar(f, out=a)
+    g.rfft_scalar_truncated(f, b)
+    np.testing.assert_array_equal(b[mask], a[mask])
+    # vector forms, and an unaligned output (the whole transform)
+    u = rng.normal(size=(3,) + shape)
+    vh = g.forward_truncated(u, g.empty_complex())
+    np.testing.assert_array_equal(vh[:, mask], g.forward(u, out=g.empty_complex())[:, mask])
+    raw = np.empty(g.size + 1)[1:].reshape(shape)
+    g.backward_scalar_truncated(c.copy(), raw)
+    np.testing.assert_array_equal(raw, full)
+    out = g.backward_truncated(np.stack([c, c, c]), g.empty_real())
+    np.testing.assert_array_equal(out[2], full)
+
+
+def test_truncated_transforms_with_measured_plans():
+    """Measured plans (above 64^3, or threads) may pick other 1-D algorithms than the 3-D
+    plan: the same numbers to round-off."""
+    g = Grid((16, 16, 16), dx=1.0, planner="FFTW_MEASURE")
+    rng = np.random.default_rng(2)
+    c = g.empty_complex(None)
+    c[...] = (rng.normal(size=g.cshape) + 1j * rng.normal(size=g.cshape)) * g.dealias
+    full, pruned = g.empty_real(None), g.empty_real(None)
+    g.backward_scalar_raw(c.copy(), full)
+    g.backward_scalar_truncated(c.copy(), pruned)
+    np.testing.assert_allclose(pruned, full, atol=1e-12 * np.abs(full).max())
