@@ -276,10 +276,15 @@ class SpectralNS:
         np.copyto(self.u_hat, u_hat)
         self.state.put("nl_old", None)
 
-    def velocity(self, out=None):
-        """u in real space: into ``out`` (returned) or a new array."""
+    def velocity(self, out=None, truncated=False):
+        """u in real space: into ``out`` (returned) or a new array.  ``truncated``: the
+        caller knows u_hat is 0 off the 2/3 mask (the Electrolyte's after its Euler step):
+        the transforms skip the lines of zeros (kapsel.mesh.grid), the same numbers."""
         if out is None:
             out = self.grid.empty_real()
+        if truncated:
+            self._truncated_u(out)
+            return out
         s = self._s
         for c in range(3):
             np.multiply(self.u_hat[c], 1.0 / self.grid.size, out=s)
@@ -310,9 +315,11 @@ class SpectralNS:
         self._truncated_u()
         return self._u
 
-    def _truncated_u(self):
-        """u <- T u_hat / N transformed, a component at a time through a complex scalar."""
-        g, u, s = self.grid, self._u, self._s
+    def _truncated_u(self, u=None):
+        """u (default the scratch) <- T u_hat / N transformed, a component at a time through
+        a complex scalar."""
+        g, s = self.grid, self._s
+        u = self._u if u is None else u
         K = _compiled.spectral
         for c in range(3):
             if K is not None:

@@ -52,11 +52,15 @@ ROWS = 8        # grid rows per block of the *_rows projections
 @njit(cache=True, nogil=True)
 def truncated_component(u_hat, mask, inv_n, c, out):
     """out = u_hat[c] (mask inv_n): component c of the 2/3-truncated velocity (1/N folded in;
-    mask inv_n is mask / N to the bit, the mask being 0 or 1)."""
+    mask inv_n is mask / N to the bit, the mask being 0 or 1; +0 off the mask, where the
+    product's zero could have had either sign)."""
     nx, ny, nzc = mask.shape
     for i in range(nx):
         for j in range(ny):
             for k in range(nzc):
+                if mask[i, j, k] == 0.0:            # +0, u_hat not read
+                    out[i, j, k] = complex(0.0, 0.0)
+                    continue
                 m = mask[i, j, k] * inv_n
                 a = u_hat[c, i, j, k]
                 out[i, j, k] = complex(a.real * m, a.imag * m)
@@ -66,7 +70,7 @@ def truncated_component(u_hat, mask, inv_n, c, out):
 def vorticity_component(u_hat, mask, inv_n, kx, ky, kz, c, out):
     """out = (i k x (u_hat mask inv_n))[c]: component c of the truncated velocity's vorticity
     (a complex times i k as two real products: numpy's complex product with a zero real
-    part of i k, up to the sign of zero results)."""
+    part of i k, up to the sign of zero results; +0 off the mask)."""
     nx, ny, nzc = mask.shape
     p, q = (c + 1) % 3, (c + 2) % 3          # w_c = i k_p u_q - i k_q u_p
     for i in range(nx):
@@ -74,6 +78,9 @@ def vorticity_component(u_hat, mask, inv_n, kx, ky, kz, c, out):
             for k in range(nzc):
                 kp = kx[i] if p == 0 else (ky[j] if p == 1 else kz[k])
                 kq = kx[i] if q == 0 else (ky[j] if q == 1 else kz[k])
+                if mask[i, j, k] == 0.0:            # +0, u_hat not read
+                    out[i, j, k] = complex(0.0, 0.0)
+                    continue
                 m = mask[i, j, k] * inv_n
                 a = u_hat[q, i, j, k]
                 b = u_hat[p, i, j, k]
@@ -200,7 +207,8 @@ def project_etd2(nl, nl_old, u_hat, E, a2, b2, kx, ky, kz, inv_k2):
 @njit(inline="always")
 def _project_masked(d, u_hat, mask, kx, ky, kz, inv_k2, scale, add):
     """P (mask d) at every mode: ``add``: u_hat += it; else u_hat <- 0 + it and
-    d <- (0 + it) scale (``project_add``, ``project_set_scaled``)."""
+    d <- (0 + it) scale (``project_add``, ``project_set_scaled``).  Where the mask is 0,
+    d is not read (``_masked_out``)."""
     nx, ny, nzc = inv_k2.shape
     for i in range(nx):
         ki = kx[i]
@@ -208,6 +216,9 @@ def _project_masked(d, u_hat, mask, kx, ky, kz, inv_k2, scale, add):
             kj = ky[j]
             for k in range(nzc):
                 m = mask[i, j, k]
+                if m == 0.0:
+                    _masked_out(d, u_hat, i, j, k, add)
+                    continue
                 a = _scale(d[0, i, j, k], m)
                 b = _scale(d[1, i, j, k], m)
                 c = _scale(d[2, i, j, k], m)
@@ -241,6 +252,20 @@ def project_set_scaled(d, u_hat, mask, kx, ky, kz, inv_k2, scale):
 
 
 @njit(inline="always")
+def _masked_out(d, u_hat, i, j, k, add):
+    """A mode the mask removes: P (0 d) is 0 there (the projection acts mode by mode), so
+    ``add`` leaves u_hat as it is (u_hat + 0: the same value; a -0 in u_hat stays -0 where
+    the sum could give +0) and the set form writes 0 + 0 = +0 and its scaled +0, the bits
+    of the full computation.  d is not read: it may hold the partial sums of a truncated
+    transform (kapsel.mesh.grid), and the pass reads a third of the memory at 64^3."""
+    if add:
+        return
+    for c in range(3):
+        u_hat[c, i, j, k] = complex(0.0, 0.0)
+        d[c, i, j, k] = complex(0.0, 0.0)
+
+
+@njit(inline="always")
 def _zero_plus(p):
     """0 + p, as a zeroed array plus p (the sign of a zero result included)."""
     return complex(0.0 + p.real, 0.0 + p.imag)
@@ -259,13 +284,20 @@ def _euler_point(u, p, nk, dt, m):
 def project_euler(nl, u_hat, k2, nu, dt, mask, kx, ky, kz, inv_k2, project):
     """nl <- P nl if ``project``;  u_hat <- T[u_hat + dt (nl - (nu k2) u_hat)] (the
     Electrolyte's explicit Euler, fluid_solver.cxx NSsolute_solver_Euler); nl is left
-    holding P nl."""
+    holding P nl on the mask.  Where the mask is 0, u_hat <- +0 and nl is not read (it may
+    hold the partial sums of a truncated transform): the value of the full computation,
+    (...) 0, whose zero could have had either sign."""
     nx, ny, nzc = mask.shape
     for i in range(nx):
         ki = kx[i]
         for j in range(ny):
             kj = ky[j]
             for k in range(nzc):
+                m = mask[i, j, k]
+                if m == 0.0:
+                    for cc in range(3):
+                        u_hat[cc, i, j, k] = complex(0.0, 0.0)
+                    continue
                 a, b, c = nl[0, i, j, k], nl[1, i, j, k], nl[2, i, j, k]
                 if project:
                     a, b, c = _project_point(a, b, c, ki, kj, kz[k], inv_k2[i, j, k])
@@ -273,7 +305,6 @@ def project_euler(nl, u_hat, k2, nu, dt, mask, kx, ky, kz, inv_k2, project):
                     nl[1, i, j, k] = b
                     nl[2, i, j, k] = c
                 nk = nu * k2[i, j, k]
-                m = mask[i, j, k]
                 u_hat[0, i, j, k] = _euler_point(u_hat[0, i, j, k], a, nk, dt, m)
                 u_hat[1, i, j, k] = _euler_point(u_hat[1, i, j, k], b, nk, dt, m)
                 u_hat[2, i, j, k] = _euler_point(u_hat[2, i, j, k], c, nk, dt, m)
@@ -292,6 +323,8 @@ def _coefficients(v, i, j0, j1, ki, ky, kz, inv_k2, mask, sr, si):
     for j in range(j0, j1):
         kj = ky[j]
         for k in range(nzc):
+            if mask is not None and mask[i, j, k] == 0.0:
+                continue                # (not used: _project_masked_rows skips the mode)
             a = v[0, i, j, k]
             b = v[1, i, j, k]
             c = v[2, i, j, k]
@@ -372,6 +405,11 @@ def _project_masked_rows(d, u_hat, mask, kx, ky, kz, inv_k2, scale, add):
                 for j in range(j0, j1):
                     kj = ky[j]
                     for k in range(nzc):
+                        if mask[i, j, k] == 0.0:
+                            if not add:
+                                u_hat[c, i, j, k] = complex(0.0, 0.0)
+                                d[c, i, j, k] = complex(0.0, 0.0)
+                            continue
                         p = _less(_scale(d[c, i, j, k], mask[i, j, k]), sr[j - j0, k],
                                   si[j - j0, k], _pick(c, ki, kj, kz, k))
                         if add:
@@ -404,12 +442,15 @@ def project_euler_rows(nl, u_hat, k2, nu, dt, mask, kx, ky, kz, inv_k2, project)
         ki = kx[i]
         for j0 in range(0, ny, ROWS):
             j1 = min(j0 + ROWS, ny)
-            if project:
-                _coefficients(nl, i, j0, j1, ki, ky, kz, inv_k2, None, sr, si)
+            if project:     # (masked: the same numbers on the mask, nl not read off it)
+                _coefficients(nl, i, j0, j1, ki, ky, kz, inv_k2, mask, sr, si)
             for c in range(3):
                 for j in range(j0, j1):
                     kj = ky[j]
                     for k in range(nzc):
+                        if mask[i, j, k] == 0.0:
+                            u_hat[c, i, j, k] = complex(0.0, 0.0)
+                            continue
                         p = nl[c, i, j, k]
                         if project:
                             p = _less(p, sr[j - j0, k], si[j - j0, k], _pick(c, ki, kj, kz, k))

@@ -75,7 +75,8 @@ class _IonSPM:
 
     def _hydro_sums(self):
         self.model.coulomb_on_fluid()
-        self.fluid.velocity(out=self.u)
+        # u_hat is truncated: the Euler step truncates it, the Coulomb force is added P T
+        self.fluid.velocity(out=self.u, truncated=True)
         return super()._hydro_sums()
 
 
