@@ -285,10 +285,17 @@ class SpectralNS:
         if truncated:
             self._truncated_u(out)
             return out
-        s = self._s
+        s, g = self._s, self.grid
+        K = _compiled.spectral
         for c in range(3):
-            np.multiply(self.u_hat[c], 1.0 / self.grid.size, out=s)
-            self.grid.backward_scalar_raw(s, out[c])
+            if K is not None:   # truncated or not, told by the pass that scales it
+                if K.scaled_component(self.u_hat, g.dealias_f, self._inv_n, c, s):
+                    g.backward_scalar_truncated(s, out[c])
+                else:
+                    g.backward_scalar_raw(s, out[c])
+                continue
+            np.multiply(self.u_hat[c], 1.0 / g.size, out=s)
+            g.backward_scalar_raw(s, out[c])
         return out
 
     def scratch_real(self):

@@ -24,7 +24,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-__all__ = ["truncated_component", "vorticity_component", "cross", "cross_into", "project_etd1",
+__all__ = ["truncated_component", "scaled_component", "vorticity_component", "cross", "cross_into", "project_etd1",
            "project_etd2", "project_add", "project_euler", "project_etd1_rows",
            "project_etd2_rows", "project_add_rows", "project_euler_rows", "project_set_scaled",
            "project_set_scaled_rows"]
@@ -33,6 +33,7 @@ __all__ = ["truncated_component", "vorticity_component", "cross", "cross_into", 
 #: compiles ahead of time (kapsel.mesh.compiled loads that build when it is current)
 SIGNATURES = {
     "truncated_component": "void(complex128[:,:,:,::1], float64[:,:,::1], float64, int64, complex128[:,:,::1])",
+    "scaled_component": "boolean(complex128[:,:,:,::1], float64[:,:,::1], float64, int64, complex128[:,:,::1])",
     "vorticity_component": "void(complex128[:,:,:,::1], float64[:,:,::1], float64, float64[::1], float64[::1], float64[::1], int64, complex128[:,:,::1])",
     "cross_into": "void(float64[:,:,:,::1], float64[:,:,:,::1])",
     "cross": "void(float64[:,:,:,::1], float64[:,:,:,::1], float64[:,:,:,::1])",
@@ -64,6 +65,23 @@ def truncated_component(u_hat, mask, inv_n, c, out):
                 m = mask[i, j, k] * inv_n
                 a = u_hat[c, i, j, k]
                 out[i, j, k] = complex(a.real * m, a.imag * m)
+
+
+@njit(cache=True, nogil=True)
+def scaled_component(u_hat, mask, scale, c, out):
+    """out = u_hat[c] scale (numpy's product of a complex field and a real scalar, up to
+    the sign of zero results); returns whether u_hat[c] is 0 wherever the mask is, i.e.
+    out is a truncated field (kapsel.mesh.grid's truncated transforms apply)."""
+    nx, ny, nzc = mask.shape
+    clean = True
+    for i in range(nx):
+        for j in range(ny):
+            for k in range(nzc):
+                a = u_hat[c, i, j, k]
+                if mask[i, j, k] == 0.0 and (a.real != 0.0 or a.imag != 0.0):
+                    clean = False
+                out[i, j, k] = complex(a.real * scale, a.imag * scale)
+    return clean
 
 
 @njit(cache=True, nogil=True)
@@ -152,6 +170,33 @@ def _etd2(u, p, o, e, w, v):
 
 
 @njit(inline="always")
+def _off(w, v, i, j, k):
+    """Whether the nonlinear weights are 0 at a mode (w: a1 or a2; v: b2 or None): the 2/3
+    mask removes it, and the ETD update is E u_hat there (``_decay_only``)."""
+    return w[i, j, k] == 0.0 and (v is None or v[i, j, k] == 0.0)
+
+
+@njit(inline="always")
+def _decay_only(u_hat, i, j, k, e):
+    """u_hat <- E u_hat at a mode whose nonlinear weights are 0: E u + 0 p, the same value
+    without reading p (nl there may hold the partial sums of a truncated transform,
+    kapsel.mesh.grid; nl is neither read nor projected there, and the next step's weights
+    are 0 there too); nothing is written where u_hat is 0 (a truncated state's)."""
+    for c in range(3):
+        u = u_hat[c, i, j, k]
+        if u.real != 0.0 or u.imag != 0.0:
+            u_hat[c, i, j, k] = _scale(u, e)
+
+
+@njit(inline="always")
+def _decay_one(u_hat, c, i, j, k, e):
+    """``_decay_only`` of one component (the sweeps by rows)."""
+    u = u_hat[c, i, j, k]
+    if u.real != 0.0 or u.imag != 0.0:
+        u_hat[c, i, j, k] = _scale(u, e)
+
+
+@njit(inline="always")
 def _less(a, sr, si, kc):
     """a - k_c s: component c of a projection whose coefficient (k.v)/k^2 is (sr, si)."""
     return complex(a.real - sr * kc, a.imag - si * kc)
@@ -160,13 +205,17 @@ def _less(a, sr, si, kc):
 @njit(cache=True, nogil=True)
 def project_etd1(nl, u_hat, E, a1, kx, ky, kz, inv_k2, store):
     """u_hat <- E u_hat + a1 P nl  (slaved Euler, eq 8); nl <- P nl if ``store`` (ETD2's
-    first step keeps it), else nl is left as it was."""
+    first step keeps it), else nl is left as it was.  Where a1 is 0 (off the 2/3 mask):
+    u_hat <- E u_hat, nl not read (``_decay_only``)."""
     nx, ny, nzc = E.shape
     for i in range(nx):
         ki = kx[i]
         for j in range(ny):
             kj = ky[j]
             for k in range(nzc):
+                if _off(a1, None, i, j, k):
+                    _decay_only(u_hat, i, j, k, E[i, j, k])
+                    continue
                 kk = kz[k]
                 a, b, c = _project_point(nl[0, i, j, k], nl[1, i, j, k], nl[2, i, j, k],
                                          ki, kj, kk, inv_k2[i, j, k])
@@ -183,13 +232,17 @@ def project_etd1(nl, u_hat, E, a1, kx, ky, kz, inv_k2, store):
 
 @njit(cache=True, nogil=True)
 def project_etd2(nl, nl_old, u_hat, E, a2, b2, kx, ky, kz, inv_k2):
-    """nl <- P nl;  u_hat <- E u_hat + a2 nl - b2 nl_old  (ETD2)."""
+    """nl <- P nl;  u_hat <- E u_hat + a2 nl - b2 nl_old  (ETD2); where a2 and b2 are 0
+    (off the 2/3 mask): u_hat <- E u_hat, nl and nl_old not read (``_decay_only``)."""
     nx, ny, nzc = E.shape
     for i in range(nx):
         ki = kx[i]
         for j in range(ny):
             kj = ky[j]
             for k in range(nzc):
+                if _off(a2, b2, i, j, k):
+                    _decay_only(u_hat, i, j, k, E[i, j, k])
+                    continue
                 kk = kz[k]
                 a, b, c = _project_point(nl[0, i, j, k], nl[1, i, j, k], nl[2, i, j, k],
                                          ki, kj, kk, inv_k2[i, j, k])
@@ -316,15 +369,18 @@ def _pick(c, ki, kj, kz, k):
 
 
 @njit(inline="always")
-def _coefficients(v, i, j0, j1, ki, ky, kz, inv_k2, mask, sr, si):
+def _coefficients(v, i, j0, j1, ki, ky, kz, inv_k2, mask, sr, si, w=None, wv=None):
     """(sr, si)[j - j0, k] = (k.(mask v))/k^2 on rows j0..j1-1 of plane i, summed as
-    ``_project_point`` sums it; mask None: v itself."""
+    ``_project_point`` sums it; mask None: v itself.  Not made where the mask is 0, nor
+    where the weights ``w``, ``wv`` are (``_off``): the callers skip those modes."""
     nzc = sr.shape[1]
     for j in range(j0, j1):
         kj = ky[j]
         for k in range(nzc):
             if mask is not None and mask[i, j, k] == 0.0:
                 continue                # (not used: _project_masked_rows skips the mode)
+            if w is not None and _off(w, wv, i, j, k):
+                continue
             a = v[0, i, j, k]
             b = v[1, i, j, k]
             c = v[2, i, j, k]
@@ -355,11 +411,14 @@ def project_etd1_rows(nl, u_hat, E, a1, kx, ky, kz, inv_k2, store):
         ki = kx[i]
         for j0 in range(0, ny, ROWS):
             j1 = min(j0 + ROWS, ny)
-            _coefficients(nl, i, j0, j1, ki, ky, kz, inv_k2, None, sr, si)
+            _coefficients(nl, i, j0, j1, ki, ky, kz, inv_k2, None, sr, si, a1)
             for c in range(3):
                 for j in range(j0, j1):
                     kj = ky[j]
                     for k in range(nzc):
+                        if _off(a1, None, i, j, k):
+                            _decay_one(u_hat, c, i, j, k, E[i, j, k])
+                            continue
                         p = _less(nl[c, i, j, k], sr[j - j0, k], si[j - j0, k],
                                   _pick(c, ki, kj, kz, k))
                         if store:
@@ -378,11 +437,14 @@ def project_etd2_rows(nl, nl_old, u_hat, E, a2, b2, kx, ky, kz, inv_k2):
         ki = kx[i]
         for j0 in range(0, ny, ROWS):
             j1 = min(j0 + ROWS, ny)
-            _coefficients(nl, i, j0, j1, ki, ky, kz, inv_k2, None, sr, si)
+            _coefficients(nl, i, j0, j1, ki, ky, kz, inv_k2, None, sr, si, a2, b2)
             for c in range(3):
                 for j in range(j0, j1):
                     kj = ky[j]
                     for k in range(nzc):
+                        if _off(a2, b2, i, j, k):
+                            _decay_one(u_hat, c, i, j, k, E[i, j, k])
+                            continue
                         p = _less(nl[c, i, j, k], sr[j - j0, k], si[j - j0, k],
                                   _pick(c, ki, kj, kz, k))
                         nl[c, i, j, k] = p
