@@ -289,7 +289,7 @@ class SpectralNS:
         K = _compiled.spectral
         for c in range(3):
             if K is not None:   # truncated or not, told by the pass that scales it
-                if K.scaled_component(self.u_hat, g.dealias_f, self._inv_n, c, s):
+                if K.scaled_component(self.u_hat, *g.dealias_box, self._inv_n, c, s):
                     g.backward_scalar_truncated(s, out[c])
                 else:
                     g.backward_scalar_raw(s, out[c])
@@ -330,7 +330,7 @@ class SpectralNS:
         K = _compiled.spectral
         for c in range(3):
             if K is not None:
-                K.truncated_component(self.u_hat, g.dealias_f, self._inv_n, c, s)
+                K.truncated_component(self.u_hat, *g.dealias_box, self._inv_n, c, s)
             else:
                 np.multiply(self.u_hat[c], self._mask_n, out=s)   # truncated, 1/N folded in
             g.backward_scalar_truncated(s, u[c])   # destroys s
@@ -353,7 +353,8 @@ class SpectralNS:
         K = _compiled.spectral
         if K is not None:
             for c in range(3):
-                K.vorticity_component(self.u_hat, g.dealias_f, self._inv_n, *self._k1, c, s)
+                K.vorticity_component(self.u_hat, *g.dealias_box, self._inv_n, *self._k1, c,
+                                      s)
                 g.backward_scalar_truncated(s, w[c])
             K.cross_into(u, w)                          # w <- u x omega
             g.forward_truncated(w, nl)                  # (the ETD weights are masked)

@@ -32,9 +32,9 @@ __all__ = ["truncated_component", "scaled_component", "vorticity_component", "cr
 #: the types each kernel is called with (C-contiguous arrays): what kapsel.build_kernels
 #: compiles ahead of time (kapsel.mesh.compiled loads that build when it is current)
 SIGNATURES = {
-    "truncated_component": "void(complex128[:,:,:,::1], float64[:,:,::1], float64, int64, complex128[:,:,::1])",
-    "scaled_component": "boolean(complex128[:,:,:,::1], float64[:,:,::1], float64, int64, complex128[:,:,::1])",
-    "vorticity_component": "void(complex128[:,:,:,::1], float64[:,:,::1], float64, float64[::1], float64[::1], float64[::1], int64, complex128[:,:,::1])",
+    "truncated_component": "void(complex128[:,:,:,::1], float64[::1], float64[::1], int64, float64, int64, complex128[:,:,::1])",
+    "scaled_component": "boolean(complex128[:,:,:,::1], float64[::1], float64[::1], int64, float64, int64, complex128[:,:,::1])",
+    "vorticity_component": "void(complex128[:,:,:,::1], float64[::1], float64[::1], int64, float64, float64[::1], float64[::1], float64[::1], int64, complex128[:,:,::1])",
     "cross_into": "void(float64[:,:,:,::1], float64[:,:,:,::1])",
     "cross": "void(float64[:,:,:,::1], float64[:,:,:,::1], float64[:,:,:,::1])",
     "project_etd1": "void(complex128[:,:,:,::1], complex128[:,:,:,::1], float64[:,:,::1], float64[:,:,::1], float64[::1], float64[::1], float64[::1], float64[:,:,::1], boolean)",
@@ -51,60 +51,71 @@ ROWS = 8        # grid rows per block of the *_rows projections
 
 
 @njit(cache=True, nogil=True)
-def truncated_component(u_hat, mask, inv_n, c, out):
+def truncated_component(u_hat, mx, my, kz_end, inv_n, c, out):
     """out = u_hat[c] (mask inv_n): component c of the 2/3-truncated velocity (1/N folded in;
-    mask inv_n is mask / N to the bit, the mask being 0 or 1; +0 off the mask, where the
-    product's zero could have had either sign)."""
-    nx, ny, nzc = mask.shape
+    mask inv_n is inv_n to the bit on the mask, whose values are 1).  The mask is the box
+    ``Grid.dealias_box`` (mx[i] my[j] for k < kz_end): the rows off it are written +0 (where
+    the product's zero could have had either sign) without reading u_hat, the rows on it
+    scaled without a test per point."""
+    nx, ny, nzc = out.shape
     for i in range(nx):
         for j in range(ny):
-            for k in range(nzc):
-                if mask[i, j, k] == 0.0:            # +0, u_hat not read
+            if mx[i] == 0.0 or my[j] == 0.0:
+                for k in range(nzc):
                     out[i, j, k] = complex(0.0, 0.0)
-                    continue
-                m = mask[i, j, k] * inv_n
+                continue
+            for k in range(kz_end):
                 a = u_hat[c, i, j, k]
-                out[i, j, k] = complex(a.real * m, a.imag * m)
+                out[i, j, k] = complex(a.real * inv_n, a.imag * inv_n)
+            for k in range(kz_end, nzc):
+                out[i, j, k] = complex(0.0, 0.0)
 
 
 @njit(cache=True, nogil=True)
-def scaled_component(u_hat, mask, scale, c, out):
+def scaled_component(u_hat, mx, my, kz_end, scale, c, out):
     """out = u_hat[c] scale (numpy's product of a complex field and a real scalar, up to
-    the sign of zero results); returns whether u_hat[c] is 0 wherever the mask is, i.e.
-    out is a truncated field (kapsel.mesh.grid's truncated transforms apply)."""
-    nx, ny, nzc = mask.shape
-    clean = True
+    the sign of zero results); returns whether u_hat[c] is 0 off the mask (the box
+    ``Grid.dealias_box``), i.e. out is a truncated field (kapsel.mesh.grid's truncated
+    transforms apply)."""
+    nx, ny, nzc = out.shape
+    nonzero = 0.0           # the sum of |Re| + |Im| off the mask: 0 only if all are 0
     for i in range(nx):
         for j in range(ny):
-            for k in range(nzc):
+            k0 = 0 if (mx[i] == 0.0 or my[j] == 0.0) else kz_end
+            for k in range(k0):
                 a = u_hat[c, i, j, k]
-                if mask[i, j, k] == 0.0 and (a.real != 0.0 or a.imag != 0.0):
-                    clean = False
                 out[i, j, k] = complex(a.real * scale, a.imag * scale)
-    return clean
+            for k in range(k0, nzc):
+                a = u_hat[c, i, j, k]
+                nonzero += abs(a.real) + abs(a.imag)
+                out[i, j, k] = complex(a.real * scale, a.imag * scale)
+    return nonzero == 0.0
 
 
 @njit(cache=True, nogil=True)
-def vorticity_component(u_hat, mask, inv_n, kx, ky, kz, c, out):
+def vorticity_component(u_hat, mx, my, kz_end, inv_n, kx, ky, kz, c, out):
     """out = (i k x (u_hat mask inv_n))[c]: component c of the truncated velocity's vorticity
     (a complex times i k as two real products: numpy's complex product with a zero real
-    part of i k, up to the sign of zero results; +0 off the mask)."""
-    nx, ny, nzc = mask.shape
+    part of i k, up to the sign of zero results; +0 off the mask, the box of
+    ``truncated_component``)."""
+    nx, ny, nzc = out.shape
     p, q = (c + 1) % 3, (c + 2) % 3          # w_c = i k_p u_q - i k_q u_p
     for i in range(nx):
         for j in range(ny):
-            for k in range(nzc):
+            if mx[i] == 0.0 or my[j] == 0.0:
+                for k in range(nzc):
+                    out[i, j, k] = complex(0.0, 0.0)
+                continue
+            for k in range(kz_end):
                 kp = kx[i] if p == 0 else (ky[j] if p == 1 else kz[k])
                 kq = kx[i] if q == 0 else (ky[j] if q == 1 else kz[k])
-                if mask[i, j, k] == 0.0:            # +0, u_hat not read
-                    out[i, j, k] = complex(0.0, 0.0)
-                    continue
-                m = mask[i, j, k] * inv_n
                 a = u_hat[q, i, j, k]
                 b = u_hat[p, i, j, k]
-                ar, ai = a.real * m, a.imag * m
-                br, bi = b.real * m, b.imag * m
+                ar, ai = a.real * inv_n, a.imag * inv_n
+                br, bi = b.real * inv_n, b.imag * inv_n
                 out[i, j, k] = complex((-(kp * ai)) - (-(kq * bi)), (kp * ar) - (kq * br))
+            for k in range(kz_end, nzc):
+                out[i, j, k] = complex(0.0, 0.0)
 
 
 @njit(inline="always")

@@ -285,6 +285,21 @@ class Grid:
     def dealias_f(self):
         return self.dealias.astype(float)
 
+    @functools.cached_property
+    def dealias_box(self):
+        """The 2/3 mask of this block as a box, for the compiled passes that skip the rows
+        off it: (mx, my, kz_end), the mask being mx[i] my[j] (floats 0 or 1) for
+        k < kz_end and 0 beyond (m_z >= 0 runs up from the block's first z: a prefix of
+        it is kept)."""
+        d = self.dealias
+        mx, my, mz = d.any(axis=(1, 2)), d.any(axis=(0, 2)), d.any(axis=(0, 1))
+        kz_end = int(mz.sum())
+        if not (mz[:kz_end].all() and np.array_equal(
+                d, mx[:, None, None] & my[None, :, None] & mz[None, None, :])):
+            raise AssertionError("the 2/3 mask is not a box with a prefix along z")
+        return (np.ascontiguousarray(mx, dtype=float), np.ascontiguousarray(my, dtype=float),
+                kz_end)
+
     # ------------------------------------------------------------------ FFT
     def _plans(self):
         vshape, vcshape = (3,) + self.shape, (3,) + self.cshape

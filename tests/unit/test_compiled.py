@@ -100,19 +100,20 @@ def test_ahead_of_time_kernels_check_their_arguments(compiled_kernels):
     K = compiled.spectral
     rng = np.random.default_rng(2)
     u_hat = rng.standard_normal((3, 6, 8, 5)) + 1j * rng.standard_normal((3, 6, 8, 5))
-    mask = rng.random((6, 8, 5))
+    mx, my, kz_end = rng.integers(0, 2, 6).astype(float), rng.integers(0, 2, 8).astype(float), 3
+    mask = mx[:, None, None] * my[None, :, None] * (np.arange(5) < kz_end)
     want = np.empty((6, 8, 5), complex)
-    K.truncated_component(u_hat, mask, 0.5, 1, want)
+    K.truncated_component(u_hat, mx, my, kz_end, 0.5, 1, want)
     assert compiled.fallbacks == []
     assert np.array_equal(want, u_hat[1] * (mask * 0.5))
     wide = np.zeros((3, 6, 8, 10), complex)
     wide[..., ::2] = u_hat
     got = np.empty_like(want)
-    K.truncated_component(wide[..., ::2], mask, 0.5, 1, got)       # not contiguous
+    K.truncated_component(wide[..., ::2], mx, my, kz_end, 0.5, 1, got)       # not contiguous
     assert np.array_equal(got, want)
-    K.truncated_component(u_hat, mask.astype(np.float32), 0.5, 1, got)  # another dtype
+    K.truncated_component(u_hat, mx.astype(np.float32), my, kz_end, 0.5, 1, got)  # a dtype
     with pytest.raises(Exception, match="float64"):               # a float for the int:
-        K.truncated_component(u_hat, mask, 0.5, 1.0, got)          # numba's typing error
+        K.truncated_component(u_hat, mx, my, kz_end, 0.5, 1.0, got)    # numba's typing error
     assert compiled.fallbacks == [("spectral", "truncated_component")] * 3
     compiled.fallbacks.clear()
 

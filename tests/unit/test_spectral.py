@@ -431,15 +431,17 @@ def test_velocity_transforms_a_truncated_state_as_one(compiled_kernels):
         np.testing.assert_allclose(whole, np.fft.irfftn(ns.u_hat, s=g.shape, axes=(1, 2, 3)),
                                    atol=1e-12)
         ns.u_hat *= g.dealias_f
-        ns.u_hat[2, 6, 0, 0] = 0.5          # one component off the mask (|m_x| 6 > 5)
-        part = ns.velocity().copy()
-        np.testing.assert_allclose(part, np.fft.irfftn(ns.u_hat, s=g.shape, axes=(1, 2, 3)),
-                                   atol=1e-12)
-        ns.u_hat[2, 6, 0, 0] = 0.0
+        parts = []
+        for c, mode in ((2, (6, 0, 0)), (0, (1, 4, 2)), (1, (2, 1, 4))):   # off along x,
+            ns.u_hat[(c,) + mode] = 0.5      # y, z: one component off the mask (the box
+            parts.append(ns.velocity().copy())       # |m| <= 5, 3, 3)
+            np.testing.assert_allclose(parts[-1], np.fft.irfftn(ns.u_hat, s=g.shape,
+                                                                axes=(1, 2, 3)), atol=1e-12)
+            ns.u_hat[(c,) + mode] = 0.0
         truncated = ns.velocity().copy()
         np.testing.assert_allclose(truncated, np.fft.irfftn(ns.u_hat, s=g.shape,
                                                             axes=(1, 2, 3)), atol=1e-12)
-        return whole, part, truncated
+        return [whole, truncated] + parts
     out = compiled_kernels.both(velocities)
     for a, b in zip(*out):
         assert np.array_equal(a, b)
