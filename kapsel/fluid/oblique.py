@@ -200,6 +200,7 @@ class ObliqueSpectralNS(_ObliqueFrame, SpectralNS):
         self._m2 = np.rint(k.ky.ravel() * grid.box[1] / (2 * np.pi)).astype(np.int64)
         self._K2 = np.empty(grid.local_cshape)
         self._invK2 = np.empty(grid.local_cshape)
+        self._z = np.empty(grid.local_cshape)     # -nu dt |K|^2, then E, of a step
         self._gK = None
 
     def _metric(self, g):
@@ -213,10 +214,21 @@ class ObliqueSpectralNS(_ObliqueFrame, SpectralNS):
         self._gK = g
         return K2
 
-    def project_metric(self, vh, g):
-        """P^G v = v - G k^ (k^.v) / (k^ G k^), in place (contravariant components)."""
+    def project_metric(self, vh, g, rate=0.0, masked=False):
+        """P^G (v - 2 rate u^2 e_1) = v' - G k^ (k^.v') / (k^ G k^), in place
+        (contravariant components; the rate term only if rate != 0).  ``masked``: of
+        v times the 2/3 mask, for a truncated u_hat (the step's)."""
         if self._gK != g:
             self._metric(g)
+        K = _compiled.spectral
+        if K is not None:
+            K.project_oblique(vh, self.u_hat, 2.0 * rate, g, *self._k1, self._invK2,
+                              *self.grid.dealias_box, masked)
+            return vh
+        if masked:
+            vh *= self.grid.dealias_f
+        if rate != 0.0:
+            vh[0] -= (2.0 * rate) * self.u_hat[1]
         k = self.grid
         s, t = self._s, self._t
         k.k_dot(vh, s, t)
@@ -245,6 +257,15 @@ class ObliqueSpectralNS(_ObliqueFrame, SpectralNS):
         if out is None:
             out = self.grid.empty_real()
         gr, s, t, inv = self.grid, self._s, self._t, 1.0 / self.grid.size
+        K = _compiled.spectral
+        if K is not None:     # each component transformed as a truncated field when it is one
+            for c in range(3):
+                if K.oblique_component(self.u_hat, *gr.dealias_box, inv, self.frame_strain,
+                                       c, False, s):
+                    gr.backward_scalar_truncated(s, out[c])
+                else:
+                    gr.backward_scalar_raw(s, out[c])
+            return out
         np.multiply(self.u_hat[0], inv, out=s)
         np.multiply(self.u_hat[1], inv, out=t)
         s += np.multiply(t, self.frame_strain, out=self._c3)   # u_1 = u^1 + g u^2
@@ -275,38 +296,44 @@ class ObliqueSpectralNS(_ObliqueFrame, SpectralNS):
     # ------------------------------------------------------------------ step
     def _nonlinear_oblique(self, g, rate):
         """P^G[contravariant(u x omega) - 2 gamma_dot u^2 e_1] into _nl (2/3 rule on the
-        advection part only)."""
+        advection part only).  u and omega are truncated fields, transformed with the lines
+        of zeros skipped (kapsel.mesh.grid); u x omega is transformed exactly on the mask,
+        which keeps only that."""
         gr = self.grid
         nl = self._nl
         if self.advection:
             a, b, wc = self._s, self._t, self._c3     # complex scalars
-            cart = self._cartesian_hat
             u, w, n = self._u, self._w, self._n
-            for c in range(3):                        # u: the truncated Cartesian velocity
-                gr.backward_scalar_raw(cart(c, g, a, b), u[c])
-            Ky = gr.ky - g * gr.kx                    # physical K_y
-            ik = (self._ikx, 1j * Ky, self._ikz)
-            for c in range(3):                        # w_c = i k_p u_q - i k_q u_p
-                p, q = (c + 1) % 3, (c + 2) % 3
-                np.multiply(ik[p], cart(q, g, a, b), out=wc)
-                np.multiply(ik[q], cart(p, g, a, b), out=b)
-                wc -= b
-                gr.backward_scalar_raw(wc, w[c])
             K = _compiled.spectral
             if K is not None:
-                K.cross(u, w, n)                      # bit-identical, one pass
+                box, inv = gr.dealias_box, self._inv_n
+                for c in range(3):
+                    K.oblique_component(self.u_hat, *box, inv, g, c, True, a)
+                    gr.backward_scalar_truncated(a, u[c])
+                for c in range(3):
+                    K.oblique_vorticity_component(self.u_hat, *box, inv, g, *self._k1, c, a)
+                    gr.backward_scalar_truncated(a, w[c])
+                K.cross_contravariant(u, w, n, g)
             else:
+                cart = self._cartesian_hat
+                for c in range(3):                    # u: the truncated Cartesian velocity
+                    gr.backward_scalar_truncated(cart(c, g, a, b), u[c])
+                Ky = gr.ky - g * gr.kx                # physical K_y
+                ik = (self._ikx, 1j * Ky, self._ikz)
+                for c in range(3):                    # w_c = i k_p u_q - i k_q u_p
+                    p, q = (c + 1) % 3, (c + 2) % 3
+                    np.multiply(ik[p], cart(q, g, a, b), out=wc)
+                    np.multiply(ik[q], cart(p, g, a, b), out=b)
+                    wc -= b
+                    gr.backward_scalar_truncated(wc, w[c])
                 cross_in_place(u, w, n)
-            n[0] -= g * n[1]                          # contravariant
-            gr.forward(n, out=nl)
+                n[0] -= g * n[1]                      # contravariant
+            gr.forward_truncated(n, nl)
             if self._k0:
                 nl[:, 0, 0, 0] = 0.0
-            nl *= gr.dealias_f
-        else:
-            nl[...] = 0.0
-        if rate != 0.0:
-            nl[0] -= (2.0 * rate) * self.u_hat[1]
-        return self.project_metric(nl, g)
+            return self.project_metric(nl, g, rate, masked=True)
+        nl[...] = 0.0
+        return self.project_metric(nl, g, rate)
 
     def step(self, force=None):
         """Advance u^ by dt (eq 27): u^ <- E u^ + dt phi1 P^G[N + f], then re-map the frame
@@ -319,19 +346,21 @@ class ObliqueSpectralNS(_ObliqueFrame, SpectralNS):
         # the original's metric of the step's start (Update_K2_OBL after the last step's
         # strain increment; AC with its discrete strain, _ObliqueFrame.strain_at): the
         # viscous factor is first order in dt, as the original's
-        K2 = np.multiply(self._k11, 1.0 + g0 * g0, out=np.empty(self.grid.local_cshape))
-        K2 -= (2.0 * g0) * self._k12
-        K2 += self._k22
-        z = K2
-        z *= -self.nu * dt
+        if self._gK != g0:                            # (the projection of nl made it)
+            self._metric(g0)
+        z = np.multiply(self._K2, -self.nu * dt, out=self._z)
         w1 = dt * phi1(z)
         E = np.exp(z, out=z)
         uh = self.u_hat
-        uh *= E
         tmp = self._c3
-        for c in range(3):
-            np.multiply(nl[c], w1, out=tmp)
-            uh[c] += tmp
+        K = _compiled.spectral
+        if K is not None:
+            K.etd1_update(uh, nl, E, w1)
+        else:
+            uh *= E
+            for c in range(3):
+                np.multiply(nl[c], w1, out=tmp)
+                uh[c] += tmp
         if force is not None:
             fh = nl                                   # free from here on
             self.grid.forward(contravariant(np.asarray(force, dtype=float), g0, out=self._n),
@@ -416,6 +445,10 @@ class ObliqueSpectralNS(_ObliqueFrame, SpectralNS):
 
     def truncate(self):
         """u^ <- T u^, the 2/3 rule (each step starts with it: module docstring)."""
+        K = _compiled.spectral
+        if K is not None:
+            K.truncate(self.u_hat, *self.grid.dealias_box)
+            return
         self.u_hat *= self.grid.dealias_f
 
     def add_solenoidal(self, du, project=True):

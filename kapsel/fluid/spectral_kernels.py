@@ -27,7 +27,8 @@ from numba import njit
 __all__ = ["truncated_component", "scaled_component", "vorticity_component", "cross", "cross_into", "project_etd1",
            "project_etd2", "project_add", "project_euler", "project_etd1_rows",
            "project_etd2_rows", "project_add_rows", "project_euler_rows", "project_set_scaled",
-           "project_set_scaled_rows"]
+           "project_set_scaled_rows", "oblique_component", "oblique_vorticity_component",
+           "project_oblique", "etd1_update", "truncate", "cross_contravariant"]
 
 #: the types each kernel is called with (C-contiguous arrays): what kapsel.build_kernels
 #: compiles ahead of time (kapsel.mesh.compiled loads that build when it is current)
@@ -42,6 +43,12 @@ SIGNATURES = {
     "project_add": "void(complex128[:,:,:,::1], complex128[:,:,:,::1], float64[:,:,::1], float64[::1], float64[::1], float64[::1], float64[:,:,::1])",
     "project_euler": "void(complex128[:,:,:,::1], complex128[:,:,:,::1], float64[:,:,::1], float64, float64, float64[:,:,::1], float64[::1], float64[::1], float64[::1], float64[:,:,::1], boolean)",
     "project_set_scaled": "void(complex128[:,:,:,::1], complex128[:,:,:,::1], float64[:,:,::1], float64[::1], float64[::1], float64[::1], float64[:,:,::1], float64)",
+    "oblique_component": "boolean(complex128[:,:,:,::1], float64[::1], float64[::1], int64, float64, float64, int64, boolean, complex128[:,:,::1])",
+    "oblique_vorticity_component": "void(complex128[:,:,:,::1], float64[::1], float64[::1], int64, float64, float64, float64[::1], float64[::1], float64[::1], int64, complex128[:,:,::1])",
+    "project_oblique": "void(complex128[:,:,:,::1], complex128[:,:,:,::1], float64, float64, float64[::1], float64[::1], float64[::1], float64[:,:,::1], float64[::1], float64[::1], int64, boolean)",
+    "truncate": "void(complex128[:,:,:,::1], float64[::1], float64[::1], int64)",
+    "cross_contravariant": "void(float64[:,:,:,::1], float64[:,:,:,::1], float64[:,:,:,::1], float64)",
+    "etd1_update": "void(complex128[:,:,:,::1], complex128[:,:,:,::1], float64[:,:,::1], float64[:,:,::1])",
 }
 SIGNATURES.update({n + "_rows": SIGNATURES[n] for n in
                    ("project_etd1", "project_etd2", "project_add", "project_euler",
@@ -530,3 +537,149 @@ def project_euler_rows(nl, u_hat, k2, nu, dt, mask, kx, ky, kz, inv_k2, project)
                             nl[c, i, j, k] = p
                         u_hat[c, i, j, k] = _euler_point(u_hat[c, i, j, k], p, nu * k2[i, j, k],
                                                          dt, mask[i, j, k])
+
+
+# ---------------------------------------------------------------------------- oblique frame
+# The Lees-Edwards step (kapsel.fluid.oblique.ObliqueSpectralNS): u_hat holds contravariant
+# components u^i; its Cartesian u_1 = u^1 + g u^2 (g the frame strain), the physical
+# wavevector K = (k_1, k_2 - g k_1, k_3).  The same operations, in the same order, as that
+# class's numpy passes (values equal; the sign of a zero result may differ).
+
+@njit(inline="always")
+def _oblique_point(u_hat, i, j, k, s, g, c):
+    """Component c of the Cartesian u_hat s at one mode (u_1 = u^1 s + (u^2 s) g)."""
+    a = u_hat[c, i, j, k]
+    if c != 0:
+        return complex(a.real * s, a.imag * s)
+    b = u_hat[1, i, j, k]
+    return complex(a.real * s + (b.real * s) * g, a.imag * s + (b.imag * s) * g)
+
+
+@njit(cache=True, nogil=True)
+def oblique_component(u_hat, mx, my, kz_end, scale, g, c, truncate, out):
+    """out = component c of the Cartesian u_hat scale (u_1 = u^1 + g u^2).  ``truncate``:
+    times the 2/3 mask (the box of ``truncated_component``, +0 off it, u_hat not read
+    there), returns True; else every mode is scaled and the result tells whether out is 0
+    off the mask (a truncated field, ``scaled_component``)."""
+    nx, ny, nzc = out.shape
+    nonzero = 0.0
+    for i in range(nx):
+        for j in range(ny):
+            k0 = 0 if (mx[i] == 0.0 or my[j] == 0.0) else kz_end
+            for k in range(k0):
+                out[i, j, k] = _oblique_point(u_hat, i, j, k, scale, g, c)
+            if truncate:
+                for k in range(k0, nzc):
+                    out[i, j, k] = complex(0.0, 0.0)
+                continue
+            for k in range(k0, nzc):
+                z = _oblique_point(u_hat, i, j, k, scale, g, c)
+                nonzero += abs(z.real) + abs(z.imag)
+                out[i, j, k] = z
+    return nonzero == 0.0
+
+
+@njit(cache=True, nogil=True)
+def oblique_vorticity_component(u_hat, mx, my, kz_end, scale, g, kx, ky, kz, c, out):
+    """out = (i K x u)[c] of the truncated Cartesian u_hat scale (``oblique_component``),
+    K = (k_1, k_2 - g k_1, k_3); +0 off the mask (its box), u_hat not read there."""
+    nx, ny, nzc = out.shape
+    p, q = (c + 1) % 3, (c + 2) % 3          # w_c = i K_p u_q - i K_q u_p
+    for i in range(nx):
+        for j in range(ny):
+            if mx[i] == 0.0 or my[j] == 0.0:
+                for k in range(nzc):
+                    out[i, j, k] = complex(0.0, 0.0)
+                continue
+            ky_ = ky[j] - g * kx[i]
+            for k in range(kz_end):
+                kp = kx[i] if p == 0 else (ky_ if p == 1 else kz[k])
+                kq = kx[i] if q == 0 else (ky_ if q == 1 else kz[k])
+                a = _oblique_point(u_hat, i, j, k, scale, g, q)
+                b = _oblique_point(u_hat, i, j, k, scale, g, p)
+                out[i, j, k] = complex((-(kp * a.imag)) - (-(kq * b.imag)),
+                                       (kp * a.real) - (kq * b.real))
+            for k in range(kz_end, nzc):
+                out[i, j, k] = complex(0.0, 0.0)
+
+
+@njit(cache=True, nogil=True)
+def project_oblique(v, u_hat, r2, g, kx, ky, kz, inv_K2, mx, my, kz_end, masked):
+    """v <- P^G (v - r2 u^2 e_1) in place (the term only if r2 != 0; ObliqueSpectralNS's
+    nonlinear term, ``project_metric``): P^G v = v - G k (k.v) / |K|^2, the contravariant
+    (G k)^1 = (1 + g^2) k_1 - g k_2, (G k)^2 = k_2 - g k_1, (G k)^3 = k_3.  ``masked``: of
+    v times the 2/3 mask (the box of ``truncated_component``), for a u_hat that is 0 off
+    it (the step's, truncated first): +0 there, v and u_hat not read (v may hold the
+    partial sums of a truncated transform), 1 v = v on it."""
+    nx, ny, nzc = inv_K2.shape
+    gg = 1.0 + g * g
+    for i in range(nx):
+        ki = kx[i]
+        for j in range(ny):
+            kj = ky[j]
+            c0 = gg * ki - g * kj
+            c1 = kj - g * ki
+            k1 = nzc
+            if masked:
+                k1 = 0 if (mx[i] == 0.0 or my[j] == 0.0) else kz_end
+                for k in range(k1, nzc):
+                    for cc in range(3):
+                        v[cc, i, j, k] = complex(0.0, 0.0)
+            for k in range(k1):
+                kk = kz[k]
+                a, b, c = v[0, i, j, k], v[1, i, j, k], v[2, i, j, k]
+                if r2 != 0.0:
+                    u = u_hat[1, i, j, k]
+                    a = complex(a.real - r2 * u.real, a.imag - r2 * u.imag)
+                sr = a.real * ki + b.real * kj
+                si = a.imag * ki + b.imag * kj
+                sr = sr + c.real * kk
+                si = si + c.imag * kk
+                inv = inv_K2[i, j, k]
+                sr = sr * inv
+                si = si * inv
+                v[0, i, j, k] = complex(a.real - sr * c0, a.imag - si * c0)
+                v[1, i, j, k] = complex(b.real - sr * c1, b.imag - si * c1)
+                v[2, i, j, k] = complex(c.real - sr * kk, c.imag - si * kk)
+
+
+@njit(cache=True, nogil=True)
+def truncate(u_hat, mx, my, kz_end):
+    """u_hat <- u_hat times the 2/3 mask (its box, ``truncated_component``): +0 off it
+    (where the product's zero could have had either sign), nothing written on it (1 u =
+    u)."""
+    nc, nx, ny, nzc = u_hat.shape
+    for c in range(nc):
+        for i in range(nx):
+            for j in range(ny):
+                k0 = 0 if (mx[i] == 0.0 or my[j] == 0.0) else kz_end
+                for k in range(k0, nzc):
+                    u_hat[c, i, j, k] = complex(0.0, 0.0)
+
+
+@njit(cache=True, nogil=True)
+def cross_contravariant(u, w, n, g):
+    """n = u x w in contravariant components: n^1 = n_x - g n_y (numpy's n[0] -= g n[1]
+    after ``cross``)."""
+    nx, ny, nz = u.shape[1], u.shape[2], u.shape[3]
+    for i in range(nx):
+        for j in range(ny):
+            for k in range(nz):
+                u0, u1, u2 = u[0, i, j, k], u[1, i, j, k], u[2, i, j, k]
+                w0, w1, w2 = w[0, i, j, k], w[1, i, j, k], w[2, i, j, k]
+                n1 = u2 * w0 - u0 * w2
+                n[0, i, j, k] = (u1 * w2 - u2 * w1) - g * n1
+                n[1, i, j, k] = n1
+                n[2, i, j, k] = u0 * w1 - u1 * w0
+
+
+@njit(cache=True, nogil=True)
+def etd1_update(u_hat, nl, E, w1):
+    """u_hat <- E u_hat + w1 nl (the slaved Euler update of a projected nl)."""
+    nx, ny, nzc = E.shape
+    for i in range(nx):
+        for j in range(ny):
+            for k in range(nzc):
+                e, w = E[i, j, k], w1[i, j, k]
+                for c in range(3):
+                    u_hat[c, i, j, k] = _etd1(u_hat[c, i, j, k], nl[c, i, j, k], e, w)
