@@ -200,7 +200,6 @@ class ObliqueSpectralNS(_ObliqueFrame, SpectralNS):
         self._m2 = np.rint(k.ky.ravel() * grid.box[1] / (2 * np.pi)).astype(np.int64)
         self._K2 = np.empty(grid.local_cshape)
         self._invK2 = np.empty(grid.local_cshape)
-        self._z = np.empty(grid.local_cshape)     # -nu dt |K|^2, then E, of a step
         self._gK = None
 
     def _metric(self, g):
@@ -348,7 +347,7 @@ class ObliqueSpectralNS(_ObliqueFrame, SpectralNS):
         # viscous factor is first order in dt, as the original's
         if self._gK != g0:                            # (the projection of nl made it)
             self._metric(g0)
-        z = np.multiply(self._K2, -self.nu * dt, out=self._z)
+        z = np.multiply(self._K2, -self.nu * dt)     # (a step's own: no field kept)
         w1 = dt * phi1(z)
         E = np.exp(z, out=z)
         uh = self.u_hat
