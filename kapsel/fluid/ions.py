@@ -215,7 +215,7 @@ class Ions:
         self._gradient(self.psi_hat, self.grad_psi, truncated=truncate)
         return self.psi_hat
 
-    def _gradient(self, f_hat, out, truncated=True):
+    def _gradient(self, f_hat, out, *, truncated):
         """out = grad f (3, NX, NY, NZ) of f_hat, each component i k_d f_hat / N made in a
         scalar scratch and transformed (the bits of the vector transform); ``truncated``:
         f_hat is 0 outside the 2/3 mask (kapsel.mesh.grid's truncated transforms)."""
@@ -256,7 +256,7 @@ class Ions:
                 else:
                     ch *= self._mask
                     g.irfft_scalar(ch, out=c)
-            self._gradient(ch, J)                    # grad c (c_hat is truncated)
+            self._gradient(ch, J, truncated=True)    # grad c (c_hat is truncated)
             a, b = self.L[s] * self.kBT, self.L[s] * self.z[s]
             if K is not None and (u is None or u.flags.c_contiguous):
                 # migration, impermeable surfaces and advection in one pass

@@ -216,7 +216,8 @@ class ObliqueSpectralNS(_ObliqueFrame, SpectralNS):
     def project_metric(self, vh, g, rate=0.0, masked=False):
         """P^G (v - 2 rate u^2 e_1) = v' - G k^ (k^.v') / (k^ G k^), in place
         (contravariant components; the rate term only if rate != 0).  ``masked``: of
-        v times the 2/3 mask, for a truncated u_hat (the step's)."""
+        (v - 2 rate u^2 e_1) times the 2/3 mask, 0 off it whatever u_hat holds there (the
+        compiled pass does not read v or u_hat there)."""
         if self._gK != g:
             self._metric(g)
         K = _compiled.spectral
@@ -224,10 +225,10 @@ class ObliqueSpectralNS(_ObliqueFrame, SpectralNS):
             K.project_oblique(vh, self.u_hat, 2.0 * rate, g, *self._k1, self._invK2,
                               *self.grid.dealias_box, masked)
             return vh
-        if masked:
-            vh *= self.grid.dealias_f
         if rate != 0.0:
             vh[0] -= (2.0 * rate) * self.u_hat[1]
+        if masked:
+            vh *= self.grid.dealias_f
         k = self.grid
         s, t = self._s, self._t
         k.k_dot(vh, s, t)

@@ -77,12 +77,13 @@ def projection_kernels(K, grid):
             d[...] = 1.0
             u[...] = 0.0
             w = np.ones(shape)
+            mask = np.ascontiguousarray(grid.dealias_f)   # the modes the passes skip too
             k = [np.ones(n) for n in shape]
             times = [[], []]
             for _ in range(3):
                 for i, form in enumerate(forms):
                     t0 = time.perf_counter()
-                    form[2](d, u, w, *k, w)
+                    form[2](d, u, mask, *k, w)
                     times[i].append(time.perf_counter() - t0)
             best = int(min(times[1]) < min(times[0]))
         _PROJECTIONS[shape] = forms[best]
@@ -277,9 +278,11 @@ class SpectralNS:
         self.state.put("nl_old", None)
 
     def velocity(self, out=None, truncated=False):
-        """u in real space: into ``out`` (returned) or a new array.  ``truncated``: the
-        caller knows u_hat is 0 off the 2/3 mask (the Electrolyte's after its Euler step):
-        the transforms skip the lines of zeros (kapsel.mesh.grid), the same numbers."""
+        """u in real space: into ``out`` (returned) or a new array.  ``truncated``: T u, the
+        2/3-truncated u (the same u where u_hat is 0 off the mask, as the Electrolyte's
+        after its Euler step), its transforms skipping the lines of zeros.  Without it a
+        component that is 0 off the mask is transformed so too (kapsel.mesh.grid: the same
+        bits with FFTW_ESTIMATE plans, the same to round-off with measured ones)."""
         if out is None:
             out = self.grid.empty_real()
         if truncated:
@@ -337,8 +340,9 @@ class SpectralNS:
 
     # ------------------------------------------------------------------ step
     def _nonlinear(self, u_ready=False):
-        """P[u x omega] (unmasked in the compiled pass, whose ETD weights carry the 2/3
-        truncation; truncated and projected in the numpy pass) in _nl.  Each component of the
+        """P[u x omega] in _nl: in the compiled pass exact on the 2/3 mask only (off it the
+        r2c's partial sums, which the ETD passes do not read: their weights carry the
+        truncation; the projection is theirs), truncated and projected in the numpy pass.  Each component of the
         truncated u_hat / N and of its curl is made in a complex scalar and transformed to
         real space in turn (the scalar plans of a vector transform: the same bits).
         ``u_ready``: T u is in the scratch already (``truncated_velocity``)."""

@@ -222,8 +222,9 @@ def _less(a, sr, si, kc):
 
 @njit(cache=True, nogil=True)
 def project_etd1(nl, u_hat, E, a1, kx, ky, kz, inv_k2, store):
-    """u_hat <- E u_hat + a1 P nl  (slaved Euler, eq 8); nl <- P nl if ``store`` (ETD2's
-    first step keeps it), else nl is left as it was.  Where a1 is 0 (off the 2/3 mask):
+    """u_hat <- E u_hat + a1 P nl  (slaved Euler, eq 8); nl <- P nl on the mask if ``store``
+    (ETD2's first step keeps it; off the mask nl is left as it was, which ETD2's b2 = 0
+    there never reads), else nl is left as it was.  Where a1 is 0 (off the 2/3 mask):
     u_hat <- E u_hat, nl not read (``_decay_only``)."""
     nx, ny, nzc = E.shape
     for i in range(nx):
@@ -608,9 +609,9 @@ def project_oblique(v, u_hat, r2, g, kx, ky, kz, inv_K2, mx, my, kz_end, masked)
     """v <- P^G (v - r2 u^2 e_1) in place (the term only if r2 != 0; ObliqueSpectralNS's
     nonlinear term, ``project_metric``): P^G v = v - G k (k.v) / |K|^2, the contravariant
     (G k)^1 = (1 + g^2) k_1 - g k_2, (G k)^2 = k_2 - g k_1, (G k)^3 = k_3.  ``masked``: of
-    v times the 2/3 mask (the box of ``truncated_component``), for a u_hat that is 0 off
-    it (the step's, truncated first): +0 there, v and u_hat not read (v may hold the
-    partial sums of a truncated transform), 1 v = v on it."""
+    (v - r2 u^2 e_1) times the 2/3 mask (the box of ``truncated_component``): +0 off it,
+    where neither v (which may hold the partial sums of a truncated transform) nor u_hat
+    is read; on it the mask's 1 leaves the values as they are."""
     nx, ny, nzc = inv_K2.shape
     gg = 1.0 + g * g
     for i in range(nx):

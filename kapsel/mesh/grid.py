@@ -576,8 +576,9 @@ class Grid:
 
     def backward_scalar_truncated(self, c, out):
         """``backward_scalar_raw`` of a scalar ``c`` that is 0 outside the 2/3 mask (the
-        caller's promise; the result is wrong otherwise): the same numbers, with the
-        transforms of the lines of zeros skipped (see above).  Destroys ``c``."""
+        caller's promise; the result is wrong otherwise): the same numbers (the same bits
+        with FFTW_ESTIMATE plans, to round-off with measured ones), with the transforms of
+        the lines of zeros skipped (see above).  Destroys ``c``."""
         if pyfftw is None:  # pragma: no cover
             return self.backward_scalar_raw(c, out)
         (xs, y), _, z, _ = self._pruned

@@ -425,7 +425,9 @@ class PencilGrid(Grid):
         return out
 
     # the truncated transforms: a rank's pipeline makes the whole ones (the same numbers on
-    # the mask; a serial run's skipped lines are 0 there)
+    # the mask; a serial run's skipped lines are 0 there).  Each rank chooses between the
+    # whole and the truncated form from its own block (SpectralNS.velocity and the oblique
+    # one): both must stay the same collective, as they are here.
     def backward_scalar_truncated(self, c, out):
         return self.backward_scalar_raw(c, out)
 
