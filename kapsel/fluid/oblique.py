@@ -258,14 +258,8 @@ class ObliqueSpectralNS(_ObliqueFrame, SpectralNS):
             out = self.grid.empty_real()
         gr, s, t, inv = self.grid, self._s, self._t, 1.0 / self.grid.size
         K = _compiled.spectral
-        if K is not None:     # each component transformed as a truncated field when it is one
-            for c in range(3):
-                if K.oblique_component(self.u_hat, *gr.dealias_box, inv, self.frame_strain,
-                                       c, False, s):
-                    gr.backward_scalar_truncated(s, out[c])
-                else:
-                    gr.backward_scalar_raw(s, out[c])
-            return out
+        if K is not None:
+            return self._transform_components(K, out, self.frame_strain)
         np.multiply(self.u_hat[0], inv, out=s)
         np.multiply(self.u_hat[1], inv, out=t)
         s += np.multiply(t, self.frame_strain, out=self._c3)   # u_1 = u^1 + g u^2
@@ -308,10 +302,10 @@ class ObliqueSpectralNS(_ObliqueFrame, SpectralNS):
             if K is not None:
                 box, inv = gr.dealias_box, self._inv_n
                 for c in range(3):
-                    K.oblique_component(self.u_hat, *box, inv, g, c, True, a)
+                    K.frame_component(self.u_hat, *box, inv, g, c, True, a)
                     gr.backward_scalar_truncated(a, u[c])
                 for c in range(3):
-                    K.oblique_vorticity_component(self.u_hat, *box, inv, g, *self._k1, c, a)
+                    K.frame_vorticity_component(self.u_hat, *box, inv, g, *self._k1, c, a)
                     gr.backward_scalar_truncated(a, w[c])
                 K.cross_contravariant(u, w, n, g)
             else:

@@ -290,15 +290,25 @@ class SpectralNS:
             return out
         s, g = self._s, self.grid
         K = _compiled.spectral
+        if K is not None:
+            return self._transform_components(K, out, 0.0)
         for c in range(3):
-            if K is not None:   # truncated or not, told by the pass that scales it
-                if K.scaled_component(self.u_hat, *g.dealias_box, self._inv_n, c, s):
-                    g.backward_scalar_truncated(s, out[c])
-                else:
-                    g.backward_scalar_raw(s, out[c])
-                continue
             np.multiply(self.u_hat[c], 1.0 / g.size, out=s)
             g.backward_scalar_raw(s, out[c])
+        return out
+
+    def _transform_components(self, K, out, strain):
+        """out[c] <- the c2r of component c of u_hat / N in the frame of ``strain`` g (u_1 =
+        u^1 + g u^2: the Lees-Edwards frame's Cartesian components; 0 here), each made by a
+        compiled pass that also tells whether it is 0 off the 2/3 mask, and then transformed
+        with the lines of zeros skipped (a state with modes off the mask, e.g. under a body
+        force or after add_solenoidal, is transformed whole)."""
+        g, s = self.grid, self._s
+        for c in range(3):
+            if K.frame_component(self.u_hat, *g.dealias_box, self._inv_n, strain, c, False, s):
+                g.backward_scalar_truncated(s, out[c])
+            else:
+                g.backward_scalar_raw(s, out[c])
         return out
 
     def scratch_real(self):

@@ -27,7 +27,7 @@ from numba import njit
 __all__ = ["truncated_component", "scaled_component", "vorticity_component", "cross", "cross_into", "project_etd1",
            "project_etd2", "project_add", "project_euler", "project_etd1_rows",
            "project_etd2_rows", "project_add_rows", "project_euler_rows", "project_set_scaled",
-           "project_set_scaled_rows", "oblique_component", "oblique_vorticity_component",
+           "project_set_scaled_rows", "frame_component", "frame_vorticity_component",
            "project_oblique", "etd1_update", "truncate", "cross_contravariant"]
 
 #: the types each kernel is called with (C-contiguous arrays): what kapsel.build_kernels
@@ -43,8 +43,8 @@ SIGNATURES = {
     "project_add": "void(complex128[:,:,:,::1], complex128[:,:,:,::1], float64[:,:,::1], float64[::1], float64[::1], float64[::1], float64[:,:,::1])",
     "project_euler": "void(complex128[:,:,:,::1], complex128[:,:,:,::1], float64[:,:,::1], float64, float64, float64[:,:,::1], float64[::1], float64[::1], float64[::1], float64[:,:,::1], boolean)",
     "project_set_scaled": "void(complex128[:,:,:,::1], complex128[:,:,:,::1], float64[:,:,::1], float64[::1], float64[::1], float64[::1], float64[:,:,::1], float64)",
-    "oblique_component": "boolean(complex128[:,:,:,::1], float64[::1], float64[::1], int64, float64, float64, int64, boolean, complex128[:,:,::1])",
-    "oblique_vorticity_component": "void(complex128[:,:,:,::1], float64[::1], float64[::1], int64, float64, float64, float64[::1], float64[::1], float64[::1], int64, complex128[:,:,::1])",
+    "frame_component": "boolean(complex128[:,:,:,::1], float64[::1], float64[::1], int64, float64, float64, int64, boolean, complex128[:,:,::1])",
+    "frame_vorticity_component": "void(complex128[:,:,:,::1], float64[::1], float64[::1], int64, float64, float64, float64[::1], float64[::1], float64[::1], int64, complex128[:,:,::1])",
     "project_oblique": "void(complex128[:,:,:,::1], complex128[:,:,:,::1], float64, float64, float64[::1], float64[::1], float64[::1], float64[:,:,::1], float64[::1], float64[::1], int64, boolean)",
     "truncate": "void(complex128[:,:,:,::1], float64[::1], float64[::1], int64)",
     "cross_contravariant": "void(float64[:,:,:,::1], float64[:,:,:,::1], float64[:,:,:,::1], float64)",
@@ -102,27 +102,8 @@ def scaled_component(u_hat, mx, my, kz_end, scale, c, out):
 @njit(cache=True, nogil=True)
 def vorticity_component(u_hat, mx, my, kz_end, inv_n, kx, ky, kz, c, out):
     """out = (i k x (u_hat mask inv_n))[c]: component c of the truncated velocity's vorticity
-    (a complex times i k as two real products: numpy's complex product with a zero real
-    part of i k, up to the sign of zero results; +0 off the mask, the box of
-    ``truncated_component``)."""
-    nx, ny, nzc = out.shape
-    p, q = (c + 1) % 3, (c + 2) % 3          # w_c = i k_p u_q - i k_q u_p
-    for i in range(nx):
-        for j in range(ny):
-            if mx[i] == 0.0 or my[j] == 0.0:
-                for k in range(nzc):
-                    out[i, j, k] = complex(0.0, 0.0)
-                continue
-            for k in range(kz_end):
-                kp = kx[i] if p == 0 else (ky[j] if p == 1 else kz[k])
-                kq = kx[i] if q == 0 else (ky[j] if q == 1 else kz[k])
-                a = u_hat[q, i, j, k]
-                b = u_hat[p, i, j, k]
-                ar, ai = a.real * inv_n, a.imag * inv_n
-                br, bi = b.real * inv_n, b.imag * inv_n
-                out[i, j, k] = complex((-(kp * ai)) - (-(kq * bi)), (kp * ar) - (kq * br))
-            for k in range(kz_end, nzc):
-                out[i, j, k] = complex(0.0, 0.0)
+    (``frame_vorticity_component`` of the unsheared frame)."""
+    frame_vorticity_component(u_hat, mx, my, kz_end, inv_n, 0.0, kx, ky, kz, c, out)
 
 
 @njit(inline="always")
@@ -158,14 +139,21 @@ def cross(u, w, n):
 @njit(inline="always")
 def _project_point(a, b, c, ki, kj, kk, inv):
     """P v = v - k (k.v)/k^2 at one mode, as kapsel.mesh.grid.Grid.project computes it."""
+    return _project_metric_point(a, b, c, ki, kj, kk, inv, ki, kj)
+
+
+@njit(inline="always")
+def _project_metric_point(a, b, c, ki, kj, kk, inv, g1, g2):
+    """v - (g1, g2, k_3) (k.v) inv at one mode: the Cartesian projection with (g1, g2) =
+    (k_1, k_2), the oblique frame's metric one with (G k)^1, (G k)^2 (``project_oblique``)."""
     sr = a.real * ki + b.real * kj
     si = a.imag * ki + b.imag * kj
     sr = sr + c.real * kk
     si = si + c.imag * kk
     sr = sr * inv
     si = si * inv
-    a = complex(a.real - sr * ki, a.imag - si * ki)
-    b = complex(b.real - sr * kj, b.imag - si * kj)
+    a = complex(a.real - sr * g1, a.imag - si * g1)
+    b = complex(b.real - sr * g2, b.imag - si * g2)
     c = complex(c.real - sr * kk, c.imag - si * kk)
     return a, b, c
 
@@ -544,45 +532,54 @@ def project_euler_rows(nl, u_hat, k2, nu, dt, mask, kx, ky, kz, inv_k2, project)
 # The Lees-Edwards step (kapsel.fluid.oblique.ObliqueSpectralNS): u_hat holds contravariant
 # components u^i; its Cartesian u_1 = u^1 + g u^2 (g the frame strain), the physical
 # wavevector K = (k_1, k_2 - g k_1, k_3).  The same operations, in the same order, as that
-# class's numpy passes (values equal; the sign of a zero result may differ).
+# class's numpy passes (values equal; the sign of a zero result may differ).  g = 0 is the
+# unsheared frame of SpectralNS (``frame_component`` takes the Cartesian kernels there;
+# ``vorticity_component`` is ``frame_vorticity_component`` with u_1 = u^1 read alone, K = k
+# to the value).
 
 @njit(inline="always")
-def _oblique_point(u_hat, i, j, k, s, g, c):
+def _frame_point(u_hat, i, j, k, s, g, c):
     """Component c of the Cartesian u_hat s at one mode (u_1 = u^1 s + (u^2 s) g)."""
     a = u_hat[c, i, j, k]
-    if c != 0:
+    if c != 0 or g == 0.0:
         return complex(a.real * s, a.imag * s)
     b = u_hat[1, i, j, k]
     return complex(a.real * s + (b.real * s) * g, a.imag * s + (b.imag * s) * g)
 
 
 @njit(cache=True, nogil=True)
-def oblique_component(u_hat, mx, my, kz_end, scale, g, c, truncate, out):
+def frame_component(u_hat, mx, my, kz_end, scale, g, c, truncate, out):
     """out = component c of the Cartesian u_hat scale (u_1 = u^1 + g u^2).  ``truncate``:
     times the 2/3 mask (the box of ``truncated_component``, +0 off it, u_hat not read
     there), returns True; else every mode is scaled and the result tells whether out is 0
-    off the mask (a truncated field, ``scaled_component``)."""
+    off the mask (``scaled_component``).  u^2, u^3 and g = 0 are those two kernels' (their
+    loops vectorise); u_1 of a sheared frame is made here, the same way."""
+    if c != 0 or g == 0.0:
+        if truncate:
+            truncated_component(u_hat, mx, my, kz_end, scale, c, out)
+            return True
+        return scaled_component(u_hat, mx, my, kz_end, scale, c, out)
     nx, ny, nzc = out.shape
     nonzero = 0.0
     for i in range(nx):
         for j in range(ny):
             k0 = 0 if (mx[i] == 0.0 or my[j] == 0.0) else kz_end
             for k in range(k0):
-                out[i, j, k] = _oblique_point(u_hat, i, j, k, scale, g, c)
+                out[i, j, k] = _frame_point(u_hat, i, j, k, scale, g, c)
             if truncate:
                 for k in range(k0, nzc):
                     out[i, j, k] = complex(0.0, 0.0)
                 continue
             for k in range(k0, nzc):
-                z = _oblique_point(u_hat, i, j, k, scale, g, c)
+                z = _frame_point(u_hat, i, j, k, scale, g, c)
                 nonzero += abs(z.real) + abs(z.imag)
                 out[i, j, k] = z
     return nonzero == 0.0
 
 
 @njit(cache=True, nogil=True)
-def oblique_vorticity_component(u_hat, mx, my, kz_end, scale, g, kx, ky, kz, c, out):
-    """out = (i K x u)[c] of the truncated Cartesian u_hat scale (``oblique_component``),
+def frame_vorticity_component(u_hat, mx, my, kz_end, scale, g, kx, ky, kz, c, out):
+    """out = (i K x u)[c] of the truncated Cartesian u_hat scale (``frame_component``),
     K = (k_1, k_2 - g k_1, k_3); +0 off the mask (its box), u_hat not read there."""
     nx, ny, nzc = out.shape
     p, q = (c + 1) % 3, (c + 2) % 3          # w_c = i K_p u_q - i K_q u_p
@@ -596,8 +593,8 @@ def oblique_vorticity_component(u_hat, mx, my, kz_end, scale, g, kx, ky, kz, c, 
             for k in range(kz_end):
                 kp = kx[i] if p == 0 else (ky_ if p == 1 else kz[k])
                 kq = kx[i] if q == 0 else (ky_ if q == 1 else kz[k])
-                a = _oblique_point(u_hat, i, j, k, scale, g, q)
-                b = _oblique_point(u_hat, i, j, k, scale, g, p)
+                a = _frame_point(u_hat, i, j, k, scale, g, q)
+                b = _frame_point(u_hat, i, j, k, scale, g, p)
                 out[i, j, k] = complex((-(kp * a.imag)) - (-(kq * b.imag)),
                                        (kp * a.real) - (kq * b.real))
             for k in range(kz_end, nzc):
@@ -632,16 +629,10 @@ def project_oblique(v, u_hat, r2, g, kx, ky, kz, inv_K2, mx, my, kz_end, masked)
                 if r2 != 0.0:
                     u = u_hat[1, i, j, k]
                     a = complex(a.real - r2 * u.real, a.imag - r2 * u.imag)
-                sr = a.real * ki + b.real * kj
-                si = a.imag * ki + b.imag * kj
-                sr = sr + c.real * kk
-                si = si + c.imag * kk
-                inv = inv_K2[i, j, k]
-                sr = sr * inv
-                si = si * inv
-                v[0, i, j, k] = complex(a.real - sr * c0, a.imag - si * c0)
-                v[1, i, j, k] = complex(b.real - sr * c1, b.imag - si * c1)
-                v[2, i, j, k] = complex(c.real - sr * kk, c.imag - si * kk)
+                a, b, c = _project_metric_point(a, b, c, ki, kj, kk, inv_K2[i, j, k], c0, c1)
+                v[0, i, j, k] = a
+                v[1, i, j, k] = b
+                v[2, i, j, k] = c
 
 
 @njit(cache=True, nogil=True)
@@ -666,12 +657,8 @@ def cross_contravariant(u, w, n, g):
     for i in range(nx):
         for j in range(ny):
             for k in range(nz):
-                u0, u1, u2 = u[0, i, j, k], u[1, i, j, k], u[2, i, j, k]
-                w0, w1, w2 = w[0, i, j, k], w[1, i, j, k], w[2, i, j, k]
-                n1 = u2 * w0 - u0 * w2
-                n[0, i, j, k] = (u1 * w2 - u2 * w1) - g * n1
-                n[1, i, j, k] = n1
-                n[2, i, j, k] = u0 * w1 - u1 * w0
+                _cross_point(u, w, n, i, j, k)
+                n[0, i, j, k] -= g * n[1, i, j, k]
 
 
 @njit(cache=True, nogil=True)
