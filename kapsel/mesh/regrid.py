@@ -84,10 +84,9 @@ def _shift_compiled(f, shift, method, rows):
             kernels.shift_linear(np.ascontiguousarray(f[c]), idx, b, frac, out[c])
         return out
     w0, w1, w2, w3 = _spline_weights(frac)
-    coef = np.empty(f.shape[1:])
+    slab = np.empty((nx, f.shape[3]))
     for c in range(f.shape[0]):
-        kernels.spline_coefficients(np.ascontiguousarray(f[c]), coef)
-        kernels.shift_spline(coef, idx, b, w0, w1, w2, w3, out[c])
+        kernels.shift_spline(np.ascontiguousarray(f[c]), idx, b, w0, w1, w2, w3, out[c], slab)
     return out
 
 

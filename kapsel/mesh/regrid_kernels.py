@@ -15,9 +15,8 @@ __all__ = ["shift_linear", "shift_spline", "spline_coefficients"]
 #: the types each kernel is called with (C-contiguous arrays): what kapsel.build_kernels
 #: compiles ahead of time (kapsel.mesh.compiled loads that build when it is current)
 SIGNATURES = {
-    "spline_coefficients": "void(float64[:,:,::1], float64[:,:,::1])",
     "shift_linear": "void(float64[:,:,::1], int64[::1], int64[::1], float64[::1], float64[:,:,::1])",
-    "shift_spline": "void(float64[:,:,::1], int64[::1], int64[::1], float64[::1], float64[::1], float64[::1], float64[::1], float64[:,:,::1])",
+    "shift_spline": "void(float64[:,:,::1], int64[::1], int64[::1], float64[::1], float64[::1], float64[::1], float64[::1], float64[:,:,::1], float64[:,::1])",
 }
 
 #: the pole of the cubic B-spline's prefilter, sqrt(3) - 2 (as scipy.ndimage rounds it)
@@ -25,45 +24,39 @@ POLE = -0.267949192431122706472553658494127633
 
 
 @njit(cache=True, nogil=True)
-def spline_coefficients(f, c):
-    """c = the periodic cubic B-spline coefficients of ``f`` (NX, NY, NZ) along x: the gain,
-    then the causal and anticausal recursions with the periodic initial values (Unser,
-    Aldroubi and Eden 1991), the operations of scipy.ndimage.spline_filter1d(order=3,
-    mode='grid-wrap') in its order, on all the x lines at once (the same bits)."""
-    nx, ny, nz = f.shape
+def spline_coefficients(f, j, c):
+    """c (NX, NZ) = the periodic cubic B-spline coefficients along x of the slab j of ``f``
+    (NX, NY, NZ): the gain, then the causal and anticausal recursions with the periodic
+    initial values (Unser, Aldroubi and Eden 1991), the operations of
+    scipy.ndimage.spline_filter1d(order=3, mode='grid-wrap') in its order (the same bits).
+    One slab at a time: it stays in the cache through the recursions and the shift."""
+    nx, nz = c.shape
     z = POLE
     gain = (1.0 - z) * (1.0 - 1.0 / z)
     for i in range(nx):
-        for j in range(ny):
-            for k in range(nz):
-                c[i, j, k] = f[i, j, k] * gain
+        for k in range(nz):
+            c[i, k] = f[i, j, k] * gain
     zi = z
     for i in range(1, nx):                       # c_0 of the causal pass (periodic)
-        for j in range(ny):
-            for k in range(nz):
-                c[0, j, k] += zi * c[nx - i, j, k]
-        zi *= z
-    for j in range(ny):
         for k in range(nz):
-            c[0, j, k] /= 1 - zi
+            c[0, k] += zi * c[nx - i, k]
+        zi *= z
+    for k in range(nz):
+        c[0, k] /= 1 - zi
     for i in range(1, nx):
-        for j in range(ny):
-            for k in range(nz):
-                c[i, j, k] += z * c[i - 1, j, k]
+        for k in range(nz):
+            c[i, k] += z * c[i - 1, k]
     zi = z
     for i in range(nx - 1):                      # c_{n-1} of the anticausal pass
-        for j in range(ny):
-            for k in range(nz):
-                c[nx - 1, j, k] += zi * c[i, j, k]
+        for k in range(nz):
+            c[nx - 1, k] += zi * c[i, k]
         zi *= z
     q = z / (zi - 1)
-    for j in range(ny):
-        for k in range(nz):
-            c[nx - 1, j, k] *= q
+    for k in range(nz):
+        c[nx - 1, k] *= q
     for i in range(nx - 2, -1, -1):
-        for j in range(ny):
-            for k in range(nz):
-                c[i, j, k] = z * (c[i + 1, j, k] - c[i, j, k])
+        for k in range(nz):
+            c[i, k] = z * (c[i + 1, k] - c[i, k])
 
 
 @njit(cache=True, nogil=True)
@@ -83,20 +76,22 @@ def shift_linear(f, rows, base, w, out):
 
 
 @njit(cache=True, nogil=True)
-def shift_spline(c, rows, base, w0, w1, w2, w3, out):
-    """out[r, j, k] = sum_m w_m,j c[(p + m - 1) % nx, j, k], p = rows[r] - b_j - 1, summed
-    in the order m = 0..3: regrid.shift_rows, method 'spline', of the B-spline coefficients
-    ``c`` (NX, NY, NZ)."""
-    nx, ny, nz = c.shape
-    for r in range(rows.size):
-        i = rows[r]
-        for j in range(ny):
-            p = i - base[j] - 1
+def shift_spline(f, rows, base, w0, w1, w2, w3, out, c):
+    """out[r, j, k] = sum_m w_m,j c_j[(p + m - 1) % nx, k], p = rows[r] - b_j - 1, summed in
+    the order m = 0..3, c_j the B-spline coefficients of the slab j of ``f`` (NX, NY, NZ)
+    (``spline_coefficients`` into the scratch ``c``, (NX, NZ)): regrid.shift_rows, method
+    'spline', slab by slab (a whole-field prefilter then a shift read and wrote the field
+    five times more)."""
+    nx, ny, nz = f.shape
+    for j in range(ny):
+        spline_coefficients(f, j, c)
+        u0, u1, u2, u3 = w0[j], w1[j], w2[j], w3[j]
+        for r in range(rows.size):
+            p = rows[r] - base[j] - 1
             a0, a1, a2, a3 = (p - 1) % nx, p % nx, (p + 1) % nx, (p + 2) % nx
-            u0, u1, u2, u3 = w0[j], w1[j], w2[j], w3[j]
             for k in range(nz):
-                o = u0 * c[a0, j, k]
-                o += u1 * c[a1, j, k]
-                o += u2 * c[a2, j, k]
-                o += u3 * c[a3, j, k]
+                o = u0 * c[a0, k]
+                o += u1 * c[a1, k]
+                o += u2 * c[a2, k]
+                o += u3 * c[a3, k]
                 out[r, j, k] = o
