@@ -10,7 +10,9 @@ a vector field is three), and the plans themselves.  Then, in the same process, 
 timed (CPU ms per step over N steps) and so are the counted executions alone, with the same plan
 objects on the arrays they last ran on (their execute() called as many times per step as the
 step calls them): the floor.  The table gives step ms, floor ms and their ratio (issue 25: the
-spectral step within 1.5x of its floor).  CPU time: the machine may be shared; the load average
+spectral step within 1.5x of its floor), and the same for the fluid's part of the step
+(``FLUID_PART``: the solver's step, u* after it, the particles' increment transformed,
+projected and added) with the transforms made within it; the rest is the particles' coupling.  CPU time: the machine may be shared; the load average
 is printed with the table.
 
     .venv/bin/python bench/fft_floor.py --pruned [--np NP ...]
@@ -43,12 +45,19 @@ SPECTRAL = ("ns32", "ns64", "ns64x100", "le64", "squirmer64", "el64")
 
 
 class _Counts:
-    """Executions per plan (the plan object, its kind) while ``on``."""
+    """Executions per (plan, part of the step) while ``on``; ``part``: "fluid" inside the
+    fluid's part of the step (``_fluid_part``), else "particles"."""
 
     def __init__(self):
         self.on = False
+        self.part = "particles"
         self.calls = collections.Counter()
         self.plans = {}
+
+    def count(self, plan):
+        if self.on:
+            self.calls[(id(plan), self.part)] += 1
+            self.plans[id(plan)] = plan
 
 
 COUNTS = _Counts()
@@ -58,15 +67,11 @@ class CountingFFTW(pyfftw.FFTW):
     """pyfftw.FFTW that counts its executions (``execute`` and ``__call__``)."""
 
     def execute(self):
-        if COUNTS.on:
-            COUNTS.calls[id(self)] += 1
-            COUNTS.plans[id(self)] = self
+        COUNTS.count(self)
         return super().execute()
 
     def __call__(self, *args, **kwargs):
-        if COUNTS.on:
-            COUNTS.calls[id(self)] += 1
-            COUNTS.plans[id(self)] = self
+        COUNTS.count(self)
         return super().__call__(*args, **kwargs)
 
 
@@ -75,8 +80,63 @@ def _kind(plan) -> str:
     return "r2c" if real_in else "c2r" if plan.output_array.dtype.kind == "f" else "c2c"
 
 
+#: the particle model's methods that make the fluid's part of a step: the solver's step with
+#: u* after it, and the increment's transforms, projection and addition (every transform of
+#: a plain step); the rest is the particles' coupling (motion, profiles, sums, the rigidity
+#: increment, Lees-Edwards re-gridding; squirmers' slip flow and the Electrolyte's force on
+#: the particles make transforms of their own there)
+FLUID_PART = ("_fluid_step", "_add_solenoidal")
+
+
+class _FluidPart:
+    """Within the ``with``: the fluid's part of each step of ``model`` timed (``spent``, CPU
+    seconds) and its transforms counted as "fluid"."""
+
+    def __init__(self, model):
+        self.spm = getattr(model, "spm", None)
+        self.spent = 0.0
+
+    def _wrap(self, fn):
+        def call(*args, **kwargs):
+            t = time.process_time()
+            COUNTS.part = "fluid"
+            try:
+                return fn(*args, **kwargs)
+            finally:
+                COUNTS.part = "particles"
+                self.spent += time.process_time() - t
+        return call
+
+    def __enter__(self):
+        if self.spm is not None:
+            for name in FLUID_PART:
+                setattr(self.spm, name, self._wrap(getattr(self.spm, name)))
+        return self
+
+    def __exit__(self, *exc):
+        if self.spm is not None:
+            for name in FLUID_PART:
+                delattr(self.spm, name)
+
+
+def _floor(per_step, steps):
+    """CPU ms per step of the plans of ``per_step`` ({plan id: executions per step}) run
+    alone, as many times per step, on the arrays they last had (a c2r plan destroys its
+    input: the values do not matter for the time, only the sizes)."""
+    schedule = [(COUNTS.plans[k], round(n)) for k, n in per_step.items()]
+    for plan, n in schedule:                          # warm the caches of each plan once
+        pyfftw.FFTW.execute(plan)
+    t0 = time.process_time()
+    for _ in range(steps):
+        for plan, n in schedule:
+            for _ in range(n):
+                pyfftw.FFTW.execute(plan)
+    return (time.process_time() - t0) / steps * 1e3
+
+
 def measure(scene, steps, np_override=None, threads=1):
-    """(step ms, floor ms, {kind: transforms per step}, mesh) of one scene."""
+    """dict of one scene: step and floor ms, the fluid's part and its floor ms (None
+    without particles), transforms per step by kind (all, the fluid's part), mesh."""
     from profile_step import build
     from kapsel.mesh import compiled
     compiled.enable()
@@ -86,29 +146,30 @@ def measure(scene, steps, np_override=None, threads=1):
     COUNTS.calls.clear()
     COUNTS.plans.clear()
     COUNTS.on = True
-    for _ in range(steps):
-        model.advance()
+    with _FluidPart(model):
+        for _ in range(steps):
+            model.advance()
     COUNTS.on = False
-    per_step = {k: n / steps for k, n in COUNTS.calls.items()}
-    kinds = collections.Counter()
-    for k, n in per_step.items():
-        kinds[_kind(COUNTS.plans[k])] += n
+    whole, fluid = collections.Counter(), collections.Counter()
+    kinds, fluid_kinds = collections.Counter(), collections.Counter()
+    for (k, part), n in COUNTS.calls.items():
+        whole[k] += n / steps
+        kinds[_kind(COUNTS.plans[k])] += n / steps
+        if part == "fluid":
+            fluid[k] += n / steps
+            fluid_kinds[_kind(COUNTS.plans[k])] += n / steps
     t0 = time.process_time()
     for _ in range(steps):
         model.advance()
     step_ms = (time.process_time() - t0) / steps * 1e3
-    # the floor: the same plans, as many executions per step, on the arrays they last had
-    # (a c2r plan destroys its input: the values do not matter for the time, only the sizes)
-    schedule = [(COUNTS.plans[k], round(n)) for k, n in per_step.items()]
-    for plan, n in schedule:                          # warm the caches of each plan once
-        pyfftw.FFTW.execute(plan)
-    t0 = time.process_time()
-    for _ in range(steps):
-        for plan, n in schedule:
-            for _ in range(n):
-                pyfftw.FFTW.execute(plan)
-    floor_ms = (time.process_time() - t0) / steps * 1e3
-    return step_ms, floor_ms, dict(kinds), tuple(model.cfg.mesh.shape)
+    with _FluidPart(model) as part:
+        for _ in range(steps):
+            model.advance()
+    has_part = part.spm is not None
+    return dict(step=step_ms, floor=_floor(whole, steps), kinds=dict(kinds),
+                fluid=part.spent / steps * 1e3 if has_part else None,
+                fluid_floor=_floor(fluid, steps) if has_part else None,
+                fluid_kinds=dict(fluid_kinds), mesh=tuple(model.cfg.mesh.shape))
 
 
 def pruned(nps, threads=1):
@@ -166,22 +227,26 @@ def main(argv=None):
     load0 = os.getloadavg()[0]
     rows = []
     for scene in a.scene:
-        step, floor, kinds, mesh = measure(scene, a.steps, a.np, a.threads)
-        rows.append((scene, mesh, step, floor, kinds))
-        print(f"# {scene}: step {step:.2f} ms, floor {floor:.2f} ms, {kinds}",
-              file=sys.stderr, flush=True)
+        r = measure(scene, a.steps, a.np, a.threads)
+        rows.append((scene, r))
+        print(f"# {scene}: {r}", file=sys.stderr, flush=True)
     load1 = os.getloadavg()[0]
     print(f"{time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}, {a.steps} steps, "
           f"{a.threads} thread(s), load {load0:.1f} -> {load1:.1f}")
     print("| scene | mesh | transforms / step (r2c + c2r) | step ms | FFT floor ms | "
-          "step / floor |")
-    print("|---|---|---|---|---|---|")
-    for scene, mesh, step, floor, kinds in rows:
-        t = " + ".join(f"{kinds.get(k, 0):g}" for k in ("r2c", "c2r"))
-        extra = f" (+{kinds['c2c']:g} c2c)" if kinds.get("c2c") else ""
-        print(f"| {SCENES[scene][0]} | {'x'.join(map(str, mesh))} | {t}{extra} | "
-              f"{step:.2f} | {floor:.2f} | {step / floor:.2f} |")
+          "step / floor | fluid's part: transforms | ms | floor ms | ratio |")
+    print("|---|---|---|---|---|---|---|---|---|---|")
 
+    def transforms(kinds):
+        t = " + ".join(f"{kinds.get(k, 0):g}" for k in ("r2c", "c2r"))
+        return t + (f" (+{kinds['c2c']:g} c2c)" if kinds.get("c2c") else "")
+    for scene, r in rows:
+        fl = "- | - | - | -" if r["fluid"] is None else (
+            f"{transforms(r['fluid_kinds'])} | {r['fluid']:.2f} | {r['fluid_floor']:.2f} | "
+            f"{r['fluid'] / r['fluid_floor']:.2f}")
+        print(f"| {SCENES[scene][0]} | {'x'.join(map(str, r['mesh']))} | "
+              f"{transforms(r['kinds'])} | {r['step']:.2f} | {r['floor']:.2f} | "
+              f"{r['step'] / r['floor']:.2f} | {fl} |")
 
 if __name__ == "__main__":
     main()
