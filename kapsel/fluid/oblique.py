@@ -198,12 +198,14 @@ class ObliqueSpectralNS(_ObliqueFrame, SpectralNS):
         self._k22 = k.ky * k.ky + k.kz * k.kz      # k2^2 + k3^2
         self._m1 = np.rint(k.kx.ravel() * grid.box[0] / (2 * np.pi)).astype(np.int64)
         self._m2 = np.rint(k.ky.ravel() * grid.box[1] / (2 * np.pi)).astype(np.int64)
-        self._K2 = np.empty(grid.local_cshape)
-        self._invK2 = np.empty(grid.local_cshape)
-        self._gK = None
+        self._K2 = self._invK2 = None     # the numpy passes' metric (the compiled kernels
+        self._gK = None                   # make |K|^2 at each mode: no field of it)
 
     def _metric(self, g):
         """|K|^2 and 1/|K|^2 (0 at k = 0) of the frame strain g into _K2, _invK2."""
+        if self._K2 is None:
+            self._K2 = np.empty(self.grid.local_cshape)
+            self._invK2 = np.empty(self.grid.local_cshape)
         K2 = self._K2
         np.multiply(self._k11, 1.0 + g * g, out=K2)
         K2 -= (2.0 * g) * self._k12
@@ -213,18 +215,19 @@ class ObliqueSpectralNS(_ObliqueFrame, SpectralNS):
         self._gK = g
         return K2
 
-    def project_metric(self, vh, g, rate=0.0, masked=False):
+    def project_metric(self, vh, g, rate=0.0, masked=False, add=False):
         """P^G (v - 2 rate u^2 e_1) = v' - G k^ (k^.v') / (k^ G k^), in place
         (contravariant components; the rate term only if rate != 0).  ``masked``: of
         (v - 2 rate u^2 e_1) times the 2/3 mask, 0 off it whatever u_hat holds there (the
-        compiled pass does not read v or u_hat there)."""
-        if self._gK != g:
-            self._metric(g)
+        compiled pass does not read v or u_hat there).  ``add``: u_hat += the projection
+        (v is left as it was by the compiled pass, projected by the numpy passes)."""
         K = _compiled.spectral
         if K is not None:
-            K.project_oblique(vh, self.u_hat, 2.0 * rate, g, *self._k1, self._invK2,
-                              *self.grid.dealias_box, masked)
+            K.project_oblique(vh, self.u_hat, 2.0 * rate, g, *self._k1,
+                              *self.grid.dealias_box, masked, add)
             return vh
+        if self._gK != g:
+            self._metric(g)
         if rate != 0.0:
             vh[0] -= (2.0 * rate) * self.u_hat[1]
         if masked:
@@ -240,6 +243,8 @@ class ObliqueSpectralNS(_ObliqueFrame, SpectralNS):
         vh[1] -= t
         np.multiply(s, k.kz, out=t)
         vh[2] -= t
+        if add:
+            self.u_hat += vh
         return vh
 
     # ------------------------------------------------------------------ state
@@ -340,14 +345,18 @@ class ObliqueSpectralNS(_ObliqueFrame, SpectralNS):
         # the original's metric of the step's start (Update_K2_OBL after the last step's
         # strain increment; AC with its discrete strain, _ObliqueFrame.strain_at): the
         # viscous factor is first order in dt, as the original's
-        if self._gK != g0:                            # (the projection of nl made it)
-            self._metric(g0)
-        z = np.multiply(self._K2, -self.nu * dt)     # (a step's own: no field kept)
-        w1 = dt * phi1(z)
+        K = _compiled.spectral
+        if K is not None:                             # (a step's own: no field kept)
+            z = np.empty(self.grid.local_cshape)
+            K.viscous_exponent(*self._k1, g0, -self.nu * dt, z)
+        else:
+            if self._gK != g0:                        # (the projection of nl made it)
+                self._metric(g0)
+            z = np.multiply(self._K2, -self.nu * dt)
+        w1 = phi1(z, scale=dt)
         E = np.exp(z, out=z)
         uh = self.u_hat
         tmp = self._c3
-        K = _compiled.spectral
         if K is not None:
             K.etd1_update(uh, nl, E, w1)
         else:
@@ -452,8 +461,9 @@ class ObliqueSpectralNS(_ObliqueFrame, SpectralNS):
         d = self._nl          # free between steps
         self.grid.forward(contravariant(np.asarray(du, dtype=float), g, out=self._n), out=d)
         if project:
-            self.project_metric(d, g)
-        self.u_hat += d
+            self.project_metric(d, g, add=True)
+        else:
+            self.u_hat += d
 
     # ------------------------------------------------------------------ diagnostics
     def momentum(self):

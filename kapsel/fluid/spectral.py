@@ -119,12 +119,17 @@ def _real_view(c, grid, ncomp=None):
     return grid.empty_real(ncomp)
 
 
-def phi1(z):
-    """(e^z - 1)/z, 1 at z = 0."""
+def phi1(z, scale=None):
+    """(e^z - 1)/z, 1 at z = 0; times ``scale`` when given (one pass less than the
+    product after).  Whole-array passes, no gather of the z != 0: each value gets the
+    same expm1 and quotient as gathered."""
     z = np.asarray(z, dtype=float)
-    out = np.ones_like(z)
-    nz = z != 0
-    out[nz] = np.expm1(z[nz]) / z[nz]
+    out = np.expm1(z)
+    zero = z == 0
+    np.divide(out, z, out=out, where=~zero)
+    np.copyto(out, 1.0, where=zero)
+    if scale is not None:
+        out *= scale
     return out
 
 

@@ -28,7 +28,7 @@ __all__ = ["truncated_component", "scaled_component", "vorticity_component", "cr
            "project_etd2", "project_add", "project_euler", "project_etd1_rows",
            "project_etd2_rows", "project_add_rows", "project_euler_rows", "project_set_scaled",
            "project_set_scaled_rows", "frame_component", "frame_vorticity_component",
-           "project_oblique", "etd1_update", "truncate", "cross_contravariant"]
+           "project_oblique", "viscous_exponent", "etd1_update", "truncate", "cross_contravariant"]
 
 #: the types each kernel is called with (C-contiguous arrays): what kapsel.build_kernels
 #: compiles ahead of time (kapsel.mesh.compiled loads that build when it is current)
@@ -45,7 +45,8 @@ SIGNATURES = {
     "project_set_scaled": "void(complex128[:,:,:,::1], complex128[:,:,:,::1], float64[:,:,::1], float64[::1], float64[::1], float64[::1], float64[:,:,::1], float64)",
     "frame_component": "boolean(complex128[:,:,:,::1], float64[::1], float64[::1], int64, float64, float64, int64, boolean, complex128[:,:,::1])",
     "frame_vorticity_component": "void(complex128[:,:,:,::1], float64[::1], float64[::1], int64, float64, float64, float64[::1], float64[::1], float64[::1], int64, complex128[:,:,::1])",
-    "project_oblique": "void(complex128[:,:,:,::1], complex128[:,:,:,::1], float64, float64, float64[::1], float64[::1], float64[::1], float64[:,:,::1], float64[::1], float64[::1], int64, boolean)",
+    "project_oblique": "void(complex128[:,:,:,::1], complex128[:,:,:,::1], float64, float64, float64[::1], float64[::1], float64[::1], float64[::1], float64[::1], int64, boolean, boolean)",
+    "viscous_exponent": "void(float64[::1], float64[::1], float64[::1], float64, float64, float64[:,:,::1])",
     "truncate": "void(complex128[:,:,:,::1], float64[::1], float64[::1], int64)",
     "cross_contravariant": "void(float64[:,:,:,::1], float64[:,:,:,::1], float64[:,:,:,::1], float64)",
     "etd1_update": "void(complex128[:,:,:,::1], complex128[:,:,:,::1], float64[:,:,::1], float64[:,:,::1])",
@@ -601,16 +602,29 @@ def frame_vorticity_component(u_hat, mx, my, kz_end, scale, g, kx, ky, kz, c, ou
                 out[i, j, k] = complex(0.0, 0.0)
 
 
+@njit(inline="always")
+def _metric_k2(ki, kj, kk, gg, g2):
+    """|K|^2 = G^jk k^_j k^_k of the frame strain g at one mode (gg = 1 + g^2, g2 = 2 g), as
+    ObliqueSpectralNS._metric computes it: k1^2 gg - g2 k1 k2 + (k2^2 + k3^2)."""
+    t = (ki * ki) * gg
+    t = t - g2 * (ki * kj)
+    return t + (kj * kj + kk * kk)
+
+
 @njit(cache=True, nogil=True)
-def project_oblique(v, u_hat, r2, g, kx, ky, kz, inv_K2, mx, my, kz_end, masked):
+def project_oblique(v, u_hat, r2, g, kx, ky, kz, mx, my, kz_end, masked, add):
     """v <- P^G (v - r2 u^2 e_1) in place (the term only if r2 != 0; ObliqueSpectralNS's
     nonlinear term, ``project_metric``): P^G v = v - G k (k.v) / |K|^2, the contravariant
-    (G k)^1 = (1 + g^2) k_1 - g k_2, (G k)^2 = k_2 - g k_1, (G k)^3 = k_3.  ``masked``: of
-    (v - r2 u^2 e_1) times the 2/3 mask (the box of ``truncated_component``): +0 off it,
-    where neither v (which may hold the partial sums of a truncated transform) nor u_hat
-    is read; on it the mask's 1 leaves the values as they are."""
-    nx, ny, nzc = inv_K2.shape
+    (G k)^1 = (1 + g^2) k_1 - g k_2, (G k)^2 = k_2 - g k_1, (G k)^3 = k_3, 1 / |K|^2 made at
+    each mode (``_metric_k2``; 0 at K = 0).  ``masked``: of (v - r2 u^2 e_1) times the 2/3
+    mask (the box of ``truncated_component``): +0 off it, where neither v (which may hold
+    the partial sums of a truncated transform) nor u_hat is read; on it the mask's 1 leaves
+    the values as they are.  ``add``: u_hat += P^G v instead (add_solenoidal; v is left as
+    it was)."""
+    nx, ny, nzc = v.shape[1], v.shape[2], v.shape[3]
     gg = 1.0 + g * g
+    g2 = 2.0 * g
+    row = np.empty(nzc)                 # 1 / |K|^2 along a row (a loop of its own: SIMD)
     for i in range(nx):
         ki = kx[i]
         for j in range(ny):
@@ -624,15 +638,37 @@ def project_oblique(v, u_hat, r2, g, kx, ky, kz, inv_K2, mx, my, kz_end, masked)
                     for cc in range(3):
                         v[cc, i, j, k] = complex(0.0, 0.0)
             for k in range(k1):
+                K2 = _metric_k2(ki, kj, kz[k], gg, g2)
+                row[k] = 1.0 / K2 if K2 > 0.0 else 0.0
+            for k in range(k1):
                 kk = kz[k]
+                inv = row[k]
                 a, b, c = v[0, i, j, k], v[1, i, j, k], v[2, i, j, k]
                 if r2 != 0.0:
                     u = u_hat[1, i, j, k]
                     a = complex(a.real - r2 * u.real, a.imag - r2 * u.imag)
-                a, b, c = _project_metric_point(a, b, c, ki, kj, kk, inv_K2[i, j, k], c0, c1)
-                v[0, i, j, k] = a
-                v[1, i, j, k] = b
-                v[2, i, j, k] = c
+                a, b, c = _project_metric_point(a, b, c, ki, kj, kk, inv, c0, c1)
+                if add:
+                    u_hat[0, i, j, k] += a
+                    u_hat[1, i, j, k] += b
+                    u_hat[2, i, j, k] += c
+                else:
+                    v[0, i, j, k] = a
+                    v[1, i, j, k] = b
+                    v[2, i, j, k] = c
+
+
+@njit(cache=True, nogil=True)
+def viscous_exponent(kx, ky, kz, g, s, z):
+    """z <- |K|^2 s at each mode (``_metric_k2``; s = -nu dt: the exponent of the step's
+    viscous factor, ObliqueSpectralNS.step)."""
+    nx, ny, nzc = z.shape
+    gg = 1.0 + g * g
+    g2 = 2.0 * g
+    for i in range(nx):
+        for j in range(ny):
+            for k in range(nzc):
+                z[i, j, k] = _metric_k2(kx[i], ky[j], kz[k], gg, g2) * s
 
 
 @njit(cache=True, nogil=True)
