@@ -366,8 +366,7 @@ class ObliqueSpectralNS(_ObliqueFrame, SpectralNS):
                 uh[c] += tmp
         if force is not None:
             fh = nl                                   # free from here on
-            self.grid.forward(contravariant(np.asarray(force, dtype=float), g0, out=self._n),
-                              out=fh)
+            self.grid.forward(self._contravariant(force, g0), out=fh)
             self.project_metric(fh, g0)
             for c in range(3):
                 np.multiply(fh[c], w1, out=tmp)
@@ -454,12 +453,21 @@ class ObliqueSpectralNS(_ObliqueFrame, SpectralNS):
             return
         self.u_hat *= self.grid.dealias_f
 
+    def _contravariant(self, u, g):
+        """The contravariant components of a Cartesian field u into the scratch _n."""
+        K = _compiled.spectral
+        u = np.asarray(u, dtype=float)
+        if K is not None and u.shape == self._n.shape:
+            K.contravariant(u, g, self._n)
+            return self._n
+        return contravariant(u, g, out=self._n)
+
     def add_solenoidal(self, du, project=True):
         """u^ += P^G[FFT(contravariant(du))] for a Cartesian increment du on the oblique grid
         (not truncated, as the original's Solenoidal_uk_OBL)."""
         g = self.frame_strain
         d = self._nl          # free between steps
-        self.grid.forward(contravariant(np.asarray(du, dtype=float), g, out=self._n), out=d)
+        self.grid.forward(self._contravariant(du, g), out=d)
         if project:
             self.project_metric(d, g, add=True)
         else:

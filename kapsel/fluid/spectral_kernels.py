@@ -28,7 +28,7 @@ __all__ = ["truncated_component", "scaled_component", "vorticity_component", "cr
            "project_etd2", "project_add", "project_euler", "project_etd1_rows",
            "project_etd2_rows", "project_add_rows", "project_euler_rows", "project_set_scaled",
            "project_set_scaled_rows", "frame_component", "frame_vorticity_component",
-           "project_oblique", "viscous_exponent", "etd1_update", "truncate", "cross_contravariant"]
+           "project_oblique", "viscous_exponent", "etd1_update", "truncate", "cross_contravariant", "contravariant"]
 
 #: the types each kernel is called with (C-contiguous arrays): what kapsel.build_kernels
 #: compiles ahead of time (kapsel.mesh.compiled loads that build when it is current)
@@ -49,6 +49,7 @@ SIGNATURES = {
     "viscous_exponent": "void(float64[::1], float64[::1], float64[::1], float64, float64, float64[:,:,::1])",
     "truncate": "void(complex128[:,:,:,::1], float64[::1], float64[::1], int64)",
     "cross_contravariant": "void(float64[:,:,:,::1], float64[:,:,:,::1], float64[:,:,:,::1], float64)",
+    "contravariant": "void(float64[:,:,:,::1], float64, float64[:,:,:,::1])",
     "etd1_update": "void(complex128[:,:,:,::1], complex128[:,:,:,::1], float64[:,:,::1], float64[:,:,::1])",
 }
 SIGNATURES.update({n + "_rows": SIGNATURES[n] for n in
@@ -695,6 +696,21 @@ def cross_contravariant(u, w, n, g):
             for k in range(nz):
                 _cross_point(u, w, n, i, j, k)
                 n[0, i, j, k] -= g * n[1, i, j, k]
+
+
+@njit(cache=True, nogil=True)
+def contravariant(u, g, out):
+    """out <- the contravariant components of the Cartesian u (3, NX, NY, NZ) in the frame
+    of strain g: u^1 = u_x - g u_y, u^2 = u_y, u^3 = u_z (kapsel.mesh.oblique.contravariant's
+    copy and out[0] -= g u[1], in one pass)."""
+    nx, ny, nz = u.shape[1], u.shape[2], u.shape[3]
+    for i in range(nx):
+        for j in range(ny):
+            for k in range(nz):
+                b = u[1, i, j, k]
+                out[0, i, j, k] = u[0, i, j, k] - g * b
+                out[1, i, j, k] = b
+                out[2, i, j, k] = u[2, i, j, k]
 
 
 @njit(cache=True, nogil=True)
