@@ -1,19 +1,20 @@
 """The FFT floor of a time step: how many 3-D transforms a step does, and what they alone cost.
 
-    .venv/bin/python bench/fft_floor.py [SCENE ...] [--steps N] [--np NP] [--threads T]
+    .venv/bin/python bench/fft_floor.py [SCENE ...] [--steps N] [--repeat R] [--np NP] [--threads T]
 
 For each scene of bench_vs_original (default: the spectral ones) the model is built as the CLI
 builds it and advanced 3 steps (the compiled kernels on, as in a long run).  Every FFTW plan the
 run makes is counted at its ``execute`` (pyfftw.FFTW replaced by a subclass that counts, before
 the model is built), over N steps: the transforms per step by kind (r2c forward, c2r backward;
-a vector field is three), and the plans themselves.  Then, in the same process, the step is
-timed (CPU ms per step over N steps) and so are the counted executions alone, with the same plan
+a vector field is three), and the plans themselves.  Then, in the same process, R rounds: N
+steps timed (CPU ms per step), and after them the counted executions alone, with the same plan
 objects on the arrays they last ran on (their execute() called as many times per step as the
-step calls them): the floor.  The table gives step ms, floor ms and their ratio (issue 25: the
-spectral step within 1.5x of its floor), and the same for the fluid's part of the step
-(``FLUID_PART``: the solver's step, u* after it, the particles' increment transformed,
-projected and added) with the transforms made within it; the rest is the particles' coupling.  CPU time: the machine may be shared; the load average
-is printed with the table.
+step calls them): the floor.  The table gives the medians of step ms, floor ms and their
+ratio (issue 25: the spectral step within 1.5x of its floor), and the same for the fluid's
+part of the step (``FLUID_PART``: the solver's step, u* after it, the particles' increment
+transformed, projected and added), timed within the same steps, against the floor of the
+transforms made within it; the rest of a step is the particles' coupling.  CPU time: the
+machine may be shared; the load average is printed with the table.
 
     .venv/bin/python bench/fft_floor.py --pruned [--np NP ...]
 
@@ -31,6 +32,7 @@ for _v in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
 
 import argparse  # noqa: E402
 import collections  # noqa: E402
+import statistics  # noqa: E402
 import sys  # noqa: E402
 import time  # noqa: E402
 from pathlib import Path  # noqa: E402
@@ -134,9 +136,11 @@ def _floor(per_step, steps):
     return (time.process_time() - t0) / steps * 1e3
 
 
-def measure(scene, steps, np_override=None, threads=1):
+def measure(scene, steps, np_override=None, threads=1, repeats=3):
     """dict of one scene: step and floor ms, the fluid's part and its floor ms (None
-    without particles), transforms per step by kind (all, the fluid's part), mesh."""
+    without particles), each the median of ``repeats`` rounds of ``steps`` steps and of
+    their floors timed after each round; transforms per step by kind (all, the fluid's
+    part), mesh."""
     from profile_step import build
     from kapsel.mesh import compiled
     compiled.enable()
@@ -158,17 +162,20 @@ def measure(scene, steps, np_override=None, threads=1):
         if part == "fluid":
             fluid[k] += n / steps
             fluid_kinds[_kind(COUNTS.plans[k])] += n / steps
-    t0 = time.process_time()
-    for _ in range(steps):
-        model.advance()
-    step_ms = (time.process_time() - t0) / steps * 1e3
-    with _FluidPart(model) as part:
-        for _ in range(steps):
-            model.advance()
+    runs = []                 # (step, fluid's part, floor, its floor) ms of each repeat
+    for _ in range(repeats):
+        with _FluidPart(model) as part:   # (two clock reads a call: microseconds a step)
+            t0 = time.process_time()
+            for _ in range(steps):
+                model.advance()
+            step_ms = (time.process_time() - t0) / steps * 1e3
+        runs.append((step_ms, part.spent / steps * 1e3, _floor(whole, steps),
+                     _floor(fluid, steps)))
+    step_ms, fluid_ms, floor_ms, fluid_floor = (statistics.median(r) for r in zip(*runs))
     has_part = part.spm is not None
-    return dict(step=step_ms, floor=_floor(whole, steps), kinds=dict(kinds),
-                fluid=part.spent / steps * 1e3 if has_part else None,
-                fluid_floor=_floor(fluid, steps) if has_part else None,
+    return dict(step=step_ms, floor=floor_ms, kinds=dict(kinds),
+                fluid=fluid_ms if has_part else None,
+                fluid_floor=fluid_floor if has_part else None,
                 fluid_kinds=dict(fluid_kinds), mesh=tuple(model.cfg.mesh.shape))
 
 
@@ -211,6 +218,7 @@ def main(argv=None):
     ap.add_argument("scene", nargs="*", help=f"scenes of bench_vs_original (default: "
                     f"{' '.join(SPECTRAL)})")
     ap.add_argument("--steps", type=int, default=20)
+    ap.add_argument("--repeat", type=int, default=3, help="rounds of --steps steps (medians)")
     ap.add_argument("--np", type=int, default=None, help="mesh 2^NP per axis")
     ap.add_argument("--threads", type=int, default=1)
     ap.add_argument("--pruned", action="store_true",
@@ -227,12 +235,12 @@ def main(argv=None):
     load0 = os.getloadavg()[0]
     rows = []
     for scene in a.scene:
-        r = measure(scene, a.steps, a.np, a.threads)
+        r = measure(scene, a.steps, a.np, a.threads, a.repeat)
         rows.append((scene, r))
         print(f"# {scene}: {r}", file=sys.stderr, flush=True)
     load1 = os.getloadavg()[0]
-    print(f"{time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}, {a.steps} steps, "
-          f"{a.threads} thread(s), load {load0:.1f} -> {load1:.1f}")
+    print(f"{time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}, {a.repeat} x {a.steps} "
+          f"steps (medians), {a.threads} thread(s), load {load0:.1f} -> {load1:.1f}")
     print("| scene | mesh | transforms / step (r2c + c2r) | step ms | FFT floor ms | "
           "step / floor | fluid's part: transforms | ms | floor ms | ratio |")
     print("|---|---|---|---|---|---|---|---|---|---|")
