@@ -293,11 +293,12 @@ class ObliqueSpectralNS(_ObliqueFrame, SpectralNS):
         return u
 
     # ------------------------------------------------------------------ step
-    def _nonlinear_oblique(self, g, rate):
+    def _nonlinear_oblique(self, g, rate, etd=None):
         """P^G[contravariant(u x omega) - 2 gamma_dot u^2 e_1] into _nl (2/3 rule on the
         advection part only).  u and omega are truncated fields, transformed with the lines
         of zeros skipped (kapsel.mesh.grid); u x omega is transformed exactly on the mask,
-        which keeps only that."""
+        which keeps only that.  ``etd`` = (E, w1), compiled kernels and advection: u^ <- E u^
+        + w1 P^G[...] in the projection's pass instead (returns None; _nl is not written)."""
         gr = self.grid
         nl = self._nl
         if self.advection:
@@ -330,6 +331,10 @@ class ObliqueSpectralNS(_ObliqueFrame, SpectralNS):
             gr.forward_truncated(n, nl)
             if self._k0:
                 nl[:, 0, 0, 0] = 0.0
+            if etd is not None:
+                K.project_oblique_etd1(nl, self.u_hat, 2.0 * rate, g, *self._k1,
+                                       *gr.dealias_box, *etd)
+                return None
             return self.project_metric(nl, g, rate, masked=True)
         nl[...] = 0.0
         return self.project_metric(nl, g, rate)
@@ -341,7 +346,6 @@ class ObliqueSpectralNS(_ObliqueFrame, SpectralNS):
         g0 = self.frame_strain
         rate = self.rate_at(t0)
         self.truncate()
-        nl = self._nonlinear_oblique(g0, rate)
         # the original's metric of the step's start (Update_K2_OBL after the last step's
         # strain increment; AC with its discrete strain, _ObliqueFrame.strain_at): the
         # viscous factor is first order in dt, as the original's
@@ -350,22 +354,26 @@ class ObliqueSpectralNS(_ObliqueFrame, SpectralNS):
             z = np.empty(self.grid.local_cshape)
             K.viscous_exponent(*self._k1, g0, -self.nu * dt, z)
         else:
-            if self._gK != g0:                        # (the projection of nl made it)
+            if self._gK != g0:
                 self._metric(g0)
             z = np.multiply(self._K2, -self.nu * dt)
         w1 = phi1(z, scale=dt)
         E = np.exp(z, out=z)
         uh = self.u_hat
         tmp = self._c3
-        if K is not None:
-            K.etd1_update(uh, nl, E, w1)
+        if K is not None and self.advection:          # projection and update in one pass
+            self._nonlinear_oblique(g0, rate, etd=(E, w1))
         else:
-            uh *= E
-            for c in range(3):
-                np.multiply(nl[c], w1, out=tmp)
-                uh[c] += tmp
+            nl = self._nonlinear_oblique(g0, rate)
+            if K is not None:
+                K.etd1_update(uh, nl, E, w1)
+            else:
+                uh *= E
+                for c in range(3):
+                    np.multiply(nl[c], w1, out=tmp)
+                    uh[c] += tmp
         if force is not None:
-            fh = nl                                   # free from here on
+            fh = self._nl                             # free from here on
             self.grid.forward(self._contravariant(force, g0), out=fh)
             self.project_metric(fh, g0)
             for c in range(3):
