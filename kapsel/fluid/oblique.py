@@ -297,8 +297,9 @@ class ObliqueSpectralNS(_ObliqueFrame, SpectralNS):
         """P^G[contravariant(u x omega) - 2 gamma_dot u^2 e_1] into _nl (2/3 rule on the
         advection part only).  u and omega are truncated fields, transformed with the lines
         of zeros skipped (kapsel.mesh.grid); u x omega is transformed exactly on the mask,
-        which keeps only that.  ``etd`` = (E, w1), compiled kernels and advection: u^ <- E u^
-        + w1 P^G[...] in the projection's pass instead (returns None; _nl is not written)."""
+        which keeps only that.  ``etd`` = (E, w1), compiled kernels and advection: u^ <- E T u^
+        + w1 P^G[...] in the projection's pass instead (returns None; _nl is not written;
+        u^ need not be truncated before: only its 2/3 box is read)."""
         gr = self.grid
         nl = self._nl
         if self.advection:
@@ -345,11 +346,13 @@ class ObliqueSpectralNS(_ObliqueFrame, SpectralNS):
         t0, dt = self.time, self.dt
         g0 = self.frame_strain
         rate = self.rate_at(t0)
-        self.truncate()
+        K = _compiled.spectral
+        fused = K is not None and self.advection      # truncation, projection and update
+        if not fused:                                 # in one pass (project_oblique_etd1)
+            self.truncate()
         # the original's metric of the step's start (Update_K2_OBL after the last step's
         # strain increment; AC with its discrete strain, _ObliqueFrame.strain_at): the
         # viscous factor is first order in dt, as the original's
-        K = _compiled.spectral
         if K is not None:                             # (a step's own: no field kept)
             z = np.empty(self.grid.local_cshape)
             K.viscous_exponent(*self._k1, g0, -self.nu * dt, z)
@@ -361,7 +364,7 @@ class ObliqueSpectralNS(_ObliqueFrame, SpectralNS):
         E = np.exp(z, out=z)
         uh = self.u_hat
         tmp = self._c3
-        if K is not None and self.advection:          # projection and update in one pass
+        if fused:
             self._nonlinear_oblique(g0, rate, etd=(E, w1))
         else:
             nl = self._nonlinear_oblique(g0, rate)

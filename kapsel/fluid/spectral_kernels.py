@@ -662,10 +662,13 @@ def project_oblique(v, u_hat, r2, g, kx, ky, kz, mx, my, kz_end, masked, add):
 
 @njit(cache=True, nogil=True)
 def project_oblique_etd1(v, u_hat, r2, g, kx, ky, kz, mx, my, kz_end, E, w1):
-    """u_hat <- E u_hat + w1 p, p = ``project_oblique`` (masked) of v: the two passes of
-    the Lees-Edwards step (the projection of its nonlinear term, then ``etd1_update``) in
-    one, with the same operations at each mode (p = +0 off the mask; u^2 of the shear term
-    read before the mode is updated); v is not written."""
+    """u_hat <- E (T u_hat) + w1 p, p = ``project_oblique`` (masked) of v: the three passes
+    of the Lees-Edwards step (the truncation of u_hat, the projection of its nonlinear term,
+    ``etd1_update``) in one, with the same operations at each mode (u^2 of the shear term
+    read before the mode is updated); off the mask, where E (T u_hat) + w1 p is +0 + +0,
+    +0 is written (u_hat is not read there, as the truncation's zero made it); v is not
+    written.  The caller does not truncate u_hat first: nothing before this pass reads it
+    off the mask (the frame kernels read the box only)."""
     nx, ny, nzc = v.shape[1], v.shape[2], v.shape[3]
     gg = 1.0 + g * g
     g2 = 2.0 * g
@@ -692,9 +695,8 @@ def project_oblique_etd1(v, u_hat, r2, g, kx, ky, kz, mx, my, kz_end, E, w1):
                 u_hat[1, i, j, k] = _etd1(u_hat[1, i, j, k], b, e, w)
                 u_hat[2, i, j, k] = _etd1(u_hat[2, i, j, k], c, e, w)
             for k in range(k1, nzc):
-                e, w = E[i, j, k], w1[i, j, k]
                 for cc in range(3):
-                    u_hat[cc, i, j, k] = _etd1(u_hat[cc, i, j, k], zero, e, w)
+                    u_hat[cc, i, j, k] = zero
 
 
 @njit(cache=True, nogil=True)
