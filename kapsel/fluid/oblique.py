@@ -53,6 +53,7 @@ B-spline interpolant), ``switch.ns_solver.OBL_INT``.
 """
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
@@ -333,8 +334,9 @@ class ObliqueSpectralNS(_ObliqueFrame, SpectralNS):
             if self._k0:
                 nl[:, 0, 0, 0] = 0.0
             if etd is not None:
-                K.project_oblique_etd1(nl, self.u_hat, 2.0 * rate, g, *self._k1,
-                                       *gr.dealias_box, *etd)
+                cx, cy, _, _, kz_end = self._box_rows
+                K.project_oblique_etd1(nl, self.u_hat, 2.0 * rate, g, *self._k1, cx, cy,
+                                       kz_end, *etd)
                 return None
             return self.project_metric(nl, g, rate, masked=True)
         nl[...] = 0.0
@@ -347,15 +349,20 @@ class ObliqueSpectralNS(_ObliqueFrame, SpectralNS):
         g0 = self.frame_strain
         rate = self.rate_at(t0)
         K = _compiled.spectral
-        fused = K is not None and self.advection      # truncation, projection and update
-        if not fused:                                 # in one pass (project_oblique_etd1)
-            self.truncate()
+        fused = K is not None and self.advection and force is None  # truncation, projection
+        if not fused:                             # and update in one pass (on the 2/3 mask
+            self.truncate()                       # only: project_oblique_etd1)
         # the original's metric of the step's start (Update_K2_OBL after the last step's
         # strain increment; AC with its discrete strain, _ObliqueFrame.strain_at): the
         # viscous factor is first order in dt, as the original's
         if K is not None:                             # (a step's own: no field kept)
-            z = np.empty(self.grid.local_cshape)
-            K.viscous_exponent(*self._k1, g0, -self.nu * dt, z)
+            _, _, ix, jy, kz_end = self._box_rows
+            if fused:                                 # wanted on the 2/3 mask only
+                z = np.empty((ix.size, jy.size, kz_end))
+            else:
+                ix, jy = self._all_rows
+                z = np.empty(self.grid.local_cshape)
+            K.viscous_exponent(*self._k1, ix, jy, g0, -self.nu * dt, z)
         else:
             if self._gK != g0:
                 self._metric(g0)
@@ -463,6 +470,23 @@ class ObliqueSpectralNS(_ObliqueFrame, SpectralNS):
             K.truncate(self.u_hat, *self.grid.dealias_box)
             return
         self.u_hat *= self.grid.dealias_f
+
+    @functools.cached_property
+    def _box_rows(self):
+        """The 2/3 mask's box (Grid.dealias_box) as rows: (cx, cy, ix, jy, kz_end), cx[i]
+        the place of i among the box's rows ix along x (-1 off the box), cy, jy along y."""
+        mx, my, kz_end = self.grid.dealias_box
+        ix, jy = np.flatnonzero(mx), np.flatnonzero(my)
+        cx = np.full(mx.size, -1, dtype=np.int64)
+        cy = np.full(my.size, -1, dtype=np.int64)
+        cx[ix] = np.arange(ix.size)
+        cy[jy] = np.arange(jy.size)
+        return cx, cy, ix.astype(np.int64), jy.astype(np.int64), kz_end
+
+    @functools.cached_property
+    def _all_rows(self):
+        n = self.grid.local_cshape
+        return np.arange(n[0], dtype=np.int64), np.arange(n[1], dtype=np.int64)
 
     def _contravariant(self, u, g):
         """The contravariant components of a Cartesian field u into the scratch _n."""

@@ -46,8 +46,8 @@ SIGNATURES = {
     "frame_component": "boolean(complex128[:,:,:,::1], float64[::1], float64[::1], int64, float64, float64, int64, boolean, complex128[:,:,::1])",
     "frame_vorticity_component": "void(complex128[:,:,:,::1], float64[::1], float64[::1], int64, float64, float64, float64[::1], float64[::1], float64[::1], int64, complex128[:,:,::1])",
     "project_oblique": "void(complex128[:,:,:,::1], complex128[:,:,:,::1], float64, float64, float64[::1], float64[::1], float64[::1], float64[::1], float64[::1], int64, boolean, boolean)",
-    "project_oblique_etd1": "void(complex128[:,:,:,::1], complex128[:,:,:,::1], float64, float64, float64[::1], float64[::1], float64[::1], float64[::1], float64[::1], int64, float64[:,:,::1], float64[:,:,::1])",
-    "viscous_exponent": "void(float64[::1], float64[::1], float64[::1], float64, float64, float64[:,:,::1])",
+    "project_oblique_etd1": "void(complex128[:,:,:,::1], complex128[:,:,:,::1], float64, float64, float64[::1], float64[::1], float64[::1], int64[::1], int64[::1], int64, float64[:,:,::1], float64[:,:,::1])",
+    "viscous_exponent": "void(float64[::1], float64[::1], float64[::1], int64[::1], int64[::1], float64, float64, float64[:,:,::1])",
     "truncate": "void(complex128[:,:,:,::1], float64[::1], float64[::1], int64)",
     "cross_contravariant": "void(float64[:,:,:,::1], float64[:,:,:,::1], float64[:,:,:,::1], float64)",
     "contravariant": "void(float64[:,:,:,::1], float64, float64[:,:,:,::1])",
@@ -661,14 +661,16 @@ def project_oblique(v, u_hat, r2, g, kx, ky, kz, mx, my, kz_end, masked, add):
 
 
 @njit(cache=True, nogil=True)
-def project_oblique_etd1(v, u_hat, r2, g, kx, ky, kz, mx, my, kz_end, E, w1):
+def project_oblique_etd1(v, u_hat, r2, g, kx, ky, kz, cx, cy, kz_end, E, w1):
     """u_hat <- E (T u_hat) + w1 p, p = ``project_oblique`` (masked) of v: the three passes
     of the Lees-Edwards step (the truncation of u_hat, the projection of its nonlinear term,
     ``etd1_update``) in one, with the same operations at each mode (u^2 of the shear term
     read before the mode is updated); off the mask, where E (T u_hat) + w1 p is +0 + +0,
     +0 is written (u_hat is not read there, as the truncation's zero made it); v is not
     written.  The caller does not truncate u_hat first: nothing before this pass reads it
-    off the mask (the frame kernels read the box only)."""
+    off the mask (the frame kernels read the box only).  The mask's box as indices: cx[i]
+    (cy[j]) the row of i (j) in the box, -1 off it, and k < kz_end; E and w1 are given on
+    the box only, (rows of cx, rows of cy, kz_end) (``viscous_exponent``)."""
     nx, ny, nzc = v.shape[1], v.shape[2], v.shape[3]
     gg = 1.0 + g * g
     g2 = 2.0 * g
@@ -676,11 +678,13 @@ def project_oblique_etd1(v, u_hat, r2, g, kx, ky, kz, mx, my, kz_end, E, w1):
     row = np.empty(nzc)
     for i in range(nx):
         ki = kx[i]
+        a_ = cx[i]
         for j in range(ny):
             kj = ky[j]
+            b_ = cy[j]
             c0 = gg * ki - g * kj
             c1 = kj - g * ki
-            k1 = 0 if (mx[i] == 0.0 or my[j] == 0.0) else kz_end
+            k1 = 0 if (a_ < 0 or b_ < 0) else kz_end
             for k in range(k1):
                 K2 = _metric_k2(ki, kj, kz[k], gg, g2)
                 row[k] = 1.0 / K2 if K2 > 0.0 else 0.0
@@ -690,7 +694,7 @@ def project_oblique_etd1(v, u_hat, r2, g, kx, ky, kz, mx, my, kz_end, E, w1):
                     u = u_hat[1, i, j, k]
                     a = complex(a.real - r2 * u.real, a.imag - r2 * u.imag)
                 a, b, c = _project_metric_point(a, b, c, ki, kj, kz[k], row[k], c0, c1)
-                e, w = E[i, j, k], w1[i, j, k]
+                e, w = E[a_, b_, k], w1[a_, b_, k]
                 u_hat[0, i, j, k] = _etd1(u_hat[0, i, j, k], a, e, w)
                 u_hat[1, i, j, k] = _etd1(u_hat[1, i, j, k], b, e, w)
                 u_hat[2, i, j, k] = _etd1(u_hat[2, i, j, k], c, e, w)
@@ -700,16 +704,19 @@ def project_oblique_etd1(v, u_hat, r2, g, kx, ky, kz, mx, my, kz_end, E, w1):
 
 
 @njit(cache=True, nogil=True)
-def viscous_exponent(kx, ky, kz, g, s, z):
-    """z <- |K|^2 s at each mode (``_metric_k2``; s = -nu dt: the exponent of the step's
-    viscous factor, ObliqueSpectralNS.step)."""
-    nx, ny, nzc = z.shape
+def viscous_exponent(kx, ky, kz, ix, jy, g, s, z):
+    """z[a, b, k] <- |K|^2 s at the mode (ix[a], jy[b], k) (``_metric_k2``; s = -nu dt: the
+    exponent of the step's viscous factor, ObliqueSpectralNS.step), for the rows ix, jy
+    and the first z.shape[2] modes along z: every mode, or the 2/3 mask's box only."""
+    na, nb, nk = z.shape
     gg = 1.0 + g * g
     g2 = 2.0 * g
-    for i in range(nx):
-        for j in range(ny):
-            for k in range(nzc):
-                z[i, j, k] = _metric_k2(kx[i], ky[j], kz[k], gg, g2) * s
+    for a in range(na):
+        ki = kx[ix[a]]
+        for b in range(nb):
+            kj = ky[jy[b]]
+            for k in range(nk):
+                z[a, b, k] = _metric_k2(ki, kj, kz[k], gg, g2) * s
 
 
 @njit(cache=True, nogil=True)
