@@ -39,7 +39,9 @@ P^G v = v - G k^ (k^.v) / (k^ G k^) (k^.v = K.v_cartesian: the projection is the
 with K), the viscous term integrated exactly over the step with the time-averaged
 |K|^2 of the step's start (as the original: first order in dt), the rest by the slaved Euler (ETD1) step of
 ``SpectralNS``.  Each step starts by truncating the state to the 2/3 band, as the
-original's (operate_omega.cxx Zeta_k2advection_k_OBL truncates zeta before the advection),
+original's (operate_omega.cxx Zeta_k2advection_k_OBL truncates zeta before the advection;
+the compiled step does it in the pass of the projection and update, the first to touch u^
+off the band),
 so the high modes the particles' rigidity increment puts into u^ (add_solenoidal: projected,
 not truncated, as Solenoidal_uk_OBL) last until the next step only.  AC shear: the imposed flow is taken as quasi-static (no d_t U term, as the
 original's oblique formulation).  The interface the SPM driver uses is the one of
