@@ -450,7 +450,8 @@ def test_velocity_transforms_a_truncated_state_as_one(compiled_kernels):
 def test_oblique_velocity_and_step_compiled_as_numpy(compiled_kernels):
     """ObliqueSpectralNS (Lees-Edwards): the compiled passes (Cartesian components, their
     vorticity, u x omega in contravariant components, the masked metric projection with the
-    shear term, the ETD update, the truncation) give the numpy passes' values; velocity()
+    shear term, the ETD update, the truncation; fused, and apart with a body force or
+    without advection) give the numpy passes' values; velocity()
     transforms a component with modes off the 2/3 mask whole, a truncated one with the
     lines of zeros skipped, both irfftn's numbers."""
     from kapsel.fluid.oblique import ObliqueSpectralNS
@@ -474,6 +475,12 @@ def test_oblique_velocity_and_step_compiled_as_numpy(compiled_kernels):
             np.testing.assert_allclose(u, np.fft.irfftn(cart, s=g.shape, axes=(1, 2, 3)),
                                        atol=1e-12)
             out += [u, f.u_hat.copy()]
+        f.step(force=du)                 # a body force: the unfused step, factors everywhere
+        out.append(f.u_hat.copy())
+        f.advection = False
+        f.step()                         # no advection: unfused
+        out.append(f.u_hat.copy())
+        f.advection = True
         v = np.random.default_rng(5).normal(size=f.u_hat.shape + (2,)) @ [1.0, 1j]
         f.project_metric(v, f.frame_strain, rate=0.3, masked=True)   # u_hat not truncated:
         assert np.abs(v[:, ~g.dealias]).max() == 0.0                   # 0 off the mask all
