@@ -511,6 +511,24 @@ class ObliqueSpectralNS(_ObliqueFrame, SpectralNS):
             self.u_hat += d
 
     # ------------------------------------------------------------------ diagnostics
+    def uxuy_sum(self) -> float:
+        """sum over this block's modes of w (Re u_x Re u_y + Im u_x Im u_y), w the half
+        spectrum's weights (Grid.half_weight), u the Cartesian deviation: N^2 times the
+        mean of u_x u_y over the grid (Parseval), for the Reynolds stress.  Compiled: the
+        terms in one pass into the free scratch _n (between steps), summed by numpy as the
+        numpy passes' temporary is (the same bits)."""
+        uh, g, w = self.u_hat, self.frame_strain, self.grid.half_weight
+        K = _compiled.spectral
+        shape = uh.shape[1:]
+        n = int(np.prod(shape))
+        if K is not None and self._n.size >= n and w.shape == (1, 1, shape[2]):
+            out = self._n.reshape(-1)[:n].reshape(shape)
+            K.reynolds_terms(uh, g, np.ascontiguousarray(w.reshape(-1)), out)
+            return float(np.sum(out))
+        ux = uh[0] + g * uh[1]
+        uy = uh[1]
+        return float(np.sum(w * (ux.real * uy.real + ux.imag * uy.imag)))
+
     def momentum(self):
         """RHO DX^3 sum u (Cartesian deviation)."""
         m = self._mean_mode().real.copy()

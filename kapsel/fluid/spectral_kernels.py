@@ -28,7 +28,8 @@ __all__ = ["truncated_component", "scaled_component", "vorticity_component", "cr
            "project_etd2", "project_add", "project_euler", "project_etd1_rows",
            "project_etd2_rows", "project_add_rows", "project_euler_rows", "project_set_scaled",
            "project_set_scaled_rows", "frame_component", "frame_vorticity_component",
-           "project_oblique", "project_oblique_etd1", "viscous_exponent", "etd1_update", "truncate", "cross_contravariant", "contravariant"]
+           "project_oblique", "project_oblique_etd1", "viscous_exponent", "etd1_update", "truncate", "cross_contravariant", "contravariant",
+           "reynolds_terms"]
 
 #: the types each kernel is called with (C-contiguous arrays): what kapsel.build_kernels
 #: compiles ahead of time (kapsel.mesh.compiled loads that build when it is current)
@@ -51,6 +52,7 @@ SIGNATURES = {
     "truncate": "void(complex128[:,:,:,::1], float64[::1], float64[::1], int64)",
     "cross_contravariant": "void(float64[:,:,:,::1], float64[:,:,:,::1], float64[:,:,:,::1], float64)",
     "contravariant": "void(float64[:,:,:,::1], float64, float64[:,:,:,::1])",
+    "reynolds_terms": "void(complex128[:,:,:,::1], float64, float64[::1], float64[:,:,::1])",
     "etd1_update": "void(complex128[:,:,:,::1], complex128[:,:,:,::1], float64[:,:,::1], float64[:,:,::1])",
 }
 SIGNATURES.update({n + "_rows": SIGNATURES[n] for n in
@@ -758,6 +760,23 @@ def contravariant(u, g, out):
                 out[0, i, j, k] = u[0, i, j, k] - g * b
                 out[1, i, j, k] = b
                 out[2, i, j, k] = u[2, i, j, k]
+
+
+@njit(cache=True, nogil=True)
+def reynolds_terms(u_hat, g, w, out):
+    """out <- w_k (Re u_x Re u_y + Im u_x Im u_y) at each mode, u_x = u^1 + g u^2, u_y = u^2
+    of the contravariant u_hat: the terms of the Lees-Edwards table's Reynolds stress, with
+    numpy's operations (g u^2 as its complex product by g + 0j, then the sum, the two real
+    products, their sum, the weight); their sum stays numpy's (its pairwise order)."""
+    nx, ny, nzc = out.shape
+    for i in range(nx):
+        for j in range(ny):
+            for k in range(nzc):
+                a = u_hat[0, i, j, k]
+                b = u_hat[1, i, j, k]
+                xr = a.real + (g * b.real - 0.0 * b.imag)
+                xi = a.imag + (g * b.imag + 0.0 * b.real)
+                out[i, j, k] = w[k] * (xr * b.real + xi * b.imag)
 
 
 @njit(cache=True, nogil=True)

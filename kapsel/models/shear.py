@@ -211,12 +211,8 @@ class ShearLEModel(SpectralModel):
     def shear_table_row(self) -> list:
         """This step's row of the original's table (FORMAT-OUTPUT.md §1.4)."""
         fl, g = self.fluid, self.fluid.frame_strain
-        uh = fl.u_hat
-        ux = uh[0] + g * uh[1]                           # Cartesian deviation, Fourier
-        uy = uh[1]
         n = self.grid.size
-        uxuy = float(np.sum(self.grid.half_weight * (ux.real * uy.real + ux.imag * uy.imag)))
-        uxuy = self.grid.sum(uxuy)
+        uxuy = self.grid.sum(fl.uxuy_sum())          # Cartesian deviation, Fourier
         reynolds = -self.cfg.fluid.RHO * uxuy / (n * n)   # Parseval: sum_x = sum_k / N
         rate = fl.shear.rate(self.time - self.dt)
         return le_table_row(self.time, rate, g, fl.applied_strain,

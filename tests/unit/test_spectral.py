@@ -451,7 +451,7 @@ def test_oblique_velocity_and_step_compiled_as_numpy(compiled_kernels):
     """ObliqueSpectralNS (Lees-Edwards): the compiled passes (Cartesian components, their
     vorticity, u x omega in contravariant components, the masked metric projection with the
     shear term, the ETD update, the truncation; fused, and apart with a body force or
-    without advection) give the numpy passes' values; velocity()
+    without advection; the Reynolds stress's sum) give the numpy passes' values; velocity()
     transforms a component with modes off the 2/3 mask whole, a truncated one with the
     lines of zeros skipped, both irfftn's numbers."""
     from kapsel.fluid.oblique import ObliqueSpectralNS
@@ -474,7 +474,7 @@ def test_oblique_velocity_and_step_compiled_as_numpy(compiled_kernels):
             cart[0] += f.frame_strain * cart[1]
             np.testing.assert_allclose(u, np.fft.irfftn(cart, s=g.shape, axes=(1, 2, 3)),
                                        atol=1e-12)
-            out += [u, f.u_hat.copy()]
+            out += [u, f.u_hat.copy(), np.array(f.uxuy_sum())]
         f.step(force=du)                 # a body force: the unfused step, factors everywhere
         out.append(f.u_hat.copy())
         f.advection = False
