@@ -574,6 +574,8 @@ class Grid:
                               threads=self.threads)
         return plans["FFTW_BACKWARD"], plans["FFTW_FORWARD"], z_b, z_f
 
+    _x_stages_on = None      # the array the backward stages along x and y point at
+
     def backward_scalar_truncated(self, c, out):
         """``backward_scalar_raw`` of a scalar ``c`` that is 0 outside the 2/3 mask (the
         caller's promise; the result is wrong otherwise): the same numbers (the same bits
@@ -582,12 +584,15 @@ class Grid:
         if pyfftw is None:  # pragma: no cover
             return self.backward_scalar_raw(c, out)
         (xs, y), _, z, _ = self._pruned
-        along_x, along_y = self._pruned_views
         try:
-            for p, v in zip(xs, along_x(c)):
-                p.update_arrays(v, v)
-            v = along_y(c)
-            y.update_arrays(v, v)
+            if c is not self._x_stages_on:        # (the callers' scratch is the same
+                along_x, along_y = self._pruned_views     # array step after step: the
+                self._x_stages_on = None                  # stages along x and y, in place
+                for p, v in zip(xs, along_x(c)):          # on it, stay pointed at it)
+                    p.update_arrays(v, v)
+                v = along_y(c)
+                y.update_arrays(v, v)
+                self._x_stages_on = c
             z.update_arrays(c, out)
         except ValueError:           # not aligned as planned: the whole transform
             return self.backward_scalar_raw(c, out)

@@ -375,7 +375,7 @@ def test_truncated_transforms_skip_lines_of_zeros_with_the_same_bits(shape):
     """backward_scalar_truncated of a 2/3-truncated field gives backward_scalar_raw's bits;
     rfft_scalar_truncated gives rfft_scalar's on the mask (FFTW_ESTIMATE: the 3-D plan
     makes the same 1-D transforms in the same order); an array of another alignment takes
-    the whole transform."""
+    the whole transform; a scratch given again and again, or in turn with another, too."""
     g = Grid(shape, dx=0.5)
     rng = np.random.default_rng(1)
     mask = g.dealias
@@ -399,6 +399,16 @@ def test_truncated_transforms_skip_lines_of_zeros_with_the_same_bits(shape):
     np.testing.assert_array_equal(raw, full)
     out = g.backward_truncated(np.stack([c, c, c]), g.empty_real())
     np.testing.assert_array_equal(out[2], full)
+    # a caller's scratch used again and again (the stages along x and y stay pointed at
+    # it), alternating with another array: each time the whole transform's bits
+    s1, s2 = g.empty_complex(None), g.empty_complex(None)
+    for k in range(4):
+        s = s1 if k != 2 else s2
+        v = (rng.normal(size=g.cshape) + 1j * rng.normal(size=g.cshape)) * mask
+        s[...] = v
+        g.backward_scalar_truncated(s, pruned)
+        g.backward_scalar_raw(v.copy(), full)
+        np.testing.assert_array_equal(pruned, full)
 
 
 def test_truncated_transforms_with_measured_plans():
