@@ -48,7 +48,7 @@ SPECTRAL = ("ns32", "ns64", "ns64x100", "le64", "squirmer64", "el64")
 
 class _Counts:
     """Executions per (plan, part of the step) while ``on``; ``part``: "fluid" inside the
-    fluid's part of the step (``_fluid_part``), else "particles"."""
+    fluid's part of the step (``_FluidPart``), else "particles"."""
 
     def __init__(self):
         self.on = False

@@ -296,53 +296,50 @@ class ObliqueSpectralNS(_ObliqueFrame, SpectralNS):
         return u
 
     # ------------------------------------------------------------------ step
-    def _nonlinear_oblique(self, g, rate, etd=None):
+    def _nonlinear_oblique(self, g, rate):
         """P^G[contravariant(u x omega) - 2 gamma_dot u^2 e_1] into _nl (2/3 rule on the
-        advection part only).  u and omega are truncated fields, transformed with the lines
-        of zeros skipped (kapsel.mesh.grid); u x omega is transformed exactly on the mask,
-        which keeps only that.  ``etd`` = (E, w1), compiled kernels and advection: u^ <- E T u^
-        + w1 P^G[...] in the projection's pass instead (returns None; _nl is not written;
-        u^ need not be truncated before: only its 2/3 box is read)."""
+        advection part only)."""
+        if self.advection:
+            return self.project_metric(self._advection(g), g, rate, masked=True)
+        self._nl[...] = 0.0
+        return self.project_metric(self._nl, g, rate)
+
+    def _advection(self, g):
+        """FFT(contravariant(u x omega)) into _nl, exact on the 2/3 mask only (the mode
+        k = 0 zero): u and omega are truncated fields, transformed with the lines of zeros
+        skipped (kapsel.mesh.grid); only u^'s 2/3 box is read."""
         gr = self.grid
         nl = self._nl
-        if self.advection:
-            a, b, wc = self._s, self._t, self._c3     # complex scalars
-            u, w, n = self._u, self._w, self._n
-            K = _compiled.spectral
-            if K is not None:
-                box, inv = gr.dealias_box, self._inv_n
-                for c in range(3):
-                    K.frame_component(self.u_hat, *box, inv, g, c, True, a)
-                    gr.backward_scalar_truncated(a, u[c])
-                for c in range(3):
-                    K.frame_vorticity_component(self.u_hat, *box, inv, g, *self._k1, c, a)
-                    gr.backward_scalar_truncated(a, w[c])
-                K.cross_contravariant(u, w, n, g)
-            else:
-                cart = self._cartesian_hat
-                for c in range(3):                    # u: the truncated Cartesian velocity
-                    gr.backward_scalar_truncated(cart(c, g, a, b), u[c])
-                Ky = gr.ky - g * gr.kx                # physical K_y
-                ik = (self._ikx, 1j * Ky, self._ikz)
-                for c in range(3):                    # w_c = i k_p u_q - i k_q u_p
-                    p, q = (c + 1) % 3, (c + 2) % 3
-                    np.multiply(ik[p], cart(q, g, a, b), out=wc)
-                    np.multiply(ik[q], cart(p, g, a, b), out=b)
-                    wc -= b
-                    gr.backward_scalar_truncated(wc, w[c])
-                cross_in_place(u, w, n)
-                n[0] -= g * n[1]                      # contravariant
-            gr.forward_truncated(n, nl)
-            if self._k0:
-                nl[:, 0, 0, 0] = 0.0
-            if etd is not None:
-                cx, cy, _, _, kz_end = self._box_rows
-                K.project_oblique_etd1(nl, self.u_hat, 2.0 * rate, g, *self._k1, cx, cy,
-                                       kz_end, *etd)
-                return None
-            return self.project_metric(nl, g, rate, masked=True)
-        nl[...] = 0.0
-        return self.project_metric(nl, g, rate)
+        a, b, wc = self._s, self._t, self._c3     # complex scalars
+        u, w, n = self._u, self._w, self._n
+        K = _compiled.spectral
+        if K is not None:
+            box, inv = gr.dealias_box, self._inv_n
+            for c in range(3):
+                K.frame_component(self.u_hat, *box, inv, g, c, True, a)
+                gr.backward_scalar_truncated(a, u[c])
+            for c in range(3):
+                K.frame_vorticity_component(self.u_hat, *box, inv, g, *self._k1, c, a)
+                gr.backward_scalar_truncated(a, w[c])
+            K.cross_contravariant(u, w, n, g)
+        else:
+            cart = self._cartesian_hat
+            for c in range(3):                    # u: the truncated Cartesian velocity
+                gr.backward_scalar_truncated(cart(c, g, a, b), u[c])
+            Ky = gr.ky - g * gr.kx                # physical K_y
+            ik = (self._ikx, 1j * Ky, self._ikz)
+            for c in range(3):                    # w_c = i k_p u_q - i k_q u_p
+                p, q = (c + 1) % 3, (c + 2) % 3
+                np.multiply(ik[p], cart(q, g, a, b), out=wc)
+                np.multiply(ik[q], cart(p, g, a, b), out=b)
+                wc -= b
+                gr.backward_scalar_truncated(wc, w[c])
+            cross_in_place(u, w, n)
+            n[0] -= g * n[1]                      # contravariant
+        gr.forward_truncated(n, nl)
+        if self._k0:
+            nl[:, 0, 0, 0] = 0.0
+        return nl
 
     def step(self, force=None):
         """Advance u^ by dt (eq 27): u^ <- E u^ + dt phi1 P^G[N + f], then re-map the frame
@@ -357,13 +354,9 @@ class ObliqueSpectralNS(_ObliqueFrame, SpectralNS):
         # the original's metric of the step's start (Update_K2_OBL after the last step's
         # strain increment; AC with its discrete strain, _ObliqueFrame.strain_at): the
         # viscous factor is first order in dt, as the original's
-        if K is not None:                             # (a step's own: no field kept)
-            _, _, ix, jy, kz_end = self._box_rows
-            if fused:                                 # wanted on the 2/3 mask only
-                z = np.empty((ix.size, jy.size, kz_end))
-            else:
-                ix, jy = self._all_rows
-                z = np.empty(self.grid.local_cshape)
+        if K is not None:          # (a step's own: no field kept; fused: on the 2/3 box only)
+            cx, cy, ix, jy, nk = self._box_rows if fused else (None, None, *self._all_rows)
+            z = np.empty((ix.size, jy.size, nk))
             K.viscous_exponent(*self._k1, ix, jy, g0, -self.nu * dt, z)
         else:
             if self._gK != g0:
@@ -374,7 +367,8 @@ class ObliqueSpectralNS(_ObliqueFrame, SpectralNS):
         uh = self.u_hat
         tmp = self._c3
         if fused:
-            self._nonlinear_oblique(g0, rate, etd=(E, w1))
+            K.project_oblique_etd1(self._advection(g0), uh, 2.0 * rate, g0, *self._k1, cx, cy,
+                                   nk, E, w1)
         else:
             nl = self._nonlinear_oblique(g0, rate)
             if K is not None:
@@ -487,8 +481,9 @@ class ObliqueSpectralNS(_ObliqueFrame, SpectralNS):
 
     @functools.cached_property
     def _all_rows(self):
+        """Every mode as ``_box_rows``'s (ix, jy, kz_end)."""
         n = self.grid.local_cshape
-        return np.arange(n[0], dtype=np.int64), np.arange(n[1], dtype=np.int64)
+        return np.arange(n[0], dtype=np.int64), np.arange(n[1], dtype=np.int64), n[2]
 
     def _contravariant(self, u, g):
         """The contravariant components of a Cartesian field u into the scratch _n."""
@@ -519,11 +514,10 @@ class ObliqueSpectralNS(_ObliqueFrame, SpectralNS):
         numpy passes' temporary is (the same bits)."""
         uh, g, w = self.u_hat, self.frame_strain, self.grid.half_weight
         K = _compiled.spectral
-        shape = uh.shape[1:]
-        n = int(np.prod(shape))
-        if K is not None and self._n.size >= n and w.shape == (1, 1, shape[2]):
-            out = self._n.reshape(-1)[:n].reshape(shape)
-            K.reynolds_terms(uh, g, np.ascontiguousarray(w.reshape(-1)), out)
+        if K is not None:
+            shape = uh.shape[1:]
+            out = self._n.reshape(-1)[:int(np.prod(shape))].reshape(shape)
+            K.reynolds_terms(uh, g, w.reshape(-1), out)
             return float(np.sum(out))
         ux = uh[0] + g * uh[1]
         uy = uh[1]

@@ -28,8 +28,8 @@ __all__ = ["truncated_component", "scaled_component", "vorticity_component", "cr
            "project_etd2", "project_add", "project_euler", "project_etd1_rows",
            "project_etd2_rows", "project_add_rows", "project_euler_rows", "project_set_scaled",
            "project_set_scaled_rows", "frame_component", "frame_vorticity_component",
-           "project_oblique", "project_oblique_etd1", "viscous_exponent", "etd1_update", "truncate", "cross_contravariant", "contravariant",
-           "reynolds_terms"]
+           "project_oblique", "project_oblique_etd1", "viscous_exponent", "etd1_update",
+           "truncate", "cross_contravariant", "contravariant", "reynolds_terms"]
 
 #: the types each kernel is called with (C-contiguous arrays): what kapsel.build_kernels
 #: compiles ahead of time (kapsel.mesh.compiled loads that build when it is current)
@@ -615,6 +615,15 @@ def _metric_k2(ki, kj, kk, gg, g2):
     return t + (kj * kj + kk * kk)
 
 
+@njit(inline="always")
+def _inverse_metric_row(row, ki, kj, kz, n, gg, g2):
+    """row[k] <- 1 / |K|^2 (0 at K = 0) of the modes (i, j, k < n) (a loop of its own:
+    SIMD)."""
+    for k in range(n):
+        K2 = _metric_k2(ki, kj, kz[k], gg, g2)
+        row[k] = 1.0 / K2 if K2 > 0.0 else 0.0
+
+
 @njit(cache=True, nogil=True)
 def project_oblique(v, u_hat, r2, g, kx, ky, kz, mx, my, kz_end, masked, add):
     """v <- P^G (v - r2 u^2 e_1) in place (the term only if r2 != 0; ObliqueSpectralNS's
@@ -628,7 +637,7 @@ def project_oblique(v, u_hat, r2, g, kx, ky, kz, mx, my, kz_end, masked, add):
     nx, ny, nzc = v.shape[1], v.shape[2], v.shape[3]
     gg = 1.0 + g * g
     g2 = 2.0 * g
-    row = np.empty(nzc)                 # 1 / |K|^2 along a row (a loop of its own: SIMD)
+    row = np.empty(nzc)                 # 1 / |K|^2 along a row
     for i in range(nx):
         ki = kx[i]
         for j in range(ny):
@@ -641,17 +650,13 @@ def project_oblique(v, u_hat, r2, g, kx, ky, kz, mx, my, kz_end, masked, add):
                 for k in range(k1, nzc):
                     for cc in range(3):
                         v[cc, i, j, k] = complex(0.0, 0.0)
+            _inverse_metric_row(row, ki, kj, kz, k1, gg, g2)
             for k in range(k1):
-                K2 = _metric_k2(ki, kj, kz[k], gg, g2)
-                row[k] = 1.0 / K2 if K2 > 0.0 else 0.0
-            for k in range(k1):
-                kk = kz[k]
-                inv = row[k]
                 a, b, c = v[0, i, j, k], v[1, i, j, k], v[2, i, j, k]
                 if r2 != 0.0:
                     u = u_hat[1, i, j, k]
                     a = complex(a.real - r2 * u.real, a.imag - r2 * u.imag)
-                a, b, c = _project_metric_point(a, b, c, ki, kj, kk, inv, c0, c1)
+                a, b, c = _project_metric_point(a, b, c, ki, kj, kz[k], row[k], c0, c1)
                 if add:
                     u_hat[0, i, j, k] += a
                     u_hat[1, i, j, k] += b
@@ -687,13 +692,11 @@ def project_oblique_etd1(v, u_hat, r2, g, kx, ky, kz, cx, cy, kz_end, E, w1):
             c0 = gg * ki - g * kj
             c1 = kj - g * ki
             k1 = 0 if (a_ < 0 or b_ < 0) else kz_end
+            _inverse_metric_row(row, ki, kj, kz, k1, gg, g2)
             for k in range(k1):
-                K2 = _metric_k2(ki, kj, kz[k], gg, g2)
-                row[k] = 1.0 / K2 if K2 > 0.0 else 0.0
-            for k in range(k1):
-                a, b, c = v[0, i, j, k], v[1, i, j, k], v[2, i, j, k]
-                if r2 != 0.0:
-                    u = u_hat[1, i, j, k]
+                a, b, c = v[0, i, j, k], v[1, i, j, k], v[2, i, j, k]   # (project_oblique's
+                if r2 != 0.0:                   # lines: as an inline helper of both, the
+                    u = u_hat[1, i, j, k]       # shear term's branch made them 3x slower)
                     a = complex(a.real - r2 * u.real, a.imag - r2 * u.imag)
                 a, b, c = _project_metric_point(a, b, c, ki, kj, kz[k], row[k], c0, c1)
                 e, w = E[a_, b_, k], w1[a_, b_, k]
