@@ -48,33 +48,33 @@ SPECTRAL = ("ns32", "ns64", "ns64x100", "le64", "squirmer64", "el64")
 
 class _Counts:
     """Executions per (plan, part of the step) while ``on``; ``part``: "fluid" inside the
-    fluid's part of the step (``_FluidPart``), else "particles"."""
+    fluid's part of the step (``_FluidPart``), else "particles"; ``seq``: every execution
+    in order, (plan, its input array, its output array, part)."""
 
     def __init__(self):
         self.on = False
         self.part = "particles"
         self.calls = collections.Counter()
         self.plans = {}
+        self.seq = []
 
     def count(self, plan):
         if self.on:
             self.calls[(id(plan), self.part)] += 1
             self.plans[id(plan)] = plan
+            self.seq.append((plan, plan.input_array, plan.output_array, self.part))
 
 
 COUNTS = _Counts()
 
 
 class CountingFFTW(pyfftw.FFTW):
-    """pyfftw.FFTW that counts its executions (``execute`` and ``__call__``)."""
+    """pyfftw.FFTW that counts its executions: ``__call__`` (arrays updated, then
+    normalised) runs through ``execute``, so counting there counts each once."""
 
     def execute(self):
         COUNTS.count(self)
         return super().execute()
-
-    def __call__(self, *args, **kwargs):
-        COUNTS.count(self)
-        return super().__call__(*args, **kwargs)
 
 
 def _kind(plan) -> str:
@@ -121,10 +121,12 @@ class _FluidPart:
                 delattr(self.spm, name)
 
 
-def _floor(per_step, steps):
+def _floor_hot(per_step, steps):
     """CPU ms per step of the plans of ``per_step`` ({plan id: executions per step}) run
-    alone, as many times per step, on the arrays they last had (a c2r plan destroys its
-    input: the values do not matter for the time, only the sizes)."""
+    alone, each its executions of a step one after the other on the arrays it last had:
+    the cache holds them (a c2r plan destroys its input: the values do not matter for the
+    time, only the sizes).  A bound below any step: the step's transforms run on other
+    arrays (three components, the scratch of each stage)."""
     schedule = [(COUNTS.plans[k], round(n)) for k, n in per_step.items()]
     for plan, n in schedule:                          # warm the caches of each plan once
         pyfftw.FFTW.execute(plan)
@@ -134,6 +136,27 @@ def _floor(per_step, steps):
             for _ in range(n):
                 pyfftw.FFTW.execute(plan)
     return (time.process_time() - t0) / steps * 1e3
+
+
+def _floor(seq, steps, part=None):
+    """CPU ms per step of the executions recorded in ``seq`` (``_Counts.seq`` of ``steps``
+    steps; ``part``: only those of that part of the step) replayed alone: the same plans, in
+    the same order, each pointed at the arrays it ran on in the step.  What the steps would
+    cost if they did nothing but their transforms.  The arrays written are restored after,
+    so the model goes on from where it was."""
+    runs = [(p, i, o) for p, i, o, pt in seq if part is None or pt == part]
+    keep = {}
+    for _, i, o in runs:
+        for a in (i, o):
+            keep.setdefault(id(a), (a, a.copy()))
+    t0 = time.process_time()
+    for plan, i, o in runs:
+        plan.update_arrays(i, o)
+        pyfftw.FFTW.execute(plan)
+    spent = (time.process_time() - t0) / steps * 1e3
+    for a, was in keep.values():
+        a[...] = was
+    return spent
 
 
 def measure(scene, steps, np_override=None, threads=1, repeats=3):
@@ -149,6 +172,7 @@ def measure(scene, steps, np_override=None, threads=1, repeats=3):
         model.advance()
     COUNTS.calls.clear()
     COUNTS.plans.clear()
+    COUNTS.seq.clear()
     COUNTS.on = True
     with _FluidPart(model):
         for _ in range(steps):
@@ -162,18 +186,19 @@ def measure(scene, steps, np_override=None, threads=1, repeats=3):
         if part == "fluid":
             fluid[k] += n / steps
             fluid_kinds[_kind(COUNTS.plans[k])] += n / steps
-    runs = []                 # (step, fluid's part, floor, its floor) ms of each repeat
+    seq = list(COUNTS.seq)
+    runs = []       # (step, fluid's part, floor, its floor, hot floor) ms of each repeat
     for _ in range(repeats):
         with _FluidPart(model) as part:   # (two clock reads a call: microseconds a step)
             t0 = time.process_time()
             for _ in range(steps):
                 model.advance()
             step_ms = (time.process_time() - t0) / steps * 1e3
-        runs.append((step_ms, part.spent / steps * 1e3, _floor(whole, steps),
-                     _floor(fluid, steps)))
-    step_ms, fluid_ms, floor_ms, fluid_floor = (statistics.median(r) for r in zip(*runs))
+        runs.append((step_ms, part.spent / steps * 1e3, _floor(seq, steps),
+                     _floor(seq, steps, "fluid"), _floor_hot(whole, steps)))
+    step_ms, fluid_ms, floor_ms, fluid_floor, hot = (statistics.median(r) for r in zip(*runs))
     has_part = part.spm is not None
-    return dict(step=step_ms, floor=floor_ms, kinds=dict(kinds),
+    return dict(step=step_ms, floor=floor_ms, hot_floor=hot, kinds=dict(kinds),
                 fluid=fluid_ms if has_part else None,
                 fluid_floor=fluid_floor if has_part else None,
                 fluid_kinds=dict(fluid_kinds), mesh=tuple(model.cfg.mesh.shape))
@@ -242,8 +267,9 @@ def main(argv=None):
     print(f"{time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}, {a.repeat} x {a.steps} "
           f"steps (medians), {a.threads} thread(s), load {load0:.1f} -> {load1:.1f}")
     print("| scene | mesh | transforms / step (r2c + c2r) | step ms | FFT floor ms | "
-          "step / floor | fluid's part: transforms | ms | floor ms | ratio |")
-    print("|---|---|---|---|---|---|---|---|---|---|")
+          "step / floor | fluid's part: transforms | ms | floor ms | ratio | "
+          "hot floor ms |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|")
 
     def transforms(kinds):
         t = " + ".join(f"{kinds.get(k, 0):g}" for k in ("r2c", "c2r"))
@@ -254,7 +280,7 @@ def main(argv=None):
             f"{r['fluid'] / r['fluid_floor']:.2f}")
         print(f"| {SCENES[scene][0]} | {'x'.join(map(str, r['mesh']))} | "
               f"{transforms(r['kinds'])} | {r['step']:.2f} | {r['floor']:.2f} | "
-              f"{r['step'] / r['floor']:.2f} | {fl} |")
+              f"{r['step'] / r['floor']:.2f} | {fl} | {r['hot_floor']:.2f} |")
 
 if __name__ == "__main__":
     main()
