@@ -73,8 +73,13 @@ def _scatter(w, idx, size, shape=None, out=None, zeroed=False):
     elif not zeroed:
         out.fill(0.0)
     of = out.reshape(3, -1)
-    for c in range(3):
-        np.add.at(of[c], flat, w[c].reshape(-1))
+    K = _compiled.coupling
+    if (K is not None and of.flags.c_contiguous and idx.ndim == 2 and idx.flags.c_contiguous
+            and w.ndim == 3 and w.flags.c_contiguous and idx.dtype == np.int64):
+        K.scatter_add(of, idx, w)             # the same additions in the same order
+    else:
+        for c in range(3):
+            np.add.at(of[c], flat, w[c].reshape(-1))
     if shape is not None and out.ndim == 2:
         out = out.reshape((3,) + tuple(shape))
     return out

@@ -10,13 +10,14 @@ from __future__ import annotations
 
 from numba import njit
 
-__all__ = ["slip"]
+__all__ = ["slip", "scatter_add"]
 
 #: the types each kernel is called with (C-contiguous arrays): what kapsel.build_kernels
 #: compiles ahead of time (kapsel.mesh.compiled loads that build when it is current)
 SIGNATURES = {
     "slip": "void(float64[:,:,::1], float64[:,:,::1], float64[:,::1], float64[:,::1], "
             "float64[:,::1], float64)",     # rc is (3, N, S): the profiles' own layout
+    "scatter_add": "void(float64[:,::1], int64[:,::1], float64[:,:,::1])",
 }
 
 
@@ -39,3 +40,15 @@ def slip(u_s, rc, V, W, phi, shear):
                 if c == 0 and shear != 0.0:
                     w = w + shear * rc[1, i, j]
                 u_s[c, i, j] = w * p
+
+
+@njit(cache=True, nogil=True)
+def scatter_add(out, idx, w):
+    """out[c, idx[i, j]] += w[c, i, j] for every component c, particle i and stencil point j,
+    in that order: ``np.add.at(out[c], idx.ravel(), w[c].ravel())`` for c = 0, 1, 2 (the same
+    additions in the same order, so the same bits), in one call.  out (3, size) flat."""
+    n, s = idx.shape
+    for c in range(3):
+        for i in range(n):
+            for j in range(s):
+                out[c, idx[i, j]] += w[c, i, j]

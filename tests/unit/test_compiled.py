@@ -179,3 +179,21 @@ def test_compiled_spline_coefficients_are_scipys(shape):
     for j in range(shape[1]):                   # slab by slab, as shift_spline runs it
         regrid_kernels.spline_coefficients(f, j, c)
         assert np.array_equal(c, want[:, j])
+
+
+def test_compiled_scatter_adds_as_add_at(compiled_kernels):
+    """The particles' increment scattered onto the grid (kapsel.particles.coupling._scatter)
+    by the compiled pass: np.add.at's bits, overlapping stencils summed in the same order."""
+    from kapsel.particles import coupling
+    rng = np.random.default_rng(5)
+    idx = rng.integers(0, 50, size=(4, 30))             # overlapping: points repeat
+    w = rng.standard_normal((3, 4, 30)) * 10.0 ** rng.integers(-8, 8, size=(3, 4, 30))
+    compiled_kernels.off()
+    assert coupling._compiled.coupling is None
+    want = coupling._scatter(w, idx, 50, shape=(5, 10))
+    compiled_kernels.on()
+    assert coupling._compiled.coupling is not None
+    out = np.full((3, 5, 10), 7.0)
+    got = coupling._scatter(w, idx, 50, out=out)
+    compiled_kernels.off()
+    assert got is out and np.array_equal(got, want)
