@@ -716,16 +716,17 @@ class Grid:
     def gather_complex(self, a, root=0):
         return a
 
-    def to_rectangular(self, f, g, method="linear", origin=0.0):
+    def to_rectangular(self, f, g, method="linear", origin=0.0, out=None):
         """This process's block of a field (c, NX, NY, NZ) of the oblique grid of strain g,
-        re-gridded onto the rectangular grid (kapsel.mesh.regrid.to_rectangular)."""
+        re-gridded onto the rectangular grid (kapsel.mesh.regrid.to_rectangular), into
+        ``out`` (not ``f``) if given."""
         from .regrid import to_rectangular
-        return to_rectangular(f, g, method, origin)
+        return to_rectangular(f, g, method, origin, out=out)
 
-    def to_oblique(self, f, g, method="linear", origin=0.0):
+    def to_oblique(self, f, g, method="linear", origin=0.0, out=None):
         """The inverse re-gridding, rectangular -> oblique (kapsel.mesh.regrid.to_oblique)."""
         from .regrid import to_oblique
-        return to_oblique(f, g, method, origin)
+        return to_oblique(f, g, method, origin, out=out)
 
     def gather_rows(self, f):
         """The whole x rows of the blocks of ``f`` (..., nx, ny, nz) along the x split: ``f``."""

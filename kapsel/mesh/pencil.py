@@ -573,26 +573,31 @@ class PencilGrid(Grid):
         parts = self.comm_x.allgather(np.ascontiguousarray(f))
         return np.concatenate(parts, axis=f.ndim - 3)
 
-    def to_rectangular(self, f, g, method="linear", origin=0.0):
+    def to_rectangular(self, f, g, method="linear", origin=0.0, out=None):
         """This rank's block of a field (c, NX, NY, NZ) of the oblique grid of strain g
         re-gridded onto the rectangular grid: kapsel.mesh.regrid.to_rectangular of the
         whole field, cut to the block (the same bits).  The x shift of a row needs the whole
         row: each component's blocks of this rank's column (comm_x) are gathered along x
         (one (NX, NY / py, NZ) slab at a time), shifted and cut to the block again."""
-        return self._shift_rows(f, g * (np.arange(self.shape[1]) - origin), method)
+        return self._shift_rows(f, g * (np.arange(self.shape[1]) - origin), method, out)
 
-    def to_oblique(self, f, g, method="linear", origin=0.0):
+    def to_oblique(self, f, g, method="linear", origin=0.0, out=None):
         """The inverse re-gridding, rectangular -> oblique (kapsel.mesh.regrid.to_oblique),
         as ``to_rectangular``."""
-        return self._shift_rows(f, -g * (np.arange(self.shape[1]) - origin), method)
+        return self._shift_rows(f, -g * (np.arange(self.shape[1]) - origin), method, out)
 
-    def _shift_rows(self, f, shift, method):
+    def _shift_rows(self, f, shift, method, out=None):
+        """``out`` (not ``f``): the block written there, a component at a time."""
         from .regrid import shift_rows
         f = np.asarray(f, dtype=float)
         if f.ndim == 4:
-            return np.stack([self._shift_rows(c, shift, method) for c in f])
+            if out is None:
+                return np.stack([self._shift_rows(c, shift, method) for c in f])
+            for c in range(f.shape[0]):
+                self._shift_rows(f[c], shift, method, out[c])
+            return out
         (x0, x1), (y0, y1), _ = self.real_range
-        return shift_rows(self._x_rows(f), shift[y0:y1], method, rows=slice(x0, x1))
+        return shift_rows(self._x_rows(f), shift[y0:y1], method, rows=slice(x0, x1), out=out)
 
     def _x_rows(self, f):
         """The whole x rows (NX, NY / py, NZ) of this rank's column of a scalar block ``f``:

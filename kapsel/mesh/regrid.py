@@ -17,22 +17,31 @@ INTERPOLATIONS = ("linear", "spline")
 kernels = None
 
 
-def shift_rows(f, shift, method="linear", rows=None):
+def shift_rows(f, shift, method="linear", rows=None, out=None):
     """g[i, j, ...] = f(x_i - shift_j) along axis 0, periodic; ``shift`` (NY,) in grid points.
 
     f: (NX, NY, ...) or (c, NX, NY, ...) with a leading component axis (then ``f.ndim == 4``).
     Integer shifts are exact permutations for both methods.  ``rows`` (a slice of x): only
-    those rows of g (the same values as those rows of the whole g).
+    those rows of g (the same values as those rows of the whole g).  ``out``: g written
+    there (returned; an array of g's shape that is not ``f``) instead of a new array.
     """
     if method not in INTERPOLATIONS:
         raise ValueError(f"OBL_INT must be one of {INTERPOLATIONS}, got {method!r}")
     f = np.asarray(f, dtype=float)
     if f.ndim == 4:
         if kernels is not None:
-            return _shift_compiled(f, shift, method, rows)
-        return np.stack([shift_rows(c, shift, method, rows) for c in f])
+            return _shift_compiled(f, shift, method, rows, out)
+        if out is None:
+            return np.stack([shift_rows(c, shift, method, rows) for c in f])
+        for c in range(f.shape[0]):
+            out[c] = shift_rows(f[c], shift, method, rows)
+        return out
     if kernels is not None and f.ndim == 3:
-        return _shift_compiled(f[None], shift, method, rows)[0]
+        return _shift_compiled(f[None], shift, method, rows,
+                               None if out is None else out[None])[0]
+    if out is not None:
+        out[...] = shift_rows(f, shift, method, rows)
+        return out
     nx, ny = f.shape[0], f.shape[1]
     b, frac = _split(shift, ny)              # g_i = f(i - b - frac)
     i = np.arange(nx)[:, None] if rows is None else np.arange(nx)[rows][:, None]
@@ -71,14 +80,19 @@ def _spline_weights(frac):
             (-3 * t ** 3 + 3 * t ** 2 + 3 * t + 1) / 6.0, t ** 3 / 6.0)
 
 
-def _shift_compiled(f, shift, method, rows):
+def _shift_compiled(f, shift, method, rows, out=None):
     """shift_rows of the components of ``f`` (c, NX, NY, NZ) by the compiled kernels: the
-    weights as the numpy passes compute them, then one pass per component."""
+    weights as the numpy passes compute them, then one pass per component, into ``out``
+    (c-contiguous components) or a new array."""
     nx, ny = f.shape[1], f.shape[2]
     b, frac = _split(shift, ny)
     idx = np.arange(nx, dtype=np.int64)
     idx = np.ascontiguousarray(idx if rows is None else idx[rows])
-    out = np.empty((f.shape[0], idx.size) + f.shape[2:])
+    shape = (f.shape[0], idx.size) + f.shape[2:]
+    if out is None:
+        out = np.empty(shape)
+    elif out.shape != shape or not all(o.flags.c_contiguous for o in out):
+        raise ValueError(f"out must be {shape} with contiguous components, got {out.shape}")
     if method == "linear":
         for c in range(f.shape[0]):
             kernels.shift_linear(np.ascontiguousarray(f[c]), idx, b, frac, out[c])
@@ -94,12 +108,13 @@ def _ny(f):
     return np.shape(f)[2] if np.ndim(f) == 4 else np.shape(f)[1]
 
 
-def to_rectangular(f, g, method="linear", origin=0.0):
+def to_rectangular(f, g, method="linear", origin=0.0, out=None):
     """A field on the oblique grid of strain g -> the rectangular grid (same shape):
-    rect[i, j] = f at oblique x^ = i - g (j - origin) (grid units; origin = y0 / DX)."""
-    return shift_rows(f, g * (np.arange(_ny(f)) - origin), method)
+    rect[i, j] = f at oblique x^ = i - g (j - origin) (grid units; origin = y0 / DX);
+    into ``out`` if given (``shift_rows``)."""
+    return shift_rows(f, g * (np.arange(_ny(f)) - origin), method, out=out)
 
 
-def to_oblique(f, g, method="linear", origin=0.0):
+def to_oblique(f, g, method="linear", origin=0.0, out=None):
     """Inverse of ``to_rectangular``: obl[i, j] = rect at x = i + g (j - origin)."""
-    return shift_rows(f, -g * (np.arange(_ny(f)) - origin), method)
+    return shift_rows(f, -g * (np.arange(_ny(f)) - origin), method, out=out)

@@ -155,6 +155,14 @@ class SPM:
         self.stencil = (Stencil(A, xi, dx, strain_max=0.0 if self.rect else smax)
                         if particles.n else None)
         self._uc = None         # rect: u* on the rectangular grid
+        # spectral and rect: the re-gridding goes through the solver's two scratch fields,
+        # with no field of its own: u* (oblique, in self.u) re-gridded into the increment's
+        # buffer, the increment made in u*'s (done with once re-gridded), then re-gridded
+        # back into the first (issue 25: two fields a step neither allocated nor faulted in)
+        self._regrid_in_scratch = bool(self.rect and self.mode == "spectral"
+                                       and self._du is not None)
+        if self._regrid_in_scratch:
+            self._du = self.u
         self.moment = np.zeros((3, 3))    # sum du_a r_b of the last step (particle stress)
         self.step_index = 0
         self.motion = getattr(particles, "constraints", None) or _free_motion
@@ -388,24 +396,29 @@ class SPM:
         return self._to_rect(self.phi())
 
     # ------------------------------------------------------------------ frames (rect)
-    def _to_rect(self, u):
+    def _to_rect(self, u, out=None):
         """u* (Cartesian deviation, oblique grid) -> the rectangular grid (Transform_obl_u
         oblique2cartesian without the mean flow: the coupling uses deviations); the
         layout's re-gridding of this process's block (a collective when distributed)."""
         f = self.fluid
         return self.layout.to_rectangular(u, f.frame_strain, self.interpolation,
-                                          f.y0 / self.dx)
+                                          f.y0 / self.dx, out=out)
 
-    def _to_oblique(self, a, method=None):
+    def _to_oblique(self, a, method=None, out=None):
         f = self.fluid
         return self.layout.to_oblique(a, f.frame_strain, method or self.interpolation,
-                                      f.y0 / self.dx)
+                                      f.y0 / self.dx, out=out)
+
+    def _increment_oblique(self, du):
+        """rect: the increment re-gridded onto the fluid's oblique grid (Transform_obl_u
+        cartesian2oblique), into the buffer u* on the rectangular grid had (done with)."""
+        return self._to_oblique(du, out=self._du_buf if self._regrid_in_scratch else None)
 
     def _coupling_u(self):
         """The field the particles couple to: u* (rect: on the rectangular grid)."""
         if self.rect:
             self._uc = None                 # the last step's, freed before the new one is made
-            self._uc = self._to_rect(self.u)
+            self._uc = self._to_rect(self.u, self._du_buf if self._regrid_in_scratch else None)
             return self._uc
         return self.u
 
@@ -474,7 +487,7 @@ class SPM:
         finally:
             self._deviation = False
         self._uc = None                     # rect: done with u* (memory for the re-gridding)
-        self._add_solenoidal(self._to_oblique(du) if self.rect and self.n_global else du,
+        self._add_solenoidal(self._increment_oblique(du) if self.rect and self.n_global else du,
                              start=True)
         if self.p.n and self.wall is None:
             clear_points(du, self.idx)
@@ -609,7 +622,7 @@ class SPM:
             if self.rect:                   # u* on the rectangular grid is done with: its
                 uc = self._uc = None        # memory serves the re-gridding below
             # rect: the increment back on the oblique grid (Transform_obl_u cartesian2oblique)
-            self._add_solenoidal(self._to_oblique(du) if self.rect else du)
+            self._add_solenoidal(self._increment_oblique(du) if self.rect else du)
             self._du_stepped = True
             if self.wall is None:
                 flat = self.idx.reshape(-1)
