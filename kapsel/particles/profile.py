@@ -18,6 +18,10 @@ from functools import lru_cache
 
 import numpy as np
 
+from ..mesh import compiled as _compiled
+
+_compiled.provide("profile", __name__.rsplit(".", 1)[0] + ".profile_kernels")
+
 __all__ = ["h", "g", "Stencil", "particle_profiles", "total_phi", "grid_volume"]
 
 _TINY = 1e-150
@@ -122,6 +126,14 @@ def particle_profiles(R, stencil, shape, dx, strain=0.0, origin=0.0):
         b = base.astype(np.int64)
     # r = (base + o) dx - R = (o - frac) dx, stored component-major: r[..., c] contiguous
     rc = np.empty((3, n, S))
+    K = _compiled.profile
+    if K is not None:                      # the same operations, point by point
+        idx = np.empty((n, S), dtype=np.int64)
+        dist = np.empty((n, S))
+        K.stencil_points(b, frac, stencil.offsets, stencil.offsets_f,
+                         np.asarray(shape[:3], dtype=np.int64), float(dx), float(strain),
+                         idx, rc, dist)
+        return idx, g(dist, stencil.A, stencil.xi, dx), rc.transpose(1, 2, 0)
     idx = np.zeros((n, S), dtype=np.int64)
     tmp = np.empty((n, S), dtype=np.int64)
     for c in range(3):

@@ -197,3 +197,24 @@ def test_compiled_scatter_adds_as_add_at(compiled_kernels):
     got = coupling._scatter(w, idx, 50, out=out)
     compiled_kernels.off()
     assert got is out and np.array_equal(got, want)
+
+
+@pytest.mark.parametrize("dx,strain", [(1.0, 0.0), (0.5, 0.0), (1.0, 0.35), (0.7, -0.8)])
+def test_compiled_stencil_points_are_the_numpy_profiles(dx, strain, compiled_kernels):
+    """particle_profiles by the compiled pass (kapsel.particles.profile_kernels): the numpy
+    passes' indices, offsets and profile, bit for bit, on a plain and an oblique grid, for
+    positions inside, outside and on the edges of the box."""
+    from kapsel.particles import profile
+    shape = (12, 10, 8)
+    st = profile.Stencil(2.0, 1.0, dx, strain_max=abs(strain))
+    R = np.array([[0.0, 0.0, 0.0], [3.3, 9.99, 7.2], [-1.7, 11.4, 3.5], [11.999, 4.5, 0.01]])
+    R = R * dx
+    compiled_kernels.off()
+    assert profile._compiled.profile is None
+    want = profile.particle_profiles(R, st, shape, dx, strain=strain, origin=4.0 * dx)
+    compiled_kernels.on()
+    assert profile._compiled.profile is not None
+    got = profile.particle_profiles(R, st, shape, dx, strain=strain, origin=4.0 * dx)
+    compiled_kernels.off()
+    for a, b in zip(got, want):
+        assert a.shape == b.shape and np.array_equal(a, b)
