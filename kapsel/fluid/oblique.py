@@ -494,12 +494,19 @@ class ObliqueSpectralNS(_ObliqueFrame, SpectralNS):
             return self._n
         return contravariant(u, g, out=self._n)
 
-    def add_solenoidal(self, du, project=True):
+    def add_solenoidal(self, du, project=True, overwrite=False):
         """u^ += P^G[FFT(contravariant(du))] for a Cartesian increment du on the oblique grid
-        (not truncated, as the original's Solenoidal_uk_OBL)."""
+        (not truncated, as the original's Solenoidal_uk_OBL).  ``overwrite``: du is the
+        caller's scratch, made contravariant in place (one component written instead of a
+        copy of three; the same numbers)."""
         g = self.frame_strain
         d = self._nl          # free between steps
-        self.grid.forward(self._contravariant(du, g), out=d)
+        K = _compiled.spectral
+        if overwrite and K is not None and du.shape == self._n.shape and du.flags.c_contiguous:
+            K.contravariant_in_place(du, g)
+            self.grid.forward(du, out=d)
+        else:
+            self.grid.forward(self._contravariant(du, g), out=d)
         if project:
             self.project_metric(d, g, add=True)
         else:

@@ -29,7 +29,8 @@ __all__ = ["truncated_component", "scaled_component", "vorticity_component", "cr
            "project_etd2_rows", "project_add_rows", "project_euler_rows", "project_set_scaled",
            "project_set_scaled_rows", "frame_component", "frame_vorticity_component",
            "project_oblique", "project_oblique_etd1", "viscous_exponent", "etd1_update",
-           "truncate", "cross_contravariant", "contravariant", "reynolds_terms"]
+           "truncate", "cross_contravariant", "contravariant", "contravariant_in_place",
+           "reynolds_terms"]
 
 #: the types each kernel is called with (C-contiguous arrays): what kapsel.build_kernels
 #: compiles ahead of time (kapsel.mesh.compiled loads that build when it is current)
@@ -52,6 +53,7 @@ SIGNATURES = {
     "truncate": "void(complex128[:,:,:,::1], float64[::1], float64[::1], int64)",
     "cross_contravariant": "void(float64[:,:,:,::1], float64[:,:,:,::1], float64[:,:,:,::1], float64)",
     "contravariant": "void(float64[:,:,:,::1], float64, float64[:,:,:,::1])",
+    "contravariant_in_place": "void(float64[:,:,:,::1], float64)",
     "reynolds_terms": "void(complex128[:,:,:,::1], float64, float64[::1], float64[:,:,::1])",
     "etd1_update": "void(complex128[:,:,:,::1], complex128[:,:,:,::1], float64[:,:,::1], float64[:,:,::1])",
 }
@@ -763,6 +765,17 @@ def contravariant(u, g, out):
                 out[0, i, j, k] = u[0, i, j, k] - g * b
                 out[1, i, j, k] = b
                 out[2, i, j, k] = u[2, i, j, k]
+
+
+@njit(cache=True, nogil=True)
+def contravariant_in_place(u, g):
+    """u <- its contravariant components in the frame of strain g: u^1 = u_x - g u_y (as
+    ``contravariant`` makes it); u_y and u_z are their own, read and not written."""
+    nx, ny, nz = u.shape[1], u.shape[2], u.shape[3]
+    for i in range(nx):
+        for j in range(ny):
+            for k in range(nz):
+                u[0, i, j, k] = u[0, i, j, k] - g * u[1, i, j, k]
 
 
 @njit(cache=True, nogil=True)

@@ -450,7 +450,10 @@ class SPM:
         except at the ``start`` (the original imposes with its unsheared, truncating
         routines: Make_f_particle_dt_sole)."""
         if self.mode == "spectral":
-            self.fluid.add_solenoidal(du)
+            if self._regrid_in_scratch and du is self._du_buf:   # (its own: overwritten)
+                self.fluid.add_solenoidal(du, overwrite=True)
+            else:
+                self.fluid.add_solenoidal(du)
             if start and self.oblique:
                 self.fluid.truncate()
         else:

@@ -379,11 +379,13 @@ def test_shift_rows_into_out_gives_the_same_bits(method):
 
 
 @pytest.mark.parametrize("method", ["linear", "spline"])
-def test_sheared_spectral_step_regrids_in_the_solvers_scratch(method):
+def test_sheared_spectral_step_regrids_in_the_solvers_scratch(method, compiled_kernels):
     """The rectangular coupling of a Lees-Edwards spectral run re-grids u* and the increment
-    through the solver's two scratch fields: a step allocates less than one vector field
-    (it allocated two before, issue 25), and the particle moves as it did."""
+    through the solver's two scratch fields: a step with the compiled kernels (a run's)
+    allocates less than one vector field (it allocated two before, issue 25), and the
+    particle moves as it did."""
     import tracemalloc
+    compiled_kernels.on()
     n = 16
     g = Grid((n, n, n))
     f = ObliqueSpectralNS(g, 1.0, 1.0, 0.05, ShearFlow("DC", 0.02))
@@ -402,3 +404,23 @@ def test_sheared_spectral_step_regrids_in_the_solvers_scratch(method):
     u, du = f.scratch_real()
     assert spm._uc is None and spm._du is u     # the increment is made in u*'s field
     assert np.isfinite(p.v).all() and abs(p.v[0, 0]) > 0   # carried by the shear flow
+
+
+def test_add_solenoidal_in_place_is_the_same_increment(compiled_kernels):
+    """The oblique fluid's increment made contravariant in the caller's scratch (``overwrite``,
+    the sheared SPM's) adds the same bits to u^ as through the solver's copy."""
+    compiled_kernels.on()
+    out = []
+    for overwrite in (False, True):
+        g = Grid((16, 16, 16))
+        f = ObliqueSpectralNS(g, 1.0, 1.0, 0.05, ShearFlow("DC", 0.05))
+        for _ in range(3):
+            f.step()                                         # a frame of strain != 0
+        assert f.frame_strain != 0
+        du = g.empty_real()
+        du[...] = np.random.default_rng(3).normal(size=du.shape)
+        keep = du.copy()
+        f.add_solenoidal(du, overwrite=overwrite)
+        out.append(f.u_hat.copy())
+        assert np.array_equal(du, keep) != overwrite         # written only when allowed
+    assert np.array_equal(out[0], out[1]) and np.any(out[0] != 0)
