@@ -716,17 +716,18 @@ class Grid:
     def gather_complex(self, a, root=0):
         return a
 
-    def to_rectangular(self, f, g, method="linear", origin=0.0, out=None):
+    def to_rectangular(self, f, g, method="linear", origin=0.0, out=None, lines=None,
+                       zero=True):
         """This process's block of a field (c, NX, NY, NZ) of the oblique grid of strain g,
         re-gridded onto the rectangular grid (kapsel.mesh.regrid.to_rectangular), into
-        ``out`` (not ``f``) if given."""
+        ``out`` (not ``f``) if given, on ``lines`` only (kapsel.mesh.regrid.shift_rows)."""
         from .regrid import to_rectangular
-        return to_rectangular(f, g, method, origin, out=out)
+        return to_rectangular(f, g, method, origin, out=out, lines=lines, zero=zero)
 
-    def to_oblique(self, f, g, method="linear", origin=0.0, out=None):
+    def to_oblique(self, f, g, method="linear", origin=0.0, out=None, lines=None, zero=True):
         """The inverse re-gridding, rectangular -> oblique (kapsel.mesh.regrid.to_oblique)."""
         from .regrid import to_oblique
-        return to_oblique(f, g, method, origin, out=out)
+        return to_oblique(f, g, method, origin, out=out, lines=lines, zero=zero)
 
     def gather_rows(self, f):
         """The whole x rows of the blocks of ``f`` (..., nx, ny, nz) along the x split: ``f``."""

@@ -17,30 +17,44 @@ INTERPOLATIONS = ("linear", "spline")
 kernels = None
 
 
-def shift_rows(f, shift, method="linear", rows=None, out=None):
+def shift_rows(f, shift, method="linear", rows=None, out=None, lines=None, zero=True):
     """g[i, j, ...] = f(x_i - shift_j) along axis 0, periodic; ``shift`` (NY,) in grid points.
 
     f: (NX, NY, ...) or (c, NX, NY, ...) with a leading component axis (then ``f.ndim == 4``).
     Integer shifts are exact permutations for both methods.  ``rows`` (a slice of x): only
     those rows of g (the same values as those rows of the whole g).  ``out``: g written
     there (returned; an array of g's shape that is not ``f``) instead of a new array.
+    ``lines`` (bool (NY, NZ) of a 3-D field's lines along x; with ``out``): only those lines
+    of g are made (the same values); the others are set to 0 with ``zero``, else left as
+    they are in ``out`` (a field read on some lines only, a sparse field whose other lines
+    are 0: each line along x is shifted on its own).
     """
     if method not in INTERPOLATIONS:
         raise ValueError(f"OBL_INT must be one of {INTERPOLATIONS}, got {method!r}")
     f = np.asarray(f, dtype=float)
+    if lines is not None:
+        if out is None or f.ndim not in (3, 4) or lines.shape != f.shape[-2:]:
+            raise ValueError("lines: a (NY, NZ) mask of a 3-D field's lines, with out")
+        lines = np.ascontiguousarray(lines, dtype=bool)
     if f.ndim == 4:
         if kernels is not None:
-            return _shift_compiled(f, shift, method, rows, out)
+            return _shift_compiled(f, shift, method, rows, out, lines, zero)
         if out is None:
             return np.stack([shift_rows(c, shift, method, rows) for c in f])
         for c in range(f.shape[0]):
-            out[c] = shift_rows(f[c], shift, method, rows)
+            shift_rows(f[c], shift, method, rows, out[c], lines, zero)
         return out
     if kernels is not None and f.ndim == 3:
         return _shift_compiled(f[None], shift, method, rows,
-                               None if out is None else out[None])[0]
+                               None if out is None else out[None], lines, zero)[0]
     if out is not None:
-        out[...] = shift_rows(f, shift, method, rows)
+        g = shift_rows(f, shift, method, rows)
+        if lines is None:
+            out[...] = g
+        else:
+            out[:, lines] = g[:, lines]
+            if zero:
+                out[:, ~lines] = 0.0
         return out
     nx, ny = f.shape[0], f.shape[1]
     b, frac = _split(shift, ny)              # g_i = f(i - b - frac)
@@ -80,10 +94,13 @@ def _spline_weights(frac):
             (-3 * t ** 3 + 3 * t ** 2 + 3 * t + 1) / 6.0, t ** 3 / 6.0)
 
 
-def _shift_compiled(f, shift, method, rows, out=None):
+_EVERY_LINE = np.zeros((0, 0), dtype=bool)
+
+
+def _shift_compiled(f, shift, method, rows, out=None, lines=None, zero=True):
     """shift_rows of the components of ``f`` (c, NX, NY, NZ) by the compiled kernels: the
     weights as the numpy passes compute them, then one pass per component, into ``out``
-    (c-contiguous components) or a new array."""
+    (c-contiguous components) or a new array; on ``lines`` only (``shift_rows``)."""
     nx, ny = f.shape[1], f.shape[2]
     b, frac = _split(shift, ny)
     idx = np.arange(nx, dtype=np.int64)
@@ -93,14 +110,17 @@ def _shift_compiled(f, shift, method, rows, out=None):
         out = np.empty(shape)
     elif out.shape != shape or not all(o.flags.c_contiguous for o in out):
         raise ValueError(f"out must be {shape} with contiguous components, got {out.shape}")
+    lines = _EVERY_LINE if lines is None else lines
     if method == "linear":
         for c in range(f.shape[0]):
-            kernels.shift_linear(np.ascontiguousarray(f[c]), idx, b, frac, out[c])
+            kernels.shift_linear(np.ascontiguousarray(f[c]), idx, b, frac, out[c], lines,
+                                 bool(zero))
         return out
     w0, w1, w2, w3 = _spline_weights(frac)
     slab = np.empty((nx, f.shape[3]))
     for c in range(f.shape[0]):
-        kernels.shift_spline(np.ascontiguousarray(f[c]), idx, b, w0, w1, w2, w3, out[c], slab)
+        kernels.shift_spline(np.ascontiguousarray(f[c]), idx, b, w0, w1, w2, w3, out[c], slab,
+                             lines, bool(zero))
     return out
 
 
@@ -108,13 +128,15 @@ def _ny(f):
     return np.shape(f)[2] if np.ndim(f) == 4 else np.shape(f)[1]
 
 
-def to_rectangular(f, g, method="linear", origin=0.0, out=None):
+def to_rectangular(f, g, method="linear", origin=0.0, out=None, lines=None, zero=True):
     """A field on the oblique grid of strain g -> the rectangular grid (same shape):
     rect[i, j] = f at oblique x^ = i - g (j - origin) (grid units; origin = y0 / DX);
-    into ``out`` if given (``shift_rows``)."""
-    return shift_rows(f, g * (np.arange(_ny(f)) - origin), method, out=out)
+    into ``out`` if given, on ``lines`` only (``shift_rows``)."""
+    return shift_rows(f, g * (np.arange(_ny(f)) - origin), method, out=out, lines=lines,
+                      zero=zero)
 
 
-def to_oblique(f, g, method="linear", origin=0.0, out=None):
+def to_oblique(f, g, method="linear", origin=0.0, out=None, lines=None, zero=True):
     """Inverse of ``to_rectangular``: obl[i, j] = rect at x = i + g (j - origin)."""
-    return shift_rows(f, -g * (np.arange(_ny(f)) - origin), method, out=out)
+    return shift_rows(f, -g * (np.arange(_ny(f)) - origin), method, out=out, lines=lines,
+                      zero=zero)

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from numba import njit
 
-__all__ = ["slip", "scatter_add"]
+__all__ = ["slip", "scatter_add", "weights"]
 
 #: the types each kernel is called with (C-contiguous arrays): what kapsel.build_kernels
 #: compiles ahead of time (kapsel.mesh.compiled loads that build when it is current)
@@ -18,6 +18,7 @@ SIGNATURES = {
     "slip": "void(float64[:,:,::1], float64[:,:,::1], float64[:,::1], float64[:,::1], "
             "float64[:,::1], float64)",     # rc is (3, N, S): the profiles' own layout
     "scatter_add": "void(float64[:,::1], int64[:,::1], float64[:,:,::1])",
+    "weights": "void(float64[::1], int64[:,::1], float64[:,::1], float64[:,::1], boolean)",
 }
 
 
@@ -52,3 +53,25 @@ def scatter_add(out, idx, w):
         for i in range(n):
             for j in range(s):
                 out[c, idx[i, j]] += w[c, i, j]
+
+
+@njit(cache=True, nogil=True)
+def weights(ps, idx, phi, w, clear):
+    """w = phi / max(phi_sum, 1) at the stencil points (spm.SPM._weights): phi_sum into the
+    flat ``ps`` (0, or the walls' phi, on entry) by ``np.add.at``'s additions in its order,
+    read back at the points, raised to 1 as np.maximum does (NaN kept), divided; then with
+    ``clear`` the points of ``ps`` are 0 again."""
+    n, s = idx.shape
+    for i in range(n):
+        for j in range(s):
+            ps[idx[i, j]] += phi[i, j]
+    for i in range(n):
+        for j in range(s):
+            t = ps[idx[i, j]]
+            if t < 1.0:
+                t = 1.0
+            w[i, j] = phi[i, j] / t
+    if clear:
+        for i in range(n):
+            for j in range(s):
+                ps[idx[i, j]] = 0.0

@@ -92,6 +92,8 @@ class Stencil:
         # contiguous per-component copies for the vectorised index / vector arithmetic
         self.o = [np.ascontiguousarray(self.offsets[:, c]) for c in range(3)]
         self.of = [np.ascontiguousarray(self.offsets_f[:, c]) for c in range(3)]
+        #: the lines along x a stencil meets: its distinct (y, z) offsets
+        self.lines = len(np.unique(self.offsets[:, 1:], axis=0))
 
     @property
     def size(self):

@@ -67,6 +67,7 @@ from . import motion as _free_motion
 from .interactions import as_forces
 from .ownership import owned_table
 from .profile import Stencil, lees_edwards_profiles, particle_profiles, total_phi
+from ..mesh import compiled as _compiled
 
 __all__ = ["SPM"]
 
@@ -235,6 +236,12 @@ class SPM:
         ps = self._psum
         if self.wall is not None:
             ps[...] = self.wall.phi.reshape(-1)
+        K = _compiled.coupling
+        if (K is not None and self.idx.flags.c_contiguous and self.phi_i.flags.c_contiguous
+                and self.idx.dtype == np.int64 and self.idx.ndim == 2):
+            self.w = np.empty_like(self.phi_i)           # the same operations, one call
+            K.weights(ps, self.idx, self.phi_i, self.w, self.wall is None)
+            return
         np.add.at(ps, self.idx.reshape(-1), self.phi_i.reshape(-1))
         s = ps[self.idx]
         np.maximum(s, 1.0, out=s)
@@ -396,29 +403,61 @@ class SPM:
         return self._to_rect(self.phi())
 
     # ------------------------------------------------------------------ frames (rect)
-    def _to_rect(self, u, out=None):
+    def _to_rect(self, u, out=None, **lines):
         """u* (Cartesian deviation, oblique grid) -> the rectangular grid (Transform_obl_u
         oblique2cartesian without the mean flow: the coupling uses deviations); the
-        layout's re-gridding of this process's block (a collective when distributed)."""
+        layout's re-gridding of this process's block (a collective when distributed);
+        ``lines``: on some lines only (kapsel.mesh.regrid.shift_rows)."""
         f = self.fluid
         return self.layout.to_rectangular(u, f.frame_strain, self.interpolation,
-                                          f.y0 / self.dx, out=out)
+                                          f.y0 / self.dx, out=out, **lines)
 
-    def _to_oblique(self, a, method=None, out=None):
+    def _to_oblique(self, a, method=None, out=None, **lines):
         f = self.fluid
         return self.layout.to_oblique(a, f.frame_strain, method or self.interpolation,
-                                      f.y0 / self.dx, out=out)
+                                      f.y0 / self.dx, out=out, **lines)
 
     def _increment_oblique(self, du):
         """rect: the increment re-gridded onto the fluid's oblique grid (Transform_obl_u
-        cartesian2oblique), into the buffer u* on the rectangular grid had (done with)."""
-        return self._to_oblique(du, out=self._du_buf if self._regrid_in_scratch else None)
+        cartesian2oblique), into the buffer u* on the rectangular grid had (done with); on
+        the particles' lines only when u* was (its other lines are 0)."""
+        if not self._regrid_in_scratch:
+            return self._to_oblique(du)
+        lines = {} if self._lines_now is None else {"lines": self._lines_now, "zero": True}
+        return self._to_oblique(du, out=self._du_buf, **lines)
+
+    _lines_now = None       # rect: the lines of this step's re-gridding (None: every line)
+    _line_mask = None
+
+    def _stencil_lines(self):
+        """rect, on one process, with few particles: the lines along x (y, z) of the
+        rectangular grid the particles' stencils meet, a bool (NY, NZ) mask.  u* is read at
+        the stencil points only and the increment is 0 off them, and each line is re-gridded
+        on its own, so these lines alone give the same numbers (kapsel.mesh.regrid).  None
+        (every line) when distributed (a line's increment comes from the x blocks of
+        several ranks) or when the stencils may meet half the lines or more."""
+        ny, nz = self.fshape[1], self.fshape[2]
+        if (not self.layout.whole_mesh or getattr(self, "idx", None) is None
+                or 2 * self.idx.shape[0] * self.stencil.lines >= ny * nz):
+            return None
+        if self._line_mask is None:
+            self._line_mask = np.zeros((ny, nz), dtype=bool)
+        m = self._line_mask
+        m[...] = False
+        m.reshape(-1)[np.remainder(self.idx.reshape(-1), ny * nz)] = True
+        return m
 
     def _coupling_u(self):
         """The field the particles couple to: u* (rect: on the rectangular grid)."""
         if self.rect:
             self._uc = None                 # the last step's, freed before the new one is made
-            self._uc = self._to_rect(self.u, self._du_buf if self._regrid_in_scratch else None)
+            if not self._regrid_in_scratch:
+                self._uc = self._to_rect(self.u)
+                return self._uc
+            self._lines_now = self._stencil_lines()      # (u* is read on them only)
+            lines = {} if self._lines_now is None else {"lines": self._lines_now,
+                                                        "zero": False}
+            self._uc = self._to_rect(self.u, self._du_buf, **lines)
             return self._uc
         return self.u
 

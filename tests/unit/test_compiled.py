@@ -176,9 +176,13 @@ def test_compiled_spline_coefficients_are_scipys(shape):
     f = np.random.default_rng(7).standard_normal(shape)
     want = spline_filter1d(f, order=3, axis=0, mode="grid-wrap")
     c = np.empty((shape[0], shape[2]))
+    every = np.arange(shape[2], dtype=np.int64)
+    some = every[::2].copy()                    # a subset of the columns: their own bits
     for j in range(shape[1]):                   # slab by slab, as shift_spline runs it
-        regrid_kernels.spline_coefficients(f, j, c)
+        regrid_kernels.spline_coefficients(f, j, every, every.size, c)
         assert np.array_equal(c, want[:, j])
+        regrid_kernels.spline_coefficients(f, j, some, some.size, c)
+        assert np.array_equal(c[:, :some.size], want[:, j, some])
 
 
 def test_compiled_scatter_adds_as_add_at(compiled_kernels):
@@ -218,3 +222,28 @@ def test_compiled_stencil_points_are_the_numpy_profiles(dx, strain, compiled_ker
     compiled_kernels.off()
     for a, b in zip(got, want):
         assert a.shape == b.shape and np.array_equal(a, b)
+
+
+@pytest.mark.parametrize("clear", [True, False])
+def test_compiled_weights_are_the_numpy_passes(clear, compiled_kernels):
+    """w = phi / max(phi_sum, 1) at the stencil points by one compiled call
+    (coupling_kernels.weights): the numpy passes' bits (np.add.at's order, np.maximum's
+    NaN), phi_sum cleared after or kept (walls)."""
+    from kapsel.particles import coupling
+    rng = np.random.default_rng(8)
+    idx = rng.integers(0, 40, size=(5, 24))
+    phi = rng.random((5, 24)) * 0.9
+    phi[1, 3] = np.nan
+    ps0 = np.zeros(40) if clear else rng.random(40) * 0.5       # (the walls' phi)
+    ps = ps0.copy()
+    np.add.at(ps, idx.reshape(-1), phi.reshape(-1))
+    s = ps[idx]
+    np.maximum(s, 1.0, out=s)
+    want = phi / s
+    if clear:
+        ps[idx.reshape(-1)] = 0.0
+    compiled_kernels.on()
+    got_ps, got = ps0.copy(), np.empty_like(phi)
+    coupling._compiled.coupling.weights(got_ps, idx, phi, got, clear)
+    assert np.array_equal(got, want, equal_nan=True)
+    assert np.array_equal(got_ps, ps, equal_nan=True)
