@@ -3,18 +3,21 @@
     .venv/bin/python bench/fft_floor.py [SCENE ...] [--steps N] [--repeat R] [--np NP] [--threads T]
 
 For each scene of bench_vs_original (default: the spectral ones) the model is built as the CLI
-builds it and advanced 3 steps (the compiled kernels on, as in a long run).  Every FFTW plan the
-run makes is counted at its ``execute`` (pyfftw.FFTW replaced by a subclass that counts, before
-the model is built), over N steps: the transforms per step by kind (r2c forward, c2r backward;
-a vector field is three), and the plans themselves.  Then, in the same process, R rounds: N
-steps timed (CPU ms per step), and after them the counted executions alone, with the same plan
-objects on the arrays they last ran on (their execute() called as many times per step as the
-step calls them): the floor.  The table gives the medians of step ms, floor ms and their
-ratio (issue 25: the spectral step within 1.5x of its floor), and the same for the fluid's
-part of the step (``FLUID_PART``: the solver's step, u* after it, the particles' increment
-transformed, projected and added), timed within the same steps, against the floor of the
-transforms made within it; the rest of a step is the particles' coupling.  CPU time: the
-machine may be shared; the load average is printed with the table.
+builds it and advanced 3 steps (the compiled kernels on, as in a long run).  Every FFTW
+``execute`` is recorded (pyfftw.FFTW replaced by a subclass that records, before the model
+is built): the plan, the arrays it ran on, and the part of the step it ran in.  Then R x N
+steps, each timed (CPU ms) and followed at once by its own transforms replayed alone (the
+same plans in the same order on the same arrays; the arrays they write restored after):
+the floor of that step.  The step and its floor run a few ms apart, so a shared machine's
+slow spells fall on both.  The table gives the transforms per step by kind (r2c forward, c2r
+backward; a vector field is three; c2c the stages of the transforms that skip the lines of
+zeros), the medians of step ms and floor ms, and the median of the steps' ratios (issue 25:
+the spectral step within 1.5x of its floor); the same for the fluid's part of the step
+(``FLUID_PART``: the solver's step, u* after it, the particles' increment transformed,
+projected and added), timed within the same steps, against the replay of the transforms
+made within it; the rest of a step is the particles' coupling.  The "hot floor" column runs
+each plan's executions of a step back to back on its last arrays, which the cache then
+holds: a bound below what any step can reach.  The load average is printed with the table.
 
     .venv/bin/python bench/fft_floor.py --pruned [--np NP ...]
 
@@ -41,6 +44,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "bench"))
 
+import numpy as np  # noqa: E402
 import pyfftw  # noqa: E402
 
 SPECTRAL = ("ns32", "ns64", "ns64x100", "le64", "squirmer64", "el64")
@@ -138,70 +142,85 @@ def _floor_hot(per_step, steps):
     return (time.process_time() - t0) / steps * 1e3
 
 
-def _floor(seq, steps, part=None):
-    """CPU ms per step of the executions recorded in ``seq`` (``_Counts.seq`` of ``steps``
-    steps; ``part``: only those of that part of the step) replayed alone: the same plans, in
-    the same order, each pointed at the arrays it ran on in the step.  What the steps would
-    cost if they did nothing but their transforms.  The arrays written are restored after,
-    so the model goes on from where it was."""
+_SNAPSHOTS = {}      # (address, shape, strides) -> the buffer its values are kept in
+
+
+def _replay(seq, part=None):
+    """CPU ms of the executions recorded in ``seq`` (``_Counts.seq``; ``part``: only those
+    of that part of the step) replayed alone: the same plans, in the same order, each
+    pointed at the arrays it ran on.  What they cost without the rest of the step.  The
+    arrays they write are restored after (through buffers made once: no page faults), so
+    the model goes on from where it was."""
     runs = [(p, i, o) for p, i, o, pt in seq if part is None or pt == part]
     keep = {}
     for _, i, o in runs:
         for a in (i, o):
-            keep.setdefault(id(a), (a, a.copy()))
+            key = (a.__array_interface__["data"][0], a.shape, a.strides)
+            if key not in keep:
+                buf = _SNAPSHOTS.get(key)
+                if buf is None:
+                    buf = _SNAPSHOTS[key] = np.empty_like(a)
+                np.copyto(buf, a)
+                keep[key] = (a, buf)
     t0 = time.process_time()
     for plan, i, o in runs:
         plan.update_arrays(i, o)
         pyfftw.FFTW.execute(plan)
-    spent = (time.process_time() - t0) / steps * 1e3
+    spent = (time.process_time() - t0) * 1e3
     for a, was in keep.values():
-        a[...] = was
+        np.copyto(a, was)
     return spent
 
 
 def measure(scene, steps, np_override=None, threads=1, repeats=3):
-    """dict of one scene: step and floor ms, the fluid's part and its floor ms (None
-    without particles), each the median of ``repeats`` rounds of ``steps`` steps and of
-    their floors timed after each round; transforms per step by kind (all, the fluid's
-    part), mesh."""
+    """dict of one scene: step, floor, the fluid's part and its floor (ms; the part None
+    without particles) and the ratios, each the median over ``repeats`` x ``steps`` steps;
+    transforms per step by kind (all, the fluid's part), mesh.  Each step is timed, then
+    its own transforms are replayed alone (``_replay``: the floor) and those of its fluid
+    part (the fluid's floor): the step and its floor a few ms apart, so that a shared
+    machine's slow spells fall on both; the ratios are those of each step, their median
+    reported."""
     from profile_step import build
     from kapsel.mesh import compiled
     compiled.enable()
     model = build(scene, np_override, threads)
     for _ in range(3):
         model.advance()
-    COUNTS.calls.clear()
-    COUNTS.plans.clear()
-    COUNTS.seq.clear()
-    COUNTS.on = True
-    with _FluidPart(model):
-        for _ in range(steps):
-            model.advance()
-    COUNTS.on = False
-    whole, fluid = collections.Counter(), collections.Counter()
     kinds, fluid_kinds = collections.Counter(), collections.Counter()
-    for (k, part), n in COUNTS.calls.items():
-        whole[k] += n / steps
-        kinds[_kind(COUNTS.plans[k])] += n / steps
-        if part == "fluid":
-            fluid[k] += n / steps
-            fluid_kinds[_kind(COUNTS.plans[k])] += n / steps
-    seq = list(COUNTS.seq)
-    runs = []       # (step, fluid's part, floor, its floor, hot floor) ms of each repeat
-    for _ in range(repeats):
-        with _FluidPart(model) as part:   # (two clock reads a call: microseconds a step)
+    rows = []      # per step: step, fluid's part, floor, its floor, hot floor (ms)
+    with _FluidPart(model) as part:          # (two clock reads a call: microseconds a step)
+        for k in range(steps * repeats):
+            COUNTS.calls.clear()
+            COUNTS.plans.clear()
+            COUNTS.seq.clear()
+            spent = part.spent
+            COUNTS.on = True
             t0 = time.process_time()
-            for _ in range(steps):
-                model.advance()
-            step_ms = (time.process_time() - t0) / steps * 1e3
-        runs.append((step_ms, part.spent / steps * 1e3, _floor(seq, steps),
-                     _floor(seq, steps, "fluid"), _floor_hot(whole, steps)))
-    step_ms, fluid_ms, floor_ms, fluid_floor, hot = (statistics.median(r) for r in zip(*runs))
+            model.advance()
+            step_ms = (time.process_time() - t0) * 1e3
+            COUNTS.on = False
+            seq = list(COUNTS.seq)
+            whole = collections.Counter()
+            for (key, pt), n in COUNTS.calls.items():
+                whole[key] += n
+                kinds[_kind(COUNTS.plans[key])] += n
+                if pt == "fluid":
+                    fluid_kinds[_kind(COUNTS.plans[key])] += n
+            hot = _floor_hot(whole, 1) if k % steps == 0 else None   # once a round
+            rows.append((step_ms, (part.spent - spent) * 1e3, _replay(seq),
+                         _replay(seq, "fluid"), hot))
+    med = statistics.median
+    step_ms, fluid_ms, floor_ms, fluid_floor = (med(r) for r in list(zip(*rows))[:4])
+    n = steps * repeats
     has_part = part.spm is not None
-    return dict(step=step_ms, floor=floor_ms, hot_floor=hot, kinds=dict(kinds),
+    return dict(step=step_ms, floor=floor_ms, ratio=med(r[0] / r[2] for r in rows),
+                hot_floor=med(r[4] for r in rows if r[4] is not None),
+                kinds={k: v / n for k, v in kinds.items()},
                 fluid=fluid_ms if has_part else None,
                 fluid_floor=fluid_floor if has_part else None,
-                fluid_kinds=dict(fluid_kinds), mesh=tuple(model.cfg.mesh.shape))
+                fluid_ratio=med(r[1] / r[3] for r in rows) if has_part else None,
+                fluid_kinds={k: v / n for k, v in fluid_kinds.items()},
+                mesh=tuple(model.cfg.mesh.shape))
 
 
 def pruned(nps, threads=1):
@@ -265,7 +284,8 @@ def main(argv=None):
         print(f"# {scene}: {r}", file=sys.stderr, flush=True)
     load1 = os.getloadavg()[0]
     print(f"{time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}, {a.repeat} x {a.steps} "
-          f"steps (medians), {a.threads} thread(s), load {load0:.1f} -> {load1:.1f}")
+          f"steps, each followed by its transforms alone (medians; the ratios: of each "
+          f"step), {a.threads} thread(s), load {load0:.1f} -> {load1:.1f}")
     print("| scene | mesh | transforms / step (r2c + c2r) | step ms | FFT floor ms | "
           "step / floor | fluid's part: transforms | ms | floor ms | ratio | "
           "hot floor ms |")
@@ -277,10 +297,10 @@ def main(argv=None):
     for scene, r in rows:
         fl = "- | - | - | -" if r["fluid"] is None else (
             f"{transforms(r['fluid_kinds'])} | {r['fluid']:.2f} | {r['fluid_floor']:.2f} | "
-            f"{r['fluid'] / r['fluid_floor']:.2f}")
+            f"{r['fluid_ratio']:.2f}")
         print(f"| {SCENES[scene][0]} | {'x'.join(map(str, r['mesh']))} | "
               f"{transforms(r['kinds'])} | {r['step']:.2f} | {r['floor']:.2f} | "
-              f"{r['step'] / r['floor']:.2f} | {fl} | {r['hot_floor']:.2f} |")
+              f"{r['ratio']:.2f} | {fl} | {r['hot_floor']:.2f} |")
 
 if __name__ == "__main__":
     main()
