@@ -113,14 +113,23 @@ class Ions:
         / xi) for | |r| - A | < xi / 2, with one factor s for all particles making
         DX^3 sum_x |rho_surf| = sum_i |Z_i|; n = sum_i r / |r| over the same shells."""
         g, size = self.grid, self.grid.size
-        self.phi[...] = np.bincount(idx.ravel(), weights=phi_i.ravel(),
-                                    minlength=size).reshape(g.shape)
+        K = _compiled.ions
+        fast = (K is not None and idx.ndim == 2 and idx.dtype == np.int64
+                and idx.flags.c_contiguous and self.phi.flags.c_contiguous
+                and self.rho_surf.flags.c_contiguous and self.phi.size == size)
+
+        def binned(w, out):          # out <- the sums of w over the points (np.bincount's)
+            if fast:
+                K.bin_sum(idx, np.ascontiguousarray(w, dtype=float), out)
+            else:
+                out[...] = np.bincount(idx.ravel(), weights=w.ravel(),
+                                       minlength=size).reshape(g.shape)
+        binned(phi_i, self.phi)
         dist = np.sqrt(np.einsum("nsc,nsc->ns", r, r))
         shell = np.abs(A - dist) < 0.5 * xi
         slope = np.where(shell, 0.5 * np.pi / xi * np.cos(np.pi * (A - dist) / xi), 0.0)
         Z = np.asarray(Z, dtype=float)
-        self.rho_surf[...] = np.bincount(idx.ravel(), weights=(Z[:, None] * slope).ravel(),
-                                         minlength=size).reshape(g.shape)
+        binned(Z[:, None] * slope, self.rho_surf)
         total = float(np.abs(self.rho_surf, out=self._J[0]).sum()) * self.dv
         scale = float(np.abs(Z).sum()) / total
         self.rho_surf *= scale

@@ -13,7 +13,7 @@ from numba import njit
 
 __all__ = ["gradient_component", "charge_density",
            "scale_potential", "coulomb_force", "mask_scaled", "divergence_accumulate",
-           "divergence_euler", "flux"]
+           "divergence_euler", "flux", "bin_sum"]
 
 #: the types each kernel is called with (C-contiguous arrays): what kapsel.build_kernels
 #: compiles ahead of time (kapsel.mesh.compiled loads that build when it is current)
@@ -34,6 +34,7 @@ SIGNATURES = {
     "flux": "void(float64[:,:,:,::1], float64[:,:,:,::1], float64[::1], float64[:,:,::1], "
             "float64, float64, float64[:,:,:,::1], boolean, int64[::1], float64[:,::1], "
             "float64[::1])",
+    "bin_sum": "void(int64[:,::1], float64[:,::1], float64[:,:,::1])",
 }
 
 
@@ -195,3 +196,17 @@ def flux(J, g, E, c, a, b, u, advect, at, n, inv_n2):
                 J[0, i, j, k] = j0
                 J[1, i, j, k] = j1
                 J[2, i, j, k] = j2
+
+
+@njit(cache=True, nogil=True)
+def bin_sum(idx, w, out):
+    """out (a field) <- 0, then out.flat[idx[i, j]] += w[i, j] in the order of the points:
+    ``np.bincount(idx.ravel(), weights=w.ravel(), minlength=out.size)`` (its additions in its
+    order from 0, so the same bits) written into the field, with no full-mesh temporary."""
+    flat = out.reshape(-1)
+    for p in range(flat.size):
+        flat[p] = 0.0
+    n, s = idx.shape
+    for i in range(n):
+        for j in range(s):
+            flat[idx[i, j]] += w[i, j]

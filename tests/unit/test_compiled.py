@@ -247,3 +247,18 @@ def test_compiled_weights_are_the_numpy_passes(clear, compiled_kernels):
     coupling._compiled.coupling.weights(got_ps, idx, phi, got, clear)
     assert np.array_equal(got, want, equal_nan=True)
     assert np.array_equal(got_ps, ps, equal_nan=True)
+
+
+def test_compiled_bin_sum_is_bincount(compiled_kernels):
+    """The ions' phi and surface charge binned onto the mesh by one compiled pass
+    (ions_kernels.bin_sum, kapsel.fluid.ions.set_particles): np.bincount's bits, written
+    over whatever the field held."""
+    from kapsel.fluid import ions
+    rng = np.random.default_rng(9)
+    idx = rng.integers(0, 60, size=(3, 40))                # overlapping stencils
+    w = rng.standard_normal((3, 40)) * 10.0 ** rng.integers(-6, 6, size=(3, 40))
+    want = np.bincount(idx.ravel(), weights=w.ravel(), minlength=60).reshape(3, 4, 5)
+    compiled_kernels.on()
+    out = np.full((3, 4, 5), np.nan)
+    ions._compiled.ions.bin_sum(idx, w, out)
+    assert np.array_equal(out, want)
