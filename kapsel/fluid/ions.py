@@ -116,7 +116,7 @@ class Ions:
         K = _compiled.ions
         fast = (K is not None and idx.ndim == 2 and idx.dtype == np.int64
                 and idx.flags.c_contiguous and self.phi.flags.c_contiguous
-                and self.rho_surf.flags.c_contiguous and self.phi.size == size)
+                and self.rho_surf.flags.c_contiguous)
 
         def binned(w, out):          # out <- the sums of w over the points (np.bincount's)
             if fast:

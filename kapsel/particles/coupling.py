@@ -67,7 +67,6 @@ def _scatter(w, idx, size, shape=None, out=None, zeroed=False):
     allocates a fresh full-grid array per component, whose page faults cost more than the
     sums at 64^3).  ``zeroed``: ``out`` is known to be 0 everywhere (the caller cleared the
     points of the last scatter, ``clear_points``), so the full-grid fill is skipped."""
-    flat = idx.reshape(-1)
     if out is None:
         out = np.zeros((3, size))
     elif not zeroed:
@@ -78,6 +77,7 @@ def _scatter(w, idx, size, shape=None, out=None, zeroed=False):
             and w.ndim == 3 and w.flags.c_contiguous and idx.dtype == np.int64):
         K.scatter_add(of, idx, w)             # the same additions in the same order
     else:
+        flat = idx.reshape(-1)
         for c in range(3):
             np.add.at(of[c], flat, w[c].reshape(-1))
     if shape is not None and out.ndim == 2:

@@ -421,10 +421,9 @@ class SPM:
         """rect: the increment re-gridded onto the fluid's oblique grid (Transform_obl_u
         cartesian2oblique), into the buffer u* on the rectangular grid had (done with); on
         the particles' lines only when u* was (its other lines are 0)."""
-        if not self._regrid_in_scratch:
-            return self._to_oblique(du)
         lines = {} if self._lines_now is None else {"lines": self._lines_now, "zero": True}
-        return self._to_oblique(du, out=self._du_buf, **lines)
+        return self._to_oblique(du, out=self._du_buf if self._regrid_in_scratch else None,
+                                **lines)
 
     _lines_now = None       # rect: the lines of this step's re-gridding (None: every line)
     _line_mask = None
@@ -437,8 +436,7 @@ class SPM:
         (every line) when distributed (a line's increment comes from the x blocks of
         several ranks) or when the stencils may meet half the lines or more."""
         ny, nz = self.fshape[1], self.fshape[2]
-        if (not self.layout.whole_mesh or getattr(self, "idx", None) is None
-                or 2 * self.idx.shape[0] * self.stencil.lines >= ny * nz):
+        if not self.layout.whole_mesh or 2 * self.idx.shape[0] * self.stencil.lines >= ny * nz:
             return None
         if self._line_mask is None:
             self._line_mask = np.zeros((ny, nz), dtype=bool)
@@ -451,13 +449,11 @@ class SPM:
         """The field the particles couple to: u* (rect: on the rectangular grid)."""
         if self.rect:
             self._uc = None                 # the last step's, freed before the new one is made
-            if not self._regrid_in_scratch:
-                self._uc = self._to_rect(self.u)
-                return self._uc
-            self._lines_now = self._stencil_lines()      # (u* is read on them only)
+            self._lines_now = self._stencil_lines() if self._regrid_in_scratch else None
             lines = {} if self._lines_now is None else {"lines": self._lines_now,
-                                                        "zero": False}
-            self._uc = self._to_rect(self.u, self._du_buf, **lines)
+                                                        "zero": False}   # (read there only)
+            self._uc = self._to_rect(self.u, self._du_buf if self._regrid_in_scratch else None,
+                                     **lines)
             return self._uc
         return self.u
 
