@@ -341,9 +341,10 @@ class ObliqueSpectralNS(_ObliqueFrame, SpectralNS):
             nl[:, 0, 0, 0] = 0.0
         return nl
 
-    def step(self, force=None):
+    def step(self, force=None, velocity=None):
         """Advance u^ by dt (eq 27): u^ <- E u^ + dt phi1 P^G[N + f], then re-map the frame
-        if its strain left [-s/2, s/2]."""
+        if its strain left [-s/2, s/2].  ``velocity``: the new Cartesian deviation u is
+        put there (``velocity(out=...)`` after the step)."""
         t0, dt = self.time, self.dt
         g0 = self.frame_strain
         rate = self.rate_at(t0)
@@ -366,7 +367,13 @@ class ObliqueSpectralNS(_ObliqueFrame, SpectralNS):
         E = np.exp(z, out=z)
         uh = self.u_hat
         tmp = self._c3
-        if fused:
+        made = False               # the new u / N (Cartesian) in _nl, made by the update
+        if fused and velocity is not None:      # the frame after the step (no re-mapping)
+            g1 = self.strain_at(t0 + dt) - self.remaps * self.s
+            K.project_oblique_etd1_velocity(self._advection(g0), uh, 2.0 * rate, g0,
+                                            *self._k1, cx, cy, nk, E, w1, g1, self._inv_n)
+            made = True
+        elif fused:
             K.project_oblique_etd1(self._advection(g0), uh, 2.0 * rate, g0, *self._k1, cx, cy,
                                    nk, E, w1)
         else:
@@ -388,7 +395,22 @@ class ObliqueSpectralNS(_ObliqueFrame, SpectralNS):
         self.time = t0 + dt
         self.apply_fix_cell()
         self.step_index += 1
-        self._maybe_remap()
+        if self._maybe_remap() or not made:
+            if velocity is not None:
+                self.velocity(out=velocity)
+            return
+        nl, inv = self._nl, self._inv_n
+        if self._k0 and any(self.fix_cell):     # the mean set after the sweep
+            z1 = uh[1, 0, 0, 0]
+            for c in range(3):
+                z = uh[c, 0, 0, 0]
+                if c == 0 and g1 != 0.0:        # (_frame_point's products)
+                    nl[0, 0, 0, 0] = complex(z.real * inv + (z1.real * inv) * g1,
+                                             z.imag * inv + (z1.imag * inv) * g1)
+                else:
+                    nl[c, 0, 0, 0] = complex(z.real * inv, z.imag * inv)
+        for c in range(3):                      # 0 off the mask's box: the lines of zeros
+            self.grid.backward_scalar_truncated(nl[c], velocity[c])   # skipped
 
     def apply_fix_cell(self):
         """Zero the mean Cartesian velocity along the flagged axes."""
@@ -404,9 +426,11 @@ class ObliqueSpectralNS(_ObliqueFrame, SpectralNS):
             m[0] = -g * m[1]          # u_x mean = u^1 + g u^2 = 0
 
     def _maybe_remap(self):
+        """Re-map the frame if its strain left [-s/2, s/2]; returns whether it did."""
         n = self._frames_to_drop()
         if n:
             self.remap_fourier(n)
+        return bool(n)
 
     def remap_fourier(self, n):
         """Replace the frame g by g - n s (module docstring): contravariant components

@@ -58,8 +58,8 @@ TIME_BELOW = 32 << 20   # bytes of a complex vector field below which the two fo
 
 
 def projection_kernels(K, grid):
-    """(project_etd1, project_etd2, project_add, project_euler, project_set_scaled) of the
-    compiled kernels ``K``
+    """(project_etd1, project_etd2, project_add, project_euler, project_set_scaled,
+    project_etd1_velocity) of the compiled kernels ``K``
     in the form that is faster at this grid's half-spectrum shape: the point-by-point sweep or the
     sweep by blocks of rows, which give the same bits (kapsel.fluid.spectral_kernels).
     Timed once per shape and process, on two scratch fields, when a complex vector field
@@ -68,9 +68,10 @@ def projection_kernels(K, grid):
     shape = tuple(grid.local_cshape)
     if shape not in _PROJECTIONS:
         forms = ((K.project_etd1, K.project_etd2, K.project_add, K.project_euler,
-                  K.project_set_scaled),
+                  K.project_set_scaled, K.project_etd1_velocity),
                  (K.project_etd1_rows, K.project_etd2_rows, K.project_add_rows,
-                  K.project_euler_rows, K.project_set_scaled_rows))
+                  K.project_euler_rows, K.project_set_scaled_rows,
+                  K.project_etd1_velocity_rows))
         best = 0
         if 3 * 16 * int(np.prod(shape)) < TIME_BELOW:
             d, u = grid.zeros_complex(), grid.zeros_complex()
@@ -442,20 +443,31 @@ class SpectralNS:
         r -= w[2]
         g.rfft_scalar_truncated(r, nl[2])
 
-    def step(self, force=None):
+    def step(self, force=None, velocity=None):
         """Advance u_hat by dt (eq 8 without the particle term; module docstring, steps 1-5).
 
         force : optional real-space acceleration (3, NX, NY, NZ) acting during this step,
         added as dt phi1(z) P[FFT(force)] (on top of a constant ``set_force``).
+        velocity : optional real (3, NX, NY, NZ) array: the new u in real space is put
+        there (``velocity(out=...)`` after the step, the same bits).  With the compiled
+        kernels and the slaved Euler step (no force, no ``after_update``) the update's own
+        sweep also leaves u_hat / N in nl, which is transformed from there
+        (``project_etd1_velocity``: one sweep over the field fewer).
         """
         nl = self._nonlinear()
         uh = self.u_hat
         K = _compiled.spectral
+        made = None              # u_hat / N in nl: whether it is 0 off the mask (or None)
         if self.advection and K is not None:    # fused: projection + ETD update
-            etd1, etd2 = projection_kernels(K, self.grid)[:2]
+            kernels = projection_kernels(K, self.grid)
+            etd1, etd2 = kernels[:2]
             if self.scheme == "etd2" and self.state.holds("nl_old"):
                 etd2(nl, self._nl_old, uh, self._E, self._a2, self._b2, *self._k1,
                      self.grid.inv_k2)
+            elif (velocity is not None and self.scheme == "etd1" and force is None
+                  and self.force_hat is None and self.after_update is None):
+                made = kernels[5](nl, uh, self._E, self._a1, *self._k1, self.grid.inv_k2,
+                                  *self.grid.dealias_box, self._inv_n)
             else:
                 etd1(nl, uh, self._E, self._a1, *self._k1, self.grid.inv_k2,
                      self.scheme == "etd2")
@@ -482,6 +494,22 @@ class SpectralNS:
             self.after_update(uh)
         self.apply_fix_cell()
         self.step_index += 1
+        if velocity is None:
+            return
+        if made is None:
+            self.velocity(out=velocity)
+            return
+        if self._k0 and any(self.fix_cell):     # the mean set after the sweep
+            inv = self._inv_n
+            for c in range(3):
+                z = uh[c, 0, 0, 0]
+                nl[c, 0, 0, 0] = complex(z.real * inv, z.imag * inv)
+        g = self.grid
+        for c in range(3):
+            if made:
+                g.backward_scalar_truncated(nl[c], velocity[c])
+            else:
+                g.backward_scalar_raw(nl[c], velocity[c])
 
     def _add_weighted(self, vh, weight, sign=1):
         """u_hat += sign weight vh, component by component through a complex scalar."""

@@ -24,13 +24,14 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-__all__ = ["truncated_component", "scaled_component", "vorticity_component", "cross", "cross_into", "project_etd1",
-           "project_etd2", "project_add", "project_euler", "project_etd1_rows",
-           "project_etd2_rows", "project_add_rows", "project_euler_rows", "project_set_scaled",
+__all__ = ["truncated_component", "scaled_component", "vorticity_component", "cross", "cross_into",
+           "project_etd1", "project_etd2", "project_etd1_velocity", "project_add", "project_euler",
+           "project_etd1_rows", "project_etd1_velocity_rows", "project_etd2_rows",
+           "project_add_rows", "project_euler_rows", "project_set_scaled",
            "project_set_scaled_rows", "frame_component", "frame_vorticity_component",
-           "project_oblique", "project_oblique_etd1", "viscous_exponent", "etd1_update",
-           "truncate", "cross_contravariant", "contravariant", "contravariant_in_place",
-           "reynolds_terms"]
+           "project_oblique", "project_oblique_etd1", "project_oblique_etd1_velocity",
+           "viscous_exponent", "etd1_update", "truncate", "cross_contravariant", "contravariant",
+           "contravariant_in_place", "reynolds_terms"]
 
 #: the types each kernel is called with (C-contiguous arrays): what kapsel.build_kernels
 #: compiles ahead of time (kapsel.mesh.compiled loads that build when it is current)
@@ -41,6 +42,7 @@ SIGNATURES = {
     "cross_into": "void(float64[:,:,:,::1], float64[:,:,:,::1])",
     "cross": "void(float64[:,:,:,::1], float64[:,:,:,::1], float64[:,:,:,::1])",
     "project_etd1": "void(complex128[:,:,:,::1], complex128[:,:,:,::1], float64[:,:,::1], float64[:,:,::1], float64[::1], float64[::1], float64[::1], float64[:,:,::1], boolean)",
+    "project_etd1_velocity": "boolean(complex128[:,:,:,::1], complex128[:,:,:,::1], float64[:,:,::1], float64[:,:,::1], float64[::1], float64[::1], float64[::1], float64[:,:,::1], float64[::1], float64[::1], int64, float64)",
     "project_etd2": "void(complex128[:,:,:,::1], complex128[:,:,:,::1], complex128[:,:,:,::1], float64[:,:,::1], float64[:,:,::1], float64[:,:,::1], float64[::1], float64[::1], float64[::1], float64[:,:,::1])",
     "project_add": "void(complex128[:,:,:,::1], complex128[:,:,:,::1], float64[:,:,::1], float64[::1], float64[::1], float64[::1], float64[:,:,::1])",
     "project_euler": "void(complex128[:,:,:,::1], complex128[:,:,:,::1], float64[:,:,::1], float64, float64, float64[:,:,::1], float64[::1], float64[::1], float64[::1], float64[:,:,::1], boolean)",
@@ -49,6 +51,7 @@ SIGNATURES = {
     "frame_vorticity_component": "void(complex128[:,:,:,::1], float64[::1], float64[::1], int64, float64, float64, float64[::1], float64[::1], float64[::1], int64, complex128[:,:,::1])",
     "project_oblique": "void(complex128[:,:,:,::1], complex128[:,:,:,::1], float64, float64, float64[::1], float64[::1], float64[::1], float64[::1], float64[::1], int64, boolean, boolean)",
     "project_oblique_etd1": "void(complex128[:,:,:,::1], complex128[:,:,:,::1], float64, float64, float64[::1], float64[::1], float64[::1], int64[::1], int64[::1], int64, float64[:,:,::1], float64[:,:,::1])",
+    "project_oblique_etd1_velocity": "void(complex128[:,:,:,::1], complex128[:,:,:,::1], float64, float64, float64[::1], float64[::1], float64[::1], int64[::1], int64[::1], int64, float64[:,:,::1], float64[:,:,::1], float64, float64)",
     "viscous_exponent": "void(float64[::1], float64[::1], float64[::1], int64[::1], int64[::1], float64, float64, float64[:,:,::1])",
     "truncate": "void(complex128[:,:,:,::1], float64[::1], float64[::1], int64)",
     "cross_contravariant": "void(float64[:,:,:,::1], float64[:,:,:,::1], float64[:,:,:,::1], float64)",
@@ -58,8 +61,8 @@ SIGNATURES = {
     "etd1_update": "void(complex128[:,:,:,::1], complex128[:,:,:,::1], float64[:,:,::1], float64[:,:,::1])",
 }
 SIGNATURES.update({n + "_rows": SIGNATURES[n] for n in
-                   ("project_etd1", "project_etd2", "project_add", "project_euler",
-                    "project_set_scaled")})
+                   ("project_etd1", "project_etd1_velocity", "project_etd2", "project_add",
+                    "project_euler", "project_set_scaled")})
 
 ROWS = 8        # grid rows per block of the *_rows projections
 
@@ -221,27 +224,65 @@ def project_etd1(nl, u_hat, E, a1, kx, ky, kz, inv_k2, store):
     (ETD2's first step keeps it; off the mask nl is left as it was, which ETD2's b2 = 0
     there never reads), else nl is left as it was.  Where a1 is 0 (off the 2/3 mask):
     u_hat <- E u_hat, nl not read (``_decay_only``)."""
+    _etd1_sweep(nl, u_hat, E, a1, kx, ky, kz, inv_k2, store, kx, kx, 0, 0.0, False)
+
+
+@njit(cache=True, nogil=True)
+def project_etd1_velocity(nl, u_hat, E, a1, kx, ky, kz, inv_k2, mx, my, kz_end, inv_n):
+    """``project_etd1`` (nl not stored), then at each mode nl <- the new u_hat inv_n: the
+    components of u / N that the c2r of u after the step transforms, as ``scaled_component``
+    makes them (the same products of the same values), without a second sweep over u_hat.
+    Returns whether the new u_hat is 0 off the mask's box (``Grid.dealias_box``), i.e.
+    whether the transforms may skip the lines of zeros."""
+    return _etd1_sweep(nl, u_hat, E, a1, kx, ky, kz, inv_k2, False, mx, my, kz_end, inv_n,
+                       True)
+
+
+@njit(inline="always")
+def _scaled_out(u_hat, nl, c, i, j, k, s, inbox):
+    """nl[c] <- u_hat[c] s at a mode (``scaled_component``'s product); returns |Re| + |Im|
+    of u_hat[c] there off the mask's box (``inbox`` False), else 0."""
+    u = u_hat[c, i, j, k]
+    nl[c, i, j, k] = _scale(u, s)
+    if inbox:
+        return 0.0
+    return abs(u.real) + abs(u.imag)
+
+
+@njit(inline="always")
+def _etd1_sweep(nl, u_hat, E, a1, kx, ky, kz, inv_k2, store, mx, my, kz_end, inv_n,
+                velocity):
+    """The sweep of ``project_etd1`` (``velocity`` False) and ``project_etd1_velocity``
+    (True: a constant of each, folded when inlined); returns whether u_hat is 0 off the
+    box (True without ``velocity``)."""
     nx, ny, nzc = E.shape
+    nonzero = 0.0
     for i in range(nx):
         ki = kx[i]
         for j in range(ny):
             kj = ky[j]
+            row = velocity and mx[i] != 0.0 and my[j] != 0.0
             for k in range(nzc):
                 if _off(a1, None, i, j, k):
                     _decay_only(u_hat, i, j, k, E[i, j, k])
-                    continue
-                kk = kz[k]
-                a, b, c = _project_point(nl[0, i, j, k], nl[1, i, j, k], nl[2, i, j, k],
-                                         ki, kj, kk, inv_k2[i, j, k])
-                if store:
-                    nl[0, i, j, k] = a
-                    nl[1, i, j, k] = b
-                    nl[2, i, j, k] = c
-                e = E[i, j, k]
-                w = a1[i, j, k]
-                u_hat[0, i, j, k] = _etd1(u_hat[0, i, j, k], a, e, w)
-                u_hat[1, i, j, k] = _etd1(u_hat[1, i, j, k], b, e, w)
-                u_hat[2, i, j, k] = _etd1(u_hat[2, i, j, k], c, e, w)
+                else:
+                    kk = kz[k]
+                    a, b, c = _project_point(nl[0, i, j, k], nl[1, i, j, k],
+                                             nl[2, i, j, k], ki, kj, kk, inv_k2[i, j, k])
+                    if store:
+                        nl[0, i, j, k] = a
+                        nl[1, i, j, k] = b
+                        nl[2, i, j, k] = c
+                    e = E[i, j, k]
+                    w = a1[i, j, k]
+                    u_hat[0, i, j, k] = _etd1(u_hat[0, i, j, k], a, e, w)
+                    u_hat[1, i, j, k] = _etd1(u_hat[1, i, j, k], b, e, w)
+                    u_hat[2, i, j, k] = _etd1(u_hat[2, i, j, k], c, e, w)
+                if velocity:
+                    inbox = row and k < kz_end
+                    for cc in range(3):
+                        nonzero += _scaled_out(u_hat, nl, cc, i, j, k, inv_n, inbox)
+    return nonzero == 0.0
 
 
 @njit(cache=True, nogil=True)
@@ -418,9 +459,24 @@ def _coefficients(v, i, j0, j1, ki, ky, kz, inv_k2, mask, sr, si, w=None, wv=Non
 @njit(cache=True, nogil=True)
 def project_etd1_rows(nl, u_hat, E, a1, kx, ky, kz, inv_k2, store):
     """``project_etd1`` by blocks of rows (the same bits)."""
+    _etd1_sweep_rows(nl, u_hat, E, a1, kx, ky, kz, inv_k2, store, kx, kx, 0, 0.0, False)
+
+
+@njit(cache=True, nogil=True)
+def project_etd1_velocity_rows(nl, u_hat, E, a1, kx, ky, kz, inv_k2, mx, my, kz_end, inv_n):
+    """``project_etd1_velocity`` by blocks of rows (the same bits)."""
+    return _etd1_sweep_rows(nl, u_hat, E, a1, kx, ky, kz, inv_k2, False, mx, my, kz_end,
+                            inv_n, True)
+
+
+@njit(inline="always")
+def _etd1_sweep_rows(nl, u_hat, E, a1, kx, ky, kz, inv_k2, store, mx, my, kz_end, inv_n,
+                     velocity):
+    """``_etd1_sweep`` by blocks of rows (the same bits)."""
     nx, ny, nzc = E.shape
     sr = np.empty((ROWS, nzc))
     si = np.empty((ROWS, nzc))
+    nonzero = 0.0
     for i in range(nx):
         ki = kx[i]
         for j0 in range(0, ny, ROWS):
@@ -429,16 +485,21 @@ def project_etd1_rows(nl, u_hat, E, a1, kx, ky, kz, inv_k2, store):
             for c in range(3):
                 for j in range(j0, j1):
                     kj = ky[j]
+                    row = velocity and mx[i] != 0.0 and my[j] != 0.0
                     for k in range(nzc):
                         if _off(a1, None, i, j, k):
                             _decay_one(u_hat, c, i, j, k, E[i, j, k])
-                            continue
-                        p = _less(nl[c, i, j, k], sr[j - j0, k], si[j - j0, k],
-                                  _pick(c, ki, kj, kz, k))
-                        if store:
-                            nl[c, i, j, k] = p
-                        u_hat[c, i, j, k] = _etd1(u_hat[c, i, j, k], p, E[i, j, k],
-                                                  a1[i, j, k])
+                        else:
+                            p = _less(nl[c, i, j, k], sr[j - j0, k], si[j - j0, k],
+                                      _pick(c, ki, kj, kz, k))
+                            if store:
+                                nl[c, i, j, k] = p
+                            u_hat[c, i, j, k] = _etd1(u_hat[c, i, j, k], p, E[i, j, k],
+                                                      a1[i, j, k])
+                        if velocity:
+                            nonzero += _scaled_out(u_hat, nl, c, i, j, k, inv_n,
+                                                   row and k < kz_end)
+    return nonzero == 0.0
 
 
 @njit(cache=True, nogil=True)
@@ -680,6 +741,23 @@ def project_oblique_etd1(v, u_hat, r2, g, kx, ky, kz, cx, cy, kz_end, E, w1):
     off the mask (the frame kernels read the box only).  The mask's box as indices: cx[i]
     (cy[j]) the row of i (j) in the box, -1 off it, and k < kz_end; E and w1 are given on
     the box only, (rows of cx, rows of cy, kz_end) (``viscous_exponent``)."""
+    _oblique_etd1(v, u_hat, r2, g, kx, ky, kz, cx, cy, kz_end, E, w1, 0.0, 0.0, False)
+
+
+@njit(cache=True, nogil=True)
+def project_oblique_etd1_velocity(v, u_hat, r2, g, kx, ky, kz, cx, cy, kz_end, E, w1, g1,
+                                  inv_n):
+    """``project_oblique_etd1``, then at each mode v <- the Cartesian components of the new
+    u_hat inv_n in the frame of strain g1 (the frame after the step): what
+    ``frame_component`` makes for the c2r of u, the same products of the same values, +0
+    off the mask's box (where u_hat is +0), without a second sweep over u_hat."""
+    _oblique_etd1(v, u_hat, r2, g, kx, ky, kz, cx, cy, kz_end, E, w1, g1, inv_n, True)
+
+
+@njit(inline="always")
+def _oblique_etd1(v, u_hat, r2, g, kx, ky, kz, cx, cy, kz_end, E, w1, g1, inv_n, velocity):
+    """The sweep of ``project_oblique_etd1`` (``velocity`` False) and
+    ``project_oblique_etd1_velocity`` (True; a constant of each, folded when inlined)."""
     nx, ny, nzc = v.shape[1], v.shape[2], v.shape[3]
     gg = 1.0 + g * g
     g2 = 2.0 * g
@@ -705,9 +783,14 @@ def project_oblique_etd1(v, u_hat, r2, g, kx, ky, kz, cx, cy, kz_end, E, w1):
                 u_hat[0, i, j, k] = _etd1(u_hat[0, i, j, k], a, e, w)
                 u_hat[1, i, j, k] = _etd1(u_hat[1, i, j, k], b, e, w)
                 u_hat[2, i, j, k] = _etd1(u_hat[2, i, j, k], c, e, w)
+                if velocity:
+                    for cc in range(3):
+                        v[cc, i, j, k] = _frame_point(u_hat, i, j, k, inv_n, g1, cc)
             for k in range(k1, nzc):
                 for cc in range(3):
                     u_hat[cc, i, j, k] = zero
+                    if velocity:
+                        v[cc, i, j, k] = zero
 
 
 @njit(cache=True, nogil=True)

@@ -472,10 +472,11 @@ class SPM:
         return self.u
 
     def _fluid_step(self):
-        if self.mode == "spectral":
-            self.fluid.step()
-            if self.n_global or self.wall is not None:
-                self.fluid.velocity(out=self.u)       # (a collective when distributed)
+        if self.mode == "spectral":               # u* made within the step (a collective
+            if self.n_global or self.wall is not None:        # when distributed)
+                self.fluid.step(velocity=self.u)
+            else:
+                self.fluid.step()
         else:
             self.fluid.step(self.u)
 

@@ -325,7 +325,8 @@ def test_both_projection_forms_give_the_numpy_passes_bits(form, scheme, compiled
     def steps():
         K = spectral._compiled.spectral
         if K is not None:
-            names = ("project_etd1", "project_etd2", "project_add", "project_euler")
+            names = ("project_etd1", "project_etd2", "project_add", "project_euler",
+                     "project_set_scaled", "project_etd1_velocity")
             suffix = "_rows" if form == "rows" else ""
             monkeypatch.setitem(spectral._PROJECTIONS, g.local_cshape,
                                 tuple(getattr(K, n + suffix) for n in names))
@@ -351,10 +352,67 @@ def test_projection_kernels_are_timed_once_per_shape(compiled_kernels):
     spectral._PROJECTIONS.pop(g.local_cshape, None)
     first = spectral.projection_kernels(K, g)
     assert first in ((K.project_etd1, K.project_etd2, K.project_add, K.project_euler,
-                      K.project_set_scaled),
+                      K.project_set_scaled, K.project_etd1_velocity),
                      (K.project_etd1_rows, K.project_etd2_rows, K.project_add_rows,
-                      K.project_euler_rows, K.project_set_scaled_rows))
+                      K.project_euler_rows, K.project_set_scaled_rows,
+                      K.project_etd1_velocity_rows))
     assert spectral.projection_kernels(K, g) is first
+
+
+@pytest.mark.parametrize("form", ["points", "rows"])
+@pytest.mark.parametrize("start", ["whole", "truncated"])
+@pytest.mark.parametrize("fix", [False, True])
+def test_step_with_velocity_gives_the_step_then_velocitys_bits(form, start, fix,
+                                                              compiled_kernels, monkeypatch):
+    """step(velocity=u) (compiled: the update's sweep leaves u_hat / N for the c2r,
+    ``project_etd1_velocity``) gives step() then velocity(out=u) bit for bit, u_hat and u,
+    in both forms of the sweep, from a state with modes off the 2/3 mask (transformed
+    whole) and from a truncated one (the lines of zeros skipped), with FIX_CELL's mean set
+    after the sweep; and the numpy passes' bits."""
+    from kapsel.fluid import spectral
+    g = Grid((6, 12, 10), 1.0)
+    rng = np.random.default_rng(7)
+    u0 = rng.normal(size=(3,) + g.shape) * 0.3
+    du = rng.normal(size=(3,) + g.shape) * 0.01
+    calls = []
+
+    def run(fused):
+        K = spectral._compiled.spectral
+        if K is not None:
+            names = ("project_etd1", "project_etd2", "project_add", "project_euler",
+                     "project_set_scaled", "project_etd1_velocity")
+            suffix = "_rows" if form == "rows" else ""
+            kernels = [getattr(K, n + suffix) for n in names]
+            sweep = kernels[5]
+            kernels[5] = lambda *a: calls.append(sweep(*a)) or calls[-1]
+            monkeypatch.setitem(spectral._PROJECTIONS, g.local_cshape, tuple(kernels))
+        ns = SpectralNS(g, 1.0, 0.7, 0.05, fix_cell=(fix, False, fix))
+        ns.set_velocity(u0)
+        if start == "truncated":
+            ns.u_hat *= g.dealias_f
+        u = g.empty_real()
+        us = []
+        for _ in range(3):
+            if fused:
+                ns.step(velocity=u)
+            else:
+                ns.step()
+                ns.velocity(out=u)
+            us.append(u.copy())
+            ns.add_solenoidal(du)
+        return ns.u_hat.copy(), np.array(us)
+
+    compiled_kernels.on()
+    ref = run(False)
+    assert not calls
+    got = run(True)
+    assert calls == [start == "truncated"] * 3     # the sweep ran, and said so
+    for a, b in zip(ref, got):
+        assert np.array_equal(a.view(np.uint8), b.view(np.uint8))
+    compiled_kernels.off()
+    plain = run(True)
+    for a, b in zip(ref, plain):
+        assert np.array_equal(a, b)
 
 
 def test_auto_planner_measures_threaded_plans():
@@ -454,6 +512,60 @@ def test_velocity_transforms_a_truncated_state_as_one(compiled_kernels):
         return [whole, truncated] + parts
     out = compiled_kernels.both(velocities)
     for a, b in zip(*out):
+        assert np.array_equal(a, b)
+
+
+@pytest.mark.parametrize("kind", ["DC", "AC"])
+def test_oblique_step_with_velocity_gives_the_step_then_velocitys_bits(kind,
+                                                                      compiled_kernels,
+                                                                      monkeypatch):
+    """ObliqueSpectralNS.step(velocity=u) (compiled: the fused update also leaves the new
+    Cartesian u / N in the frame after the step, ``project_oblique_etd1_velocity``) gives
+    step() then velocity(out=u) bit for bit, u_hat and u, with FIX_CELL's mean set after the
+    sweep, across re-mappings of the frame (where u is made apart), DC and AC; and the numpy
+    passes' bits."""
+    from kapsel.fluid import oblique
+    from kapsel.fluid.oblique import ObliqueSpectralNS
+    from kapsel.frame import ShearFlow
+    g = Grid((16, 12, 10), 1.0)
+    rng = np.random.default_rng(13)
+    u0 = rng.normal(size=(3,) + g.shape) * 0.2
+    du = rng.normal(size=(3,) + g.shape) * 0.01
+    shear = ShearFlow("DC", 4.0) if kind == "DC" else ShearFlow("AC", 4.0, frequency=0.1)
+    calls = []
+
+    def run(fused):
+        K = oblique._compiled.spectral
+        if K is not None and fused:
+            sweep = K.project_oblique_etd1_velocity
+            monkeypatch.setattr(K, "project_oblique_etd1_velocity",
+                                lambda *a: calls.append(1) or sweep(*a))
+        f = ObliqueSpectralNS(g, 1.0, 0.7, 0.05, shear, fix_cell=(True, False, True))
+        f.set_velocity(u0)
+        u = g.empty_real()
+        out, remaps = [], []
+        for _ in range(8):
+            if fused:
+                f.step(velocity=u)
+            else:
+                f.step()
+                f.velocity(out=u)
+            out += [u.copy(), f.u_hat.copy()]
+            remaps.append(f.remaps)
+            f.add_solenoidal(du)
+        monkeypatch.undo()
+        return out, remaps
+
+    compiled_kernels.on()
+    ref, remaps = run(False)
+    assert len(set(remaps)) > 1              # the frame was re-mapped
+    got, _ = run(True)
+    assert len(calls) == 8
+    for a, b in zip(ref, got):
+        assert np.array_equal(a.view(np.uint8), b.view(np.uint8))
+    compiled_kernels.off()
+    plain, _ = run(True)
+    for a, b in zip(ref, plain):
         assert np.array_equal(a, b)
 
 
