@@ -9,6 +9,7 @@ kapsel.mesh.compiled (slot ``ions``), ahead of time by kapsel.build_kernels.
 """
 from __future__ import annotations
 
+import numpy as np
 from numba import njit
 
 __all__ = ["gradient_component", "charge_density",
@@ -70,16 +71,21 @@ def gradient_component(f_hat, k_axis, axis, scale, out):
 @njit(cache=True, nogil=True)
 def charge_density(c, z, phi, rho_surf, out):
     """out <- (sum_s z_s c_s) (1 - phi) + rho_surf: rho_e of Ions.charge_density, the sum
-    over the species in their order from 0."""
+    over the species in their order from 0 (from 0.0), made along a row at a time in the
+    scratch ``acc`` (the species' loop innermost did not vectorise: 3x slower at 64^3)."""
     ns = c.shape[0]
     nx, ny, nz = out.shape
+    acc = np.empty(nz)
     for i in range(nx):
         for j in range(ny):
             for k in range(nz):
-                acc = 0.0
-                for s in range(ns):
-                    acc = acc + z[s] * c[s, i, j, k]
-                out[i, j, k] = acc * (1.0 - phi[i, j, k]) + rho_surf[i, j, k]
+                acc[k] = 0.0
+            for s in range(ns):
+                zs = z[s]
+                for k in range(nz):
+                    acc[k] = acc[k] + zs * c[s, i, j, k]
+            for k in range(nz):
+                out[i, j, k] = acc[k] * (1.0 - phi[i, j, k]) + rho_surf[i, j, k]
 
 
 @njit(cache=True, nogil=True)
@@ -168,34 +174,52 @@ def flux(J, g, E, c, a, b, u, advect, at, n, inv_n2):
     """A species' flux in one pass, as Ions.step's numpy passes make it: J_d <- J_d a +
     ((g_d - E_d) c) b (J = grad c on entry, g = grad Psi); at the surface points ``at``
     (flat indices, ascending) J <- J - n (J.n) / |n|^2 (n (3, P), inv_n2 = 1 / |n|^2);
-    then, with ``advect``, J_d <- J_d - c u_d."""
+    then, with ``advect``, J_d <- J_d - c u_d.  A row without surface points is swept
+    without their test (vectorised: 1.6x faster at 64^3), the same operations."""
     nx, ny, nz = c.shape
     P = at.shape[0]
+    e0, e1, e2 = E[0], E[1], E[2]
     q = 0
     for i in range(nx):
         for j in range(ny):
             base = (i * ny + j) * nz
-            for k in range(nz):
-                cc = c[i, j, k]
-                j0 = J[0, i, j, k] * a + ((g[0, i, j, k] - E[0]) * cc) * b
-                j1 = J[1, i, j, k] * a + ((g[1, i, j, k] - E[1]) * cc) * b
-                j2 = J[2, i, j, k] * a + ((g[2, i, j, k] - E[2]) * cc) * b
-                if q < P and at[q] == base + k:
-                    tn = j0 * n[0, q]
-                    tn = tn + j1 * n[1, q]
-                    tn = tn + j2 * n[2, q]
-                    tn = tn * inv_n2[q]
-                    j0 = j0 - tn * n[0, q]
-                    j1 = j1 - tn * n[1, q]
-                    j2 = j2 - tn * n[2, q]
-                    q += 1
-                if advect:
-                    j0 = j0 - cc * u[0, i, j, k]
-                    j1 = j1 - cc * u[1, i, j, k]
-                    j2 = j2 - cc * u[2, i, j, k]
-                J[0, i, j, k] = j0
-                J[1, i, j, k] = j1
-                J[2, i, j, k] = j2
+            if q < P and at[q] < base + nz:          # a surface point in this row
+                for k in range(nz):
+                    cc = c[i, j, k]
+                    j0 = J[0, i, j, k] * a + ((g[0, i, j, k] - e0) * cc) * b
+                    j1 = J[1, i, j, k] * a + ((g[1, i, j, k] - e1) * cc) * b
+                    j2 = J[2, i, j, k] * a + ((g[2, i, j, k] - e2) * cc) * b
+                    if q < P and at[q] == base + k:
+                        tn = j0 * n[0, q]
+                        tn = tn + j1 * n[1, q]
+                        tn = tn + j2 * n[2, q]
+                        tn = tn * inv_n2[q]
+                        j0 = j0 - tn * n[0, q]
+                        j1 = j1 - tn * n[1, q]
+                        j2 = j2 - tn * n[2, q]
+                        q += 1
+                    if advect:
+                        j0 = j0 - cc * u[0, i, j, k]
+                        j1 = j1 - cc * u[1, i, j, k]
+                        j2 = j2 - cc * u[2, i, j, k]
+                    J[0, i, j, k] = j0
+                    J[1, i, j, k] = j1
+                    J[2, i, j, k] = j2
+            elif advect:
+                for k in range(nz):
+                    cc = c[i, j, k]
+                    J[0, i, j, k] = ((J[0, i, j, k] * a + ((g[0, i, j, k] - e0) * cc) * b)
+                                     - cc * u[0, i, j, k])
+                    J[1, i, j, k] = ((J[1, i, j, k] * a + ((g[1, i, j, k] - e1) * cc) * b)
+                                     - cc * u[1, i, j, k])
+                    J[2, i, j, k] = ((J[2, i, j, k] * a + ((g[2, i, j, k] - e2) * cc) * b)
+                                     - cc * u[2, i, j, k])
+            else:
+                for k in range(nz):
+                    cc = c[i, j, k]
+                    J[0, i, j, k] = J[0, i, j, k] * a + ((g[0, i, j, k] - e0) * cc) * b
+                    J[1, i, j, k] = J[1, i, j, k] * a + ((g[1, i, j, k] - e1) * cc) * b
+                    J[2, i, j, k] = J[2, i, j, k] * a + ((g[2, i, j, k] - e2) * cc) * b
 
 
 @njit(cache=True, nogil=True)

@@ -262,3 +262,61 @@ def test_compiled_bin_sum_is_bincount(compiled_kernels):
     out = np.full((3, 4, 5), np.nan)
     ions._compiled.ions.bin_sum(idx, w, out)
     assert np.array_equal(out, want)
+
+
+@pytest.mark.parametrize("advect", [True, False])
+def test_compiled_ion_passes_are_the_numpy_passes(advect, compiled_kernels):
+    """The ions' flux (rows with surface points swept with their test, the others without),
+    charge density (the species summed along a row) and Coulomb force (ions_kernels) give
+    the numpy passes' bits of kapsel.fluid.ions: surface points in the first and last rows,
+    side by side and alone, rows without any."""
+    from kapsel.fluid import ions
+    rng = np.random.default_rng(4)
+    shape = (4, 5, 6)
+    size = int(np.prod(shape))
+    J0, g, u = (rng.standard_normal((3,) + shape) for _ in range(3))
+    c = rng.random(shape)
+    E = np.array([0.3, -0.1, 0.0])
+    at = np.array([0, 1, 7, 40, 41, 77, size - 1], dtype=np.int64)
+    n = rng.standard_normal((3, at.size))
+    inv_n2 = 1.0 / (n ** 2).sum(axis=0)
+    a, b = 0.7, -1.3
+    want = J0.copy()                           # Ions.step's numpy passes
+    t = np.empty(shape)
+    for d in range(3):
+        want[d] *= a
+        np.subtract(g[d], E[d], out=t)
+        t *= c
+        t *= b
+        want[d] += t
+    Jf = want.reshape(3, -1)
+    Jn = Jf[:, at]
+    tn = Jn[0] * n[0]
+    tn += Jn[1] * n[1]
+    tn += Jn[2] * n[2]
+    tn *= inv_n2
+    for d in range(3):
+        Jf[d, at] = Jn[d] - tn * n[d]
+    if advect:
+        for d in range(3):
+            np.multiply(c, u[d], out=t)
+            want[d] -= t
+    compiled_kernels.on()
+    K = ions._compiled.ions
+    got = J0.copy()
+    K.flux(got, g, E, c, a, b, u, advect, at, n, inv_n2)
+    assert np.array_equal(got.view(np.uint64), want.view(np.uint64))
+    cs, z = rng.random((2,) + shape), np.array([2.0, -1.0])
+    phi, rho_surf = rng.random(shape), rng.standard_normal(shape)
+    rho = np.zeros(shape)
+    for s in range(2):
+        rho = rho + z[s] * cs[s]
+    rho = rho * (1.0 - phi) + rho_surf
+    out = np.full(shape, np.nan)
+    K.charge_density(cs, z, phi, rho_surf, out)
+    assert np.array_equal(out.view(np.uint64), rho.view(np.uint64))
+    force = np.stack([((E[d] - g[d]) * (rho - rho_surf)) * 0.5 for d in range(3)])
+    got_f = np.full((3,) + shape, np.nan)
+    got_f[0] = rho                             # rho_e in out[0], as Ions passes it
+    K.coulomb_force(E, g, got_f[0], rho_surf, 0.5, got_f)
+    assert np.array_equal(got_f.view(np.uint64), force.view(np.uint64))
