@@ -8,6 +8,9 @@ tree before a fusion times the passes the fusion replaced):
 - ``u* after the update``: the ETD1 update of u_hat and the components of u_hat / N for the
   c2r of u* (``project_etd1_velocity``; before 4077578: ``project_etd1`` and three
   ``frame_component`` sweeps);
+- ``LE u and omega for u x omega``: the components of the truncated Cartesian u / N and
+  of its vorticity for their c2r (``velocity_vorticity``; before it: three
+  ``frame_component`` and three ``frame_vorticity_component`` sweeps);
 - ``LE u x omega, contravariant``: ``cross_contravariant`` in place (before 94d94ee: into a
   third array);
 - ``ions charge density`` (2 species) and ``ions flux`` (advected, the surface points of 8
@@ -75,6 +78,17 @@ def worker(n):
             for c in range(3):
                 K.frame_component(uh, *box, 1.0, 0.0, c, False, s)
         out["u* after the update"] = _best(apart)
+    t, c3 = g.empty_complex(None), g.empty_complex(None)
+    if hasattr(spectral_kernels, "velocity_vorticity"):
+        def le():
+            K.velocity_vorticity(uh, *box, 1.0, 0.1, *k1, nl, s, t, c3)
+    else:
+        def le():
+            for c in range(3):
+                K.frame_component(uh, *box, 1.0, 0.1, c, True, s)
+            for c in range(3):
+                K.frame_vorticity_component(uh, *box, 1.0, 0.1, *k1, c, s)
+    out["LE u and omega for u x omega"] = _best(le)
     u, w = rng.standard_normal((3,) + g.shape), rng.standard_normal((3,) + g.shape)
     if spectral_kernels.cross_contravariant.py_func.__code__.co_argcount == 3:
         out["LE u x omega, contravariant"] = _best(lambda: K.cross_contravariant(u, w, 0.1))

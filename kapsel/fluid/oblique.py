@@ -312,13 +312,12 @@ class ObliqueSpectralNS(_ObliqueFrame, SpectralNS):
         u, w = self._u, self._w
         K = _compiled.spectral
         if K is not None:
-            box, inv = gr.dealias_box, self._inv_n
-            for c in range(3):
-                K.frame_component(self.u_hat, *box, inv, g, c, True, a)
-                gr.backward_scalar_truncated(a, u[c])
-            for c in range(3):
-                K.frame_vorticity_component(self.u_hat, *box, inv, g, *self._k1, c, a)
-                gr.backward_scalar_truncated(a, w[c])
+            box, inv = gr.dealias_box, self._inv_n    # u and omega in one sweep (nl is
+            K.velocity_vorticity(self.u_hat, *box, inv, g, *self._k1, nl, a, b, wc)
+            for c in range(3):                         # free until u x omega's transform)
+                gr.backward_scalar_truncated(nl[c], u[c])
+            for c, x in enumerate((a, b, wc)):
+                gr.backward_scalar_truncated(x, w[c])
             K.cross_contravariant(u, w, g)
             n = w
         else:

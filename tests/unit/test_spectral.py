@@ -610,3 +610,28 @@ def test_oblique_velocity_and_step_compiled_as_numpy(compiled_kernels):
     out = compiled_kernels.both(run)
     for a, b in zip(*out):
         assert np.array_equal(a, b)
+
+
+@pytest.mark.parametrize("g", [0.0, 0.3])
+def test_velocity_vorticity_is_the_component_kernels(g, compiled_kernels):
+    """velocity_vorticity (the truncated Cartesian u / N and its curl in one sweep, the
+    Lees-Edwards advection's) writes what frame_component (truncated) and
+    frame_vorticity_component write, bit for bit, off the mask too."""
+    from kapsel.fluid import spectral
+    compiled_kernels.on()
+    K = spectral._compiled.spectral
+    grid = Grid((6, 12, 10), 1.0)
+    rng = np.random.default_rng(3)
+    shape = (3,) + grid.cshape
+    uh = rng.standard_normal(shape) + 1j * rng.standard_normal(shape)   # off the mask too
+    box, k1, inv = grid.dealias_box, [np.ascontiguousarray(k) for k in grid.k_axes], 0.01
+    u_ref, w_ref = np.empty(shape, complex), np.empty(shape, complex)
+    for c in range(3):
+        K.frame_component(uh, *box, inv, g, c, True, u_ref[c])
+        K.frame_vorticity_component(uh, *box, inv, g, *k1, c, w_ref[c])
+    v = np.full(shape, np.nan, complex)
+    w = [np.full(grid.cshape, np.nan, complex) for _ in range(3)]
+    K.velocity_vorticity(uh, *box, inv, g, *k1, v, *w)
+    assert np.array_equal(v.view(np.uint64), u_ref.view(np.uint64))
+    for c in range(3):
+        assert np.array_equal(w[c].view(np.uint64), w_ref[c].view(np.uint64))
