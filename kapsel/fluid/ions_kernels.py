@@ -12,6 +12,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from ..mesh.point_sums import add_at
+
 __all__ = ["gradient_component", "charge_density",
            "scale_potential", "coulomb_force", "mask_scaled", "divergence_accumulate",
            "divergence_euler", "flux", "bin_sum"]
@@ -183,43 +185,28 @@ def flux(J, g, E, c, a, b, u, advect, at, n, inv_n2):
     for i in range(nx):
         for j in range(ny):
             base = (i * ny + j) * nz
-            if q < P and at[q] < base + nz:          # a surface point in this row
-                for k in range(nz):
-                    cc = c[i, j, k]
-                    j0 = J[0, i, j, k] * a + ((g[0, i, j, k] - e0) * cc) * b
-                    j1 = J[1, i, j, k] * a + ((g[1, i, j, k] - e1) * cc) * b
-                    j2 = J[2, i, j, k] * a + ((g[2, i, j, k] - e2) * cc) * b
-                    if q < P and at[q] == base + k:
-                        tn = j0 * n[0, q]
-                        tn = tn + j1 * n[1, q]
-                        tn = tn + j2 * n[2, q]
-                        tn = tn * inv_n2[q]
-                        j0 = j0 - tn * n[0, q]
-                        j1 = j1 - tn * n[1, q]
-                        j2 = j2 - tn * n[2, q]
-                        q += 1
-                    if advect:
-                        j0 = j0 - cc * u[0, i, j, k]
-                        j1 = j1 - cc * u[1, i, j, k]
-                        j2 = j2 - cc * u[2, i, j, k]
-                    J[0, i, j, k] = j0
-                    J[1, i, j, k] = j1
-                    J[2, i, j, k] = j2
-            elif advect:
-                for k in range(nz):
-                    cc = c[i, j, k]
-                    J[0, i, j, k] = ((J[0, i, j, k] * a + ((g[0, i, j, k] - e0) * cc) * b)
-                                     - cc * u[0, i, j, k])
-                    J[1, i, j, k] = ((J[1, i, j, k] * a + ((g[1, i, j, k] - e1) * cc) * b)
-                                     - cc * u[1, i, j, k])
-                    J[2, i, j, k] = ((J[2, i, j, k] * a + ((g[2, i, j, k] - e2) * cc) * b)
-                                     - cc * u[2, i, j, k])
-            else:
-                for k in range(nz):
-                    cc = c[i, j, k]
-                    J[0, i, j, k] = J[0, i, j, k] * a + ((g[0, i, j, k] - e0) * cc) * b
-                    J[1, i, j, k] = J[1, i, j, k] * a + ((g[1, i, j, k] - e1) * cc) * b
-                    J[2, i, j, k] = J[2, i, j, k] * a + ((g[2, i, j, k] - e2) * cc) * b
+            surface = q < P and at[q] < base + nz     # a surface point in this row
+            for k in range(nz):
+                cc = c[i, j, k]
+                j0 = J[0, i, j, k] * a + ((g[0, i, j, k] - e0) * cc) * b
+                j1 = J[1, i, j, k] * a + ((g[1, i, j, k] - e1) * cc) * b
+                j2 = J[2, i, j, k] * a + ((g[2, i, j, k] - e2) * cc) * b
+                if surface and q < P and at[q] == base + k:
+                    tn = j0 * n[0, q]
+                    tn = tn + j1 * n[1, q]
+                    tn = tn + j2 * n[2, q]
+                    tn = tn * inv_n2[q]
+                    j0 = j0 - tn * n[0, q]
+                    j1 = j1 - tn * n[1, q]
+                    j2 = j2 - tn * n[2, q]
+                    q += 1
+                if advect:
+                    j0 = j0 - cc * u[0, i, j, k]
+                    j1 = j1 - cc * u[1, i, j, k]
+                    j2 = j2 - cc * u[2, i, j, k]
+                J[0, i, j, k] = j0
+                J[1, i, j, k] = j1
+                J[2, i, j, k] = j2
 
 
 @njit(cache=True, nogil=True)
@@ -230,7 +217,4 @@ def bin_sum(idx, w, out):
     flat = out.reshape(-1)
     for p in range(flat.size):
         flat[p] = 0.0
-    n, s = idx.shape
-    for i in range(n):
-        for j in range(s):
-            flat[idx[i, j]] += w[i, j]
+    add_at(flat, idx, w)

@@ -397,18 +397,7 @@ class ObliqueSpectralNS(_ObliqueFrame, SpectralNS):
             if velocity is not None:
                 self.velocity(out=velocity)
             return
-        nl, inv = self._nl, self._inv_n
-        if self._k0 and any(self.fix_cell):     # the mean set after the sweep
-            z1 = uh[1, 0, 0, 0]
-            for c in range(3):
-                z = uh[c, 0, 0, 0]
-                if c == 0 and g1 != 0.0:        # (_frame_point's products)
-                    nl[0, 0, 0, 0] = complex(z.real * inv + (z1.real * inv) * g1,
-                                             z.imag * inv + (z1.imag * inv) * g1)
-                else:
-                    nl[c, 0, 0, 0] = complex(z.real * inv, z.imag * inv)
-        for c in range(3):                      # 0 off the mask's box: the lines of zeros
-            self.grid.backward_scalar_truncated(nl[c], velocity[c])   # skipped
+        self._velocity_from_nl(velocity, True, g1)     # (0 off the mask's box)
 
     def apply_fix_cell(self):
         """Zero the mean Cartesian velocity along the flagged axes."""
@@ -531,7 +520,7 @@ class ObliqueSpectralNS(_ObliqueFrame, SpectralNS):
         g = self.frame_strain
         d = self._nl          # free between steps
         K = _compiled.spectral
-        if overwrite and K is not None and du.shape == self._n.shape and du.flags.c_contiguous:
+        if overwrite and K is not None and du.shape == self._u.shape and du.flags.c_contiguous:
             K.contravariant_in_place(du, g)
             self.grid.forward(du, out=d)
         else:

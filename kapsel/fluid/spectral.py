@@ -498,18 +498,29 @@ class SpectralNS:
             return
         if made is None:
             self.velocity(out=velocity)
-            return
-        if self._k0 and any(self.fix_cell):     # the mean set after the sweep
-            inv = self._inv_n
+        else:
+            self._velocity_from_nl(velocity, made)
+
+    def _velocity_from_nl(self, out, truncated, strain=0.0):
+        """out <- the c2r of the u_hat / N an update's sweep left in nl
+        (``project_etd1_velocity``, ``project_oblique_etd1_velocity``: Cartesian in the
+        frame of ``strain``), with the lines of zeros skipped if ``truncated``; the mean
+        mode made again from u_hat where FIX_CELL set it after the sweep (the products of
+        ``frame_component``)."""
+        nl, g = self._nl, self.grid
+        if self._k0 and any(self.fix_cell):
+            uh, inv = self.u_hat, self._inv_n
+            z1 = uh[1, 0, 0, 0]
             for c in range(3):
                 z = uh[c, 0, 0, 0]
-                nl[c, 0, 0, 0] = complex(z.real * inv, z.imag * inv)
-        g = self.grid
+                if c == 0 and strain != 0.0:
+                    nl[0, 0, 0, 0] = complex(z.real * inv + (z1.real * inv) * strain,
+                                             z.imag * inv + (z1.imag * inv) * strain)
+                else:
+                    nl[c, 0, 0, 0] = complex(z.real * inv, z.imag * inv)
+        transform = g.backward_scalar_truncated if truncated else g.backward_scalar_raw
         for c in range(3):
-            if made:
-                g.backward_scalar_truncated(nl[c], velocity[c])
-            else:
-                g.backward_scalar_raw(nl[c], velocity[c])
+            transform(nl[c], out[c])
 
     def _add_weighted(self, vh, weight, sign=1):
         """u_hat += sign weight vh, component by component through a complex scalar."""

@@ -699,19 +699,20 @@ def velocity_vorticity(u_hat, mx, my, kz_end, scale, g, kx, ky, kz, v, a, b, c):
                 u1 = _frame_point(u_hat, i, j, k, scale, g, 1)
                 u2 = _frame_point(u_hat, i, j, k, scale, g, 2)
                 w0, w1, w2 = _curl_point(u0, u1, u2, k0, k1, kz[k])
-                v[0, i, j, k] = u0
-                v[1, i, j, k] = u1
-                v[2, i, j, k] = u2
-                a[i, j, k] = w0
-                b[i, j, k] = w1
-                c[i, j, k] = w2
+                _put_six(v, a, b, c, i, j, k, u0, u1, u2, w0, w1, w2)
             for k in range(kb, nzc):
-                v[0, i, j, k] = zero
-                v[1, i, j, k] = zero
-                v[2, i, j, k] = zero
-                a[i, j, k] = zero
-                b[i, j, k] = zero
-                c[i, j, k] = zero
+                _put_six(v, a, b, c, i, j, k, zero, zero, zero, zero, zero, zero)
+
+
+@njit(inline="always")
+def _put_six(v, a, b, c, i, j, k, u0, u1, u2, w0, w1, w2):
+    """v[:, i, j, k] <- (u0, u1, u2), a, b, c [i, j, k] <- w0, w1, w2."""
+    v[0, i, j, k] = u0
+    v[1, i, j, k] = u1
+    v[2, i, j, k] = u2
+    a[i, j, k] = w0
+    b[i, j, k] = w1
+    c[i, j, k] = w2
 
 
 @njit(inline="always")

@@ -92,9 +92,17 @@ def aot_name(slot: str, name: str) -> str:
 
 
 def source_sha256(module: str) -> str:
-    """SHA-256 of a module's source file, found without importing it."""
-    spec = importlib.util.find_spec(module)
-    return hashlib.sha256(Path(spec.origin).read_bytes()).hexdigest()
+    """SHA-256 of a module's source file, found without importing it, and of the package
+    modules it imports relatively (``from ..mesh.point_sums import add_at``: numba code it
+    inlines), so that an edit of either makes the ahead-of-time build stale."""
+    import re
+    text = Path(importlib.util.find_spec(module).origin).read_bytes()
+    digest = hashlib.sha256(text)
+    package = module.rsplit(".", 1)[0]
+    for rel in re.findall(rb"^from (\.+[\w.]*) import", text, flags=re.M):
+        dep = importlib.util.resolve_name(rel.decode(), package)
+        digest.update(Path(importlib.util.find_spec(dep).origin).read_bytes())
+    return digest.hexdigest()
 
 
 def cpu_fingerprint() -> str:

@@ -10,6 +10,8 @@ from __future__ import annotations
 
 from numba import njit
 
+from ..mesh.point_sums import add_at
+
 __all__ = ["slip", "scatter_add", "weights"]
 
 #: the types each kernel is called with (C-contiguous arrays): what kapsel.build_kernels
@@ -48,11 +50,8 @@ def scatter_add(out, idx, w):
     """out[c, idx[i, j]] += w[c, i, j] for every component c, particle i and stencil point j,
     in that order: ``np.add.at(out[c], idx.ravel(), w[c].ravel())`` for c = 0, 1, 2 (the same
     additions in the same order, so the same bits), in one call.  out (3, size) flat."""
-    n, s = idx.shape
     for c in range(3):
-        for i in range(n):
-            for j in range(s):
-                out[c, idx[i, j]] += w[c, i, j]
+        add_at(out[c], idx, w[c])
 
 
 @njit(cache=True, nogil=True)
@@ -62,9 +61,7 @@ def weights(ps, idx, phi, w, clear):
     read back at the points, raised to 1 as np.maximum does (NaN kept), divided; then with
     ``clear`` the points of ``ps`` are 0 again."""
     n, s = idx.shape
-    for i in range(n):
-        for j in range(s):
-            ps[idx[i, j]] += phi[i, j]
+    add_at(ps, idx, phi)
     for i in range(n):
         for j in range(s):
             t = ps[idx[i, j]]

@@ -239,8 +239,11 @@ class SPM:
         K = _compiled.coupling
         if (K is not None and self.idx.flags.c_contiguous and self.phi_i.flags.c_contiguous
                 and self.idx.dtype == np.int64 and self.idx.ndim == 2):
-            self.w = np.empty_like(self.phi_i)           # the same operations, one call
-            K.weights(ps, self.idx, self.phi_i, self.w, self.wall is None)
+            w = getattr(self, "w", None)                # the same operations, one call,
+            if w is None or w.shape != self.phi_i.shape:    # into the last step's array
+                w = np.empty_like(self.phi_i)
+            K.weights(ps, self.idx, self.phi_i, w, self.wall is None)
+            self.w = w
             return
         np.add.at(ps, self.idx.reshape(-1), self.phi_i.reshape(-1))
         s = ps[self.idx]
@@ -422,8 +425,13 @@ class SPM:
         cartesian2oblique), into the buffer u* on the rectangular grid had (done with); on
         the particles' lines only when u* was (its other lines are 0)."""
         lines = {} if self._lines_now is None else {"lines": self._lines_now, "zero": True}
-        return self._to_oblique(du, out=self._du_buf if self._regrid_in_scratch else None,
-                                **lines)
+        return self._to_oblique(du, out=self._regrid_out, **lines)
+
+    @property
+    def _regrid_out(self):
+        """rect: the buffer a re-gridding writes (the increment's, ``_regrid_in_scratch``),
+        or None (a new array)."""
+        return self._du_buf if self._regrid_in_scratch else None
 
     _lines_now = None       # rect: the lines of this step's re-gridding (None: every line)
     _line_mask = None
@@ -452,8 +460,7 @@ class SPM:
             self._lines_now = self._stencil_lines() if self._regrid_in_scratch else None
             lines = {} if self._lines_now is None else {"lines": self._lines_now,
                                                         "zero": False}   # (read there only)
-            self._uc = self._to_rect(self.u, self._du_buf if self._regrid_in_scratch else None,
-                                     **lines)
+            self._uc = self._to_rect(self.u, self._regrid_out, **lines)
             return self._uc
         return self.u
 
